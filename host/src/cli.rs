@@ -1,0 +1,190 @@
+//! The `gridrt` command line: argument definitions and the commands behind them.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{bail, Result};
+use clap::{Parser, Subcommand, ValueEnum};
+use gridrt_shared::layout::{SHADE_EYE_LIGHT, SHADE_NORMAL, SHADE_PRIMITIVE};
+
+use crate::bvh::Aabb;
+use crate::gpu::Gpu;
+use crate::mesh::{self, Mesh};
+use crate::scene::{render_cpu, Scene};
+use crate::subdiv::{self, Scheme, Subdivided};
+use crate::{camera, grid, image_io, stats, triangles};
+
+#[derive(Parser, Debug)]
+#[command(name = "gridrt", version, about = "Ray tracing of triangular grid primitives (micro-meshes) on the GPU and the CPU")]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Render a mesh (or the built-in scene) to a PNG.
+    Render(RenderArgs),
+    /// Print the memory and build time of both representations of a mesh.
+    Stats(StatsArgs),
+}
+
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Backend {
+    /// The GPU if wgpu finds an adapter, otherwise the CPU.
+    Auto,
+    Gpu,
+    Cpu,
+}
+
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    /// Grid primitives: sphere hierarchy per base triangle, BVH over grids.
+    Grid,
+    /// The baseline: every micro-triangle in an indexed list under an SAH BVH.
+    Triangles,
+}
+
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SubdivisionArg {
+    Loop,
+    Flat,
+}
+
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Shading {
+    /// Headlight on a plain material.
+    Eye,
+    /// Geometric normal as colour.
+    Normal,
+    /// One colour per micro-triangle.
+    Primitive,
+}
+
+/// What to build: shared by `render` and `stats`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct BuildArgs {
+    /// Subdivision depth L: every base triangle becomes a grid of 4^L micro-triangles.
+    #[arg(long, short = 'L', default_value_t = 3, value_parser = clap::value_parser!(u32).range(0..=6))]
+    pub levels: u32,
+    #[arg(long, value_enum, default_value_t = SubdivisionArg::Loop)]
+    pub subdivision: SubdivisionArg,
+    /// Levels at the bottom of each grid's sphere hierarchy that get no spheres.
+    #[arg(long, default_value_t = grid::DEFAULT_EXCLUDED_LEVELS, value_parser = clap::value_parser!(u32).range(1..=3))]
+    pub excluded_levels: u32,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct RenderArgs {
+    /// Mesh to render (.obj or .ply); the built-in scene when absent.
+    pub mesh: Option<PathBuf>,
+    #[arg(long, value_enum, default_value_t = Backend::Auto)]
+    pub backend: Backend,
+    #[arg(long, value_enum, default_value_t = Mode::Grid)]
+    pub mode: Mode,
+    #[command(flatten)]
+    pub build: BuildArgs,
+    /// Depth to render, at most L (level of detail from the same data); L when absent.
+    #[arg(long)]
+    pub lod: Option<u32>,
+    #[arg(long, default_value_t = 960)]
+    pub width: u32,
+    #[arg(long, default_value_t = 720)]
+    pub height: u32,
+    #[arg(long, value_enum, default_value_t = Shading::Eye)]
+    pub shading: Shading,
+    #[arg(long, short, default_value = "render.png")]
+    pub output: PathBuf,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct StatsArgs {
+    /// Mesh to measure (.obj or .ply); the built-in scene when absent.
+    pub mesh: Option<PathBuf>,
+    #[command(flatten)]
+    pub build: BuildArgs,
+    /// Print one JSON object instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        Command::Render(args) => render(&args),
+        Command::Stats(args) => stats::run(&args),
+    }
+}
+
+/// The mesh named on the command line, or the built-in scene; with a display name.
+pub fn load(path: Option<&Path>) -> Result<(String, Mesh)> {
+    match path {
+        Some(p) => Ok((p.display().to_string(), mesh::load_mesh(p)?)),
+        None => Ok(("default scene".to_string(), mesh::scene::default_scene())),
+    }
+}
+
+pub fn subdivide(mesh: &Mesh, build: &BuildArgs) -> Subdivided {
+    let scheme = match build.subdivision {
+        SubdivisionArg::Loop => Scheme::Loop,
+        SubdivisionArg::Flat => Scheme::Flat,
+    };
+    subdiv::subdivide(mesh, build.levels, scheme)
+}
+
+fn render(args: &RenderArgs) -> Result<()> {
+    if args.width == 0 || args.height == 0 {
+        bail!("the image must be at least 1x1 pixels");
+    }
+    let lod = args.lod.unwrap_or(args.build.levels);
+    if lod > args.build.levels {
+        bail!("--lod {lod} is deeper than --levels {}", args.build.levels);
+    }
+    let (name, mesh) = load(args.mesh.as_deref())?;
+    let started = Instant::now();
+    let sub = subdivide(&mesh, &args.build);
+    let scene = match args.mode {
+        Mode::Grid => {
+            let mut g = grid::build(&mesh, &sub, args.build.excluded_levels)?;
+            g.set_lod(lod)?;
+            Scene::Grids(g)
+        }
+        Mode::Triangles => Scene::Triangles(triangles::build(&sub.positions, &sub.micro_triangles(lod))),
+    };
+    eprintln!(
+        "{name}: {} base triangles, {} micro-triangles at depth {lod}, built in {:.2} s",
+        mesh.triangles.len(),
+        mesh.triangles.len() as u64 * 4u64.pow(lod),
+        started.elapsed().as_secs_f64()
+    );
+    let bounds = Aabb::from_points(sub.positions.iter().copied());
+    let shading = match args.shading {
+        Shading::Eye => SHADE_EYE_LIGHT,
+        Shading::Normal => SHADE_NORMAL,
+        Shading::Primitive => SHADE_PRIMITIVE,
+    };
+    let frame = scene.frame(camera::frame(&bounds, args.width, args.height), shading);
+    let started = Instant::now();
+    let (pixels, device) = match args.backend {
+        Backend::Cpu => (render_cpu(&scene, &frame), "CPU".to_string()),
+        Backend::Gpu => {
+            let gpu = Gpu::new()?;
+            (gpu.render(&scene, &frame)?, gpu.describe())
+        }
+        Backend::Auto => match Gpu::new() {
+            Ok(gpu) => (gpu.render(&scene, &frame)?, gpu.describe()),
+            Err(e) => {
+                eprintln!("note: {e:#}; rendering on the CPU");
+                (render_cpu(&scene, &frame), "CPU".to_string())
+            }
+        },
+    };
+    image_io::write_png(&args.output, &pixels, args.width, args.height)?;
+    eprintln!(
+        "rendered {}x{} on {device} in {:.3} s -> {}",
+        args.width,
+        args.height,
+        started.elapsed().as_secs_f64(),
+        args.output.display()
+    );
+    Ok(())
+}

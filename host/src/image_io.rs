@@ -1,0 +1,27 @@
+//! PNG output and image comparison.
+
+use std::path::Path;
+
+use anyhow::{Context, Result};
+
+/// Writes packed RGBA8 pixels (red in the low byte) as a PNG.
+pub fn write_png(path: &Path, pixels: &[u32], width: u32, height: u32) -> Result<()> {
+    let bytes: Vec<u8> = pixels.iter().flat_map(|p| p.to_le_bytes()).collect();
+    image::save_buffer(path, &bytes, width, height, image::ColorType::Rgba8)
+        .with_context(|| format!("{}: cannot write PNG", path.display()))
+}
+
+/// Largest per-channel difference of two pixels.
+pub fn pixel_difference(a: u32, b: u32) -> u32 {
+    (0..4)
+        .map(|c| ((a >> (8 * c)) & 0xff).abs_diff((b >> (8 * c)) & 0xff))
+        .max()
+        .unwrap_or(0)
+}
+
+/// Fraction of pixels whose every channel differs by at most `tolerance`.
+pub fn fraction_within(a: &[u32], b: &[u32], tolerance: u32) -> f64 {
+    assert_eq!(a.len(), b.len(), "images of different sizes");
+    let close = a.iter().zip(b).filter(|(x, y)| pixel_difference(**x, **y) <= tolerance).count();
+    close as f64 / a.len().max(1) as f64
+}

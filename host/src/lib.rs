@@ -1,0 +1,17 @@
+//! gridrt: a ray tracer for triangular grid primitives (micro-meshes) on ordinary GPUs.
+//!
+//! Data flows one way: [`mesh`] loads a base mesh, [`subdiv`] subdivides it, [`grid`] and
+//! [`triangles`] build the two representations (each over [`bvh`]), and [`scene`] (CPU) or
+//! [`gpu`] traces them with the one implementation in `gridrt_shared`.
+
+pub mod bvh;
+pub mod camera;
+pub mod cli;
+pub mod gpu;
+pub mod grid;
+pub mod image_io;
+pub mod mesh;
+pub mod scene;
+pub mod stats;
+pub mod subdiv;
+pub mod triangles;

@@ -1,0 +1,220 @@
+//! Triangle meshes as loaded from disk (OBJ, PLY) or generated in code.
+
+use std::path::Path;
+
+use anyhow::{anyhow, bail};
+use gridrt_shared::glam::Vec3;
+
+pub mod obj;
+pub mod ply;
+pub mod scene;
+
+/// A triangle mesh as loaded: positions and counter-clockwise triangles.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Mesh {
+    pub positions: Vec<Vec3>,
+    pub triangles: Vec<[u32; 3]>,
+}
+
+impl Mesh {
+    /// Min/max over all positions; `(Vec3::INFINITY, Vec3::NEG_INFINITY)` for an empty mesh so that
+    /// merging bounds needs no special case.
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        self.positions.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)))
+    }
+
+    /// Checks and cleans a freshly loaded mesh: error if any position is not finite (name the first offending
+    /// vertex index), if any index is out of range (name triangle and index), or if no triangle is left; triangles
+    /// that repeat a vertex index are dropped and their count returned. `source` is the file name used in messages.
+    pub fn validate(mut self, source: &str) -> anyhow::Result<(Mesh, usize)> {
+        if let Some(i) = self.positions.iter().position(|p| !p.is_finite()) {
+            let p = self.positions[i];
+            bail!("{source}: vertex {i} has a non-finite coordinate ({}, {}, {})", p.x, p.y, p.z);
+        }
+        let n = self.positions.len();
+        for (t, tri) in self.triangles.iter().enumerate() {
+            if let Some(&i) = tri.iter().find(|&&i| i as usize >= n) {
+                bail!("{source}: triangle {t} refers to vertex {i} but the mesh has {n} vertices");
+            }
+        }
+        let before = self.triangles.len();
+        self.triangles.retain(|&[a, b, c]| a != b && b != c && c != a);
+        let dropped = before - self.triangles.len();
+        if self.triangles.is_empty() {
+            if dropped > 0 {
+                bail!("{source}: no triangles left after dropping {dropped} degenerate triangles (repeated vertex)");
+            }
+            bail!("{source}: no triangles");
+        }
+        Ok((self, dropped))
+    }
+}
+
+/// Loads .obj or .ply (case-insensitive extension) and validates it. Every error is one line that starts with the
+/// file path. Dropped degenerate triangles are reported as one warning line on stderr.
+pub fn load_mesh(path: &Path) -> anyhow::Result<Mesh> {
+    let (mesh, dropped) = load_mesh_quiet(path)?;
+    if dropped > 0 {
+        eprintln!("warning: {}: dropped {dropped} degenerate triangles (repeated vertex)", path.display());
+    }
+    Ok(mesh)
+}
+
+/// [`load_mesh`] without the warning: returns the number of dropped degenerate triangles instead.
+pub fn load_mesh_quiet(path: &Path) -> anyhow::Result<(Mesh, usize)> {
+    let name = path.display().to_string();
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    let parse: fn(&[u8]) -> anyhow::Result<Mesh> = match ext.as_deref() {
+        Some("obj") => obj::parse_obj,
+        Some("ply") => ply::parse_ply,
+        _ => bail!("{name}: unsupported format (expected .obj or .ply)"),
+    };
+    let bytes = std::fs::read(path).map_err(|e| anyhow!("{name}: cannot open: {}", io_reason(&e)))?;
+    if bytes.is_empty() {
+        bail!("{name}: no triangles (empty file)");
+    }
+    // `{:#}` flattens any context chain so the message stays on one line.
+    let mesh = parse(&bytes).map_err(|e| anyhow!("{name}: {}", one_line(&format!("{e:#}"))))?;
+    mesh.validate(&name)
+}
+
+/// The OS reason without Rust's " (os error 2)" suffix: `No such file or directory`.
+fn io_reason(e: &std::io::Error) -> String {
+    let s = e.to_string();
+    match s.rfind(" (os error ") {
+        Some(i) => s[..i].to_string(),
+        None => s,
+    }
+}
+
+/// Guards the one-line promise against messages that quote file content.
+fn one_line(s: &str) -> String {
+    s.replace(['\n', '\r'], " ")
+}
+
+/// Shortens and escapes a token from the file for an error message.
+pub(crate) fn quote(token: &str) -> String {
+    const MAX: usize = 32;
+    match token.char_indices().nth(MAX) {
+        Some((i, _)) => format!("{:?}...", &token[..i]),
+        None => format!("{token:?}"),
+    }
+}
+
+/// Shared helpers for the loader tests: unique scratch files and error checks.
+#[cfg(test)]
+pub(crate) mod test_util {
+    use std::path::PathBuf;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+
+    use super::*;
+
+    /// Writes `bytes` to a fresh file named `name` in a per-process, per-call temp folder.
+    pub fn write_temp(name: &str, bytes: &[u8]) -> PathBuf {
+        static COUNTER: AtomicUsize = AtomicUsize::new(0);
+        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+        let dir = std::env::temp_dir().join(format!("gridrt-mesh-test-{}-{n}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join(name);
+        std::fs::write(&path, bytes).unwrap();
+        path
+    }
+
+    /// Loads `bytes` as file `name` and asserts a one-line error naming the path and containing every `needles`.
+    pub fn expect_err(name: &str, bytes: &[u8], needles: &[&str]) -> String {
+        let path = write_temp(name, bytes);
+        let result = std::panic::catch_unwind(|| load_mesh_quiet(&path));
+        let msg = match result {
+            Ok(Ok((m, _))) => panic!("{name}: expected an error, loaded {} triangles", m.triangles.len()),
+            Ok(Err(e)) => format!("{e:#}"),
+            Err(_) => panic!("{name}: loader panicked"),
+        };
+        let shown = path.display().to_string();
+        assert!(msg.starts_with(&format!("{shown}: ")), "message does not start with the path: {msg}");
+        assert!(!msg.contains('\n'), "message is not one line: {msg}");
+        for needle in needles {
+            assert!(msg.contains(needle), "message lacks {needle:?}: {msg}");
+        }
+        msg
+    }
+
+    /// Loads `bytes` as file `name`, expecting success.
+    pub fn load_ok(name: &str, bytes: &[u8]) -> (Mesh, usize) {
+        let path = write_temp(name, bytes);
+        load_mesh_quiet(&path).unwrap_or_else(|e| panic!("{e:#}"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::test_util::*;
+    use super::*;
+
+    #[test]
+    fn validate_drops_degenerates_and_rejects_bad_meshes() {
+        let p = vec![Vec3::ZERO, Vec3::X, Vec3::Y];
+        let mesh = Mesh { positions: p.clone(), triangles: vec![[0, 1, 2], [0, 0, 1], [2, 1, 2]] };
+        let (clean, dropped) = mesh.validate("m").unwrap();
+        assert_eq!((clean.triangles, dropped), (vec![[0, 1, 2]], 2));
+
+        let oob = Mesh { positions: p.clone(), triangles: vec![[0, 1, 2], [0, 1, 7]] };
+        let e = oob.validate("m").unwrap_err().to_string();
+        assert!(e.contains("m: triangle 1 refers to vertex 7"), "{e}");
+
+        let mut nan = Mesh { positions: p.clone(), triangles: vec![[0, 1, 2]] };
+        nan.positions[1].y = f32::NAN;
+        let e = nan.validate("m").unwrap_err().to_string();
+        assert!(e.contains("m: vertex 1 has a non-finite"), "{e}");
+
+        let e = Mesh::default().validate("m").unwrap_err().to_string();
+        assert_eq!(e, "m: no triangles");
+        let e = Mesh { positions: p, triangles: vec![[1, 1, 1]] }.validate("m").unwrap_err().to_string();
+        assert!(e.starts_with("m: no triangles left"), "{e}");
+    }
+
+    #[test]
+    fn bounds_cover_all_positions() {
+        let m = Mesh { positions: vec![Vec3::new(1.0, -2.0, 3.0), Vec3::new(-1.0, 5.0, 0.0)], triangles: vec![] };
+        assert_eq!(m.bounds(), (Vec3::new(-1.0, -2.0, 0.0), Vec3::new(1.0, 5.0, 3.0)));
+    }
+
+    #[test]
+    fn generic_errors() {
+        expect_err("empty.obj", b"", &["no triangles"]);
+        expect_err("empty.ply", b"", &["no triangles"]);
+        expect_err("x.stl", b"solid x\n", &["unsupported format (expected .obj or .ply)"]);
+        expect_err("noext", b"v 0 0 0\n", &["unsupported format"]);
+        let missing = std::env::temp_dir().join("gridrt-definitely-missing-dir/missing.obj");
+        let e = format!("{:#}", load_mesh(&missing).unwrap_err());
+        assert_eq!(e, format!("{}: cannot open: No such file or directory", missing.display()));
+    }
+
+    #[test]
+    fn extension_is_case_insensitive() {
+        let (m, _) = load_ok("upper.OBJ", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+        assert_eq!(m.triangles.len(), 1);
+        let (m, _) = load_ok("upper.PlY", b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+        assert_eq!(m.triangles.len(), 1);
+    }
+
+    /// The Stanford/npm meshes shipped next to the project; skipped when the folder is absent.
+    #[test]
+    fn real_meshes_load() {
+        let dir = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/meshes"));
+        if !dir.is_dir() {
+            println!("skipping real_meshes_load: {} is missing", dir.display());
+            return;
+        }
+        for (file, tris, verts) in [
+            ("bunny.obj", 3674, 1839),
+            ("teapot.obj", 992, 792),
+            ("dragon_res4.ply", 11102, 5205),
+            ("dragon_res3.ply", 47794, 22998),
+        ] {
+            let (m, dropped) = load_mesh_quiet(&dir.join(file)).unwrap_or_else(|e| panic!("{e:#}"));
+            let (lo, hi) = m.bounds();
+            println!("{file}: {} triangles, {} vertices, {dropped} dropped, bounds {lo} .. {hi}", m.triangles.len(), m.positions.len());
+            assert_eq!((m.triangles.len() + dropped, m.positions.len()), (tris, verts), "{file}");
+        }
+    }
+}

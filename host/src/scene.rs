@@ -1,0 +1,69 @@
+//! A scene ready to trace, in either representation, and how to trace it on the CPU.
+
+use gridrt_shared::camera::primary_ray;
+use gridrt_shared::layout::{Camera, FrameParams, GridParams, Hit};
+use gridrt_shared::ray::{Ray, T_FAR};
+use gridrt_shared::shade::{pack_rgba8, shade};
+use gridrt_shared::traverse::{trace_grids, trace_triangles};
+use rayon::prelude::*;
+
+use crate::grid::GridScene;
+use crate::triangles::TriangleScene;
+
+pub enum Scene {
+    Triangles(TriangleScene),
+    Grids(GridScene),
+}
+
+impl Scene {
+    /// Closest hit, by the same `gridrt_shared` code the kernels run.
+    pub fn trace(&self, ray: &Ray, t_max: f32) -> Hit {
+        match self {
+            Scene::Triangles(s) => trace_triangles(&s.nodes, &s.view(), ray, t_max),
+            Scene::Grids(s) => trace_grids(&s.nodes, &s.view(), ray, t_max),
+        }
+    }
+
+    /// The dispatch parameters for this scene under `camera`.
+    pub fn frame(&self, camera: Camera, shading: u32) -> FrameParams {
+        FrameParams {
+            camera,
+            grid: match self {
+                Scene::Triangles(_) => GridParams::default(),
+                Scene::Grids(s) => s.params,
+            },
+            shading,
+            _pad: [0; 3],
+        }
+    }
+
+    /// Maps a hit's primitive to the micro-triangle numbering of
+    /// `Subdivided::micro_triangles` (or the input numbering for a plain triangle mesh).
+    pub fn original_triangle(&self, prim: u32) -> u32 {
+        match self {
+            Scene::Triangles(s) => s.original[prim as usize],
+            Scene::Grids(s) => s.micro_triangle_id(prim),
+        }
+    }
+
+    pub fn memory(&self) -> Vec<(&'static str, usize)> {
+        match self {
+            Scene::Triangles(s) => s.memory(),
+            Scene::Grids(s) => s.memory(),
+        }
+    }
+}
+
+/// Renders on the CPU, rows in parallel: packed RGBA8, row-major, top row first.
+pub fn render_cpu(scene: &Scene, frame: &FrameParams) -> Vec<u32> {
+    let (w, h) = (frame.camera.width, frame.camera.height);
+    let mut image = vec![0u32; (w * h) as usize];
+    image.par_chunks_mut(w as usize).enumerate().for_each(|(y, row)| {
+        for (x, px) in row.iter_mut().enumerate() {
+            let ray = primary_ray(&frame.camera, x as u32, y as u32);
+            let hit = scene.trace(&ray, T_FAR);
+            *px = pack_rgba8(shade(&hit, &ray, frame.shading));
+        }
+    });
+    image
+}

@@ -1,0 +1,103 @@
+//! `gridrt stats`: memory and build time of both representations of one mesh.
+
+use std::time::Instant;
+
+use anyhow::Result;
+use serde::Serialize;
+use serde_json::{Map, Value};
+
+use crate::cli::{self, BuildArgs, StatsArgs};
+use crate::mesh::Mesh;
+use crate::subdiv::Subdivided;
+use crate::{grid, triangles};
+
+/// Builds timed per representation; the median is reported.
+pub const BUILD_REPEATS: usize = 3;
+
+#[derive(Serialize, Debug, Clone)]
+pub struct Representation {
+    pub bytes: usize,
+    pub bytes_per_triangle: f64,
+    pub build_seconds: f64,
+    pub parts: Map<String, Value>,
+}
+
+#[derive(Serialize, Debug, Clone)]
+pub struct Stats {
+    pub mesh: String,
+    pub levels: u32,
+    pub base_triangles: usize,
+    pub micro_triangles: usize,
+    pub grid: Representation,
+    pub triangles: Representation,
+    pub compression_gain: f64,
+    pub construction_gain: f64,
+}
+
+/// Median wall time of `repeats` runs of `f`, and the last result.
+pub fn median_time<T>(repeats: usize, mut f: impl FnMut() -> T) -> (f64, T) {
+    let mut times = Vec::with_capacity(repeats);
+    let mut last = None;
+    for _ in 0..repeats.max(1) {
+        let start = Instant::now();
+        last = Some(f());
+        times.push(start.elapsed().as_secs_f64());
+    }
+    times.sort_by(f64::total_cmp);
+    (times[times.len() / 2], last.unwrap())
+}
+
+fn representation(parts: Vec<(&'static str, usize)>, micro: usize, seconds: f64) -> Representation {
+    let bytes = parts.iter().map(|p| p.1).sum();
+    Representation {
+        bytes,
+        bytes_per_triangle: bytes as f64 / micro.max(1) as f64,
+        build_seconds: seconds,
+        parts: parts.into_iter().map(|(k, v)| (k.to_string(), Value::from(v))).collect(),
+    }
+}
+
+/// Measures both representations of `mesh` subdivided as `sub`. The grid build time covers
+/// headers, vertex areas, sphere radii and the top-level BVH; the triangle build time the SAH
+/// BVH over all micro-triangles. The subdivision both share is not counted.
+pub fn measure(name: &str, mesh: &Mesh, sub: &Subdivided, build: &BuildArgs, repeats: usize) -> Result<Stats> {
+    let micro_list = sub.micro_triangles(sub.levels);
+    let (grid_s, grids) = median_time(repeats, || grid::build(mesh, sub, build.excluded_levels));
+    let grids = grids?;
+    let (tri_s, tris) = median_time(repeats, || triangles::build(&sub.positions, &micro_list));
+    let micro = micro_list.len();
+    let grid = representation(grids.memory(), micro, grid_s);
+    let triangles = representation(tris.memory(), micro, tri_s);
+    Ok(Stats {
+        mesh: name.to_string(),
+        levels: sub.levels,
+        base_triangles: mesh.triangles.len(),
+        micro_triangles: micro,
+        compression_gain: triangles.bytes as f64 / grid.bytes.max(1) as f64,
+        construction_gain: triangles.build_seconds / grid.build_seconds.max(1e-12),
+        grid,
+        triangles,
+    })
+}
+
+pub fn run(args: &StatsArgs) -> Result<()> {
+    let (name, mesh) = cli::load(args.mesh.as_deref())?;
+    let sub = cli::subdivide(&mesh, &args.build);
+    let s = measure(&name, &mesh, &sub, &args.build, BUILD_REPEATS)?;
+    if args.json {
+        println!("{}", serde_json::to_string(&s)?);
+        return Ok(());
+    }
+    println!("{}: L = {}, {} base triangles, {} micro-triangles", s.mesh, s.levels, s.base_triangles, s.micro_triangles);
+    for (label, r) in [("grid", &s.grid), ("triangles", &s.triangles)] {
+        println!(
+            "  {label:<10} {:>12} bytes  {:>6.2} B/triangle  build {:>9.4} s",
+            r.bytes, r.bytes_per_triangle, r.build_seconds
+        );
+        for (part, bytes) in &r.parts {
+            println!("    {part:<16} {bytes:>12}");
+        }
+    }
+    println!("  compression gain {:.2}x, construction gain {:.1}x", s.compression_gain, s.construction_gain);
+    Ok(())
+}

@@ -1,0 +1,53 @@
+//! The baseline: micro-triangles as a plain indexed triangle list under a full SAH BVH.
+
+use gridrt_shared::glam::Vec3;
+use gridrt_shared::layout::BvhNode;
+
+use crate::bvh::{self, Aabb, BuildParams};
+
+#[derive(Clone, Debug)]
+pub struct TriangleScene {
+    pub nodes: Vec<BvhNode>,
+    /// xyz per vertex.
+    pub positions: Vec<f32>,
+    /// Three per triangle, in BVH leaf order.
+    pub indices: Vec<u32>,
+    /// `original[slot]`: the input index of the triangle stored at `slot`.
+    pub original: Vec<u32>,
+}
+
+/// Builder settings of the baseline: the usual SAH with leaves of up to four triangles.
+pub fn build_params() -> BuildParams {
+    BuildParams::default()
+}
+
+pub fn build(positions: &[Vec3], triangles: &[[u32; 3]]) -> TriangleScene {
+    let boxes: Vec<Aabb> = triangles
+        .iter()
+        .map(|t| Aabb::from_points(t.iter().map(|&v| positions[v as usize])))
+        .collect();
+    let bvh = bvh::build(&boxes, &build_params());
+    TriangleScene {
+        nodes: bvh.nodes,
+        positions: positions.iter().flat_map(|v| v.to_array()).collect(),
+        indices: bvh.order.iter().flat_map(|&t| triangles[t as usize]).collect(),
+        original: bvh.order,
+    }
+}
+
+impl TriangleScene {
+    pub fn view(&self) -> gridrt_shared::traverse::TriangleMesh<'_> {
+        gridrt_shared::traverse::TriangleMesh {
+            positions: &self.positions,
+            indices: &self.indices,
+        }
+    }
+
+    pub fn memory(&self) -> Vec<(&'static str, usize)> {
+        vec![
+            ("bvh", std::mem::size_of_val(self.nodes.as_slice())),
+            ("vertices", std::mem::size_of_val(self.positions.as_slice())),
+            ("indices", std::mem::size_of_val(self.indices.as_slice())),
+        ]
+    }
+}

@@ -1,0 +1,59 @@
+//! The GPU entry points: one thread per pixel, each a thin wrapper around `gridrt_shared`.
+#![cfg_attr(target_arch = "spirv", no_std)]
+
+use gridrt_shared::camera::primary_ray;
+use gridrt_shared::glam::UVec3;
+use gridrt_shared::ray::T_FAR;
+use gridrt_shared::layout::{BvhNode, FrameParams, GridHeader, WORKGROUP_SIZE};
+use gridrt_shared::shade::{pack_rgba8, shade};
+use gridrt_shared::traverse::{trace_grids, trace_triangles, GridScene, TriangleMesh};
+use spirv_std::spirv;
+
+/// The baseline: a triangle BVH over an indexed triangle list.
+#[spirv(compute(threads(8, 8, 1)))]
+pub fn render_triangles(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &FrameParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] nodes: &[BvhNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] positions: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] indices: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] image: &mut [u32],
+) {
+    let cam = &params.camera;
+    if id.x >= cam.width || id.y >= cam.height {
+        return;
+    }
+    let ray = primary_ray(cam, id.x, id.y);
+    let mesh = TriangleMesh { positions, indices };
+    let hit = trace_triangles(nodes, &mesh, &ray, T_FAR);
+    image[(id.y * cam.width + id.x) as usize] = pack_rgba8(shade(&hit, &ray, params.shading));
+}
+
+/// Grid primitives: top-level BVH over grids, sphere hierarchy inside each.
+#[spirv(compute(threads(8, 8, 1)))]
+pub fn render_grids(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &FrameParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] nodes: &[BvhNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] headers: &[GridHeader],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] vertices: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] radii: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] image: &mut [u32],
+) {
+    let cam = &params.camera;
+    if id.x >= cam.width || id.y >= cam.height {
+        return;
+    }
+    let ray = primary_ray(cam, id.x, id.y);
+    let scene = GridScene {
+        headers,
+        vertices,
+        radii,
+        params: params.grid,
+    };
+    let hit = trace_grids(nodes, &scene, &ray, T_FAR);
+    image[(id.y * cam.width + id.x) as usize] = pack_rgba8(shade(&hit, &ray, params.shading));
+}
+
+// The workgroup size above is a literal because attribute arguments cannot name constants.
+const _: () = assert!(WORKGROUP_SIZE == 8);

@@ -1,0 +1,61 @@
+use crate::glam::Vec3;
+use crate::ray::{Ray, T_FAR};
+
+/// Slab test. Returns the entry distance when the box overlaps `[0, t_max]` along the ray,
+/// otherwise `T_FAR`. NaNs from `0 * inf` (ray in a slab plane) are discarded by
+/// `min`/`max`, which return the non-NaN operand.
+#[inline]
+pub fn intersect_aabb(min: Vec3, max: Vec3, ray: &Ray, t_max: f32) -> f32 {
+    let t0 = (min - ray.origin) * ray.inv_dir;
+    let t1 = (max - ray.origin) * ray.inv_dir;
+    let near = t0.min(t1);
+    let far = t0.max(t1);
+    let t_enter = near.x.max(near.y).max(near.z).max(0.0);
+    let t_exit = far.x.min(far.y).min(far.z).min(t_max);
+    if t_enter <= t_exit {
+        t_enter
+    } else {
+        T_FAR
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn test(o: [f32; 3], d: [f32; 3], t_max: f32) -> f32 {
+        intersect_aabb(Vec3::ZERO, Vec3::ONE, &Ray::new(Vec3::from(o), Vec3::from(d)), t_max)
+    }
+
+    #[test]
+    fn entry_distance_and_misses() {
+        assert_eq!(test([0.5, 0.5, -1.0], [0.0, 0.0, 1.0], T_FAR), 1.0);
+        assert_eq!(test([0.5, 0.5, -1.0], [0.0, 0.0, -1.0], T_FAR), T_FAR);
+        assert_eq!(test([1.5, 0.5, -1.0], [0.0, 0.0, 1.0], T_FAR), T_FAR);
+        assert_eq!(test([0.5, 0.5, -1.0], [0.0, 0.0, 1.0], 0.5), T_FAR);
+    }
+
+    #[test]
+    fn origin_inside_enters_at_zero() {
+        assert_eq!(test([0.5, 0.5, 0.5], [0.3, -0.2, 1.0], T_FAR), 0.0);
+    }
+
+    #[test]
+    fn axis_parallel_rays_on_a_face_plane() {
+        // Zero direction components give infinite reciprocals; a ray lying in the plane of a
+        // face must not turn into NaNs that accept or reject everything.
+        assert_eq!(test([0.0, 0.5, -1.0], [0.0, 0.0, 1.0], T_FAR), 1.0);
+        assert_eq!(test([-0.1, 0.5, -1.0], [0.0, 0.0, 1.0], T_FAR), T_FAR);
+    }
+
+    #[test]
+    fn flat_box_is_hit() {
+        let b = intersect_aabb(
+            Vec3::new(0.0, 0.0, 0.5),
+            Vec3::new(1.0, 1.0, 0.5),
+            &Ray::new(Vec3::new(0.5, 0.5, 0.0), Vec3::Z),
+            T_FAR,
+        );
+        assert_eq!(b, 0.5);
+    }
+}

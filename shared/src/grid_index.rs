@@ -1,0 +1,366 @@
+//! Implicit indexing of a grid primitive: nothing here is stored, everything is arithmetic.
+//!
+//! A grid is a base triangle subdivided `L` times. Its vertices sit on a triangular lattice
+//! `(i, j)`, `i, j >= 0`, `i + j <= n` with `n = 2^L`; corner 0 is `(0, 0)`, corner 1 `(n, 0)`,
+//! corner 2 `(0, n)`, and the position of `(i, j)` belongs to the barycentric point
+//! `(1 - (i + j) / n, i / n, j / n)` of the base triangle.
+//!
+//! Sub-triangles follow the subdivision recursion: the children of `(a, b, c)` with edge
+//! midpoints `ab`, `bc`, `ca` are `(a, ab, ca)`, `(ab, b, bc)`, `(ca, bc, c)` and the inverted
+//! middle `(bc, ca, ab)`, all with the parent's winding. A sub-triangle at level `l` is named by
+//! its index `p < 4^l`, whose base-4 digits (most significant first) are the children taken
+//! from the root. In breadth-first order its node id is `(4^l - 1) / 3 + p`, so the children of
+//! node `id` are `4 id + 1 ..= 4 id + 4`.
+
+use crate::layout::GridHeader;
+
+/// A lattice point `(i, j)` of a grid.
+pub type Lattice = [u32; 2];
+
+/// Lattice edge length of a grid of depth `levels`.
+#[inline]
+pub const fn grid_size(levels: u32) -> u32 {
+    1 << levels
+}
+
+/// All lattice vertices of a grid, corners and edges included.
+#[inline]
+pub const fn vertex_count(levels: u32) -> u32 {
+    let n = grid_size(levels);
+    (n + 1) * (n + 2) / 2
+}
+
+/// Vertices strictly inside a grid (owned by that grid alone).
+#[inline]
+pub const fn inner_vertex_count(levels: u32) -> u32 {
+    let n = grid_size(levels);
+    if n < 3 {
+        0
+    } else {
+        (n - 1) * (n - 2) / 2
+    }
+}
+
+/// Vertices strictly inside one base edge.
+#[inline]
+pub const fn edge_vertex_count(levels: u32) -> u32 {
+    grid_size(levels) - 1
+}
+
+/// Micro-triangles of a grid rendered at depth `levels`.
+#[inline]
+pub const fn triangle_count(levels: u32) -> u32 {
+    1 << (2 * levels)
+}
+
+/// First breadth-first node id of `level`: `(4^level - 1) / 3`.
+#[inline]
+pub const fn level_start(level: u32) -> u32 {
+    ((1u32 << (2 * level)) - 1) / 3
+}
+
+/// Spheres stored per grid when levels `0 ..= leaf_level` have one.
+#[inline]
+pub const fn sphere_count(leaf_level: u32) -> u32 {
+    level_start(leaf_level + 1)
+}
+
+/// Row-major position of `(i, j)` among all lattice vertices (rows of constant `j`).
+#[inline]
+pub const fn lattice_index(i: u32, j: u32, n: u32) -> u32 {
+    j * (n + 1) - (j * j - j) / 2 + i
+}
+
+/// The inverse of [`lattice_index`].
+pub const fn lattice_from_index(index: u32, n: u32) -> Lattice {
+    let mut j = 0;
+    let mut start = 0;
+    while start + (n + 1 - j) <= index {
+        start += n + 1 - j;
+        j += 1;
+    }
+    [index - start, j]
+}
+
+#[inline]
+const fn midpoint(a: Lattice, b: Lattice) -> Lattice {
+    [(a[0] + b[0]) / 2, (a[1] + b[1]) / 2]
+}
+
+/// Corners of child `digit` (0..4) of the sub-triangle `(a, b, c)`.
+#[inline]
+pub const fn child_corners(corners: [Lattice; 3], digit: u32) -> [Lattice; 3] {
+    let [a, b, c] = corners;
+    let ab = midpoint(a, b);
+    let bc = midpoint(b, c);
+    let ca = midpoint(c, a);
+    match digit {
+        0 => [a, ab, ca],
+        1 => [ab, b, bc],
+        2 => [ca, bc, c],
+        _ => [bc, ca, ab],
+    }
+}
+
+/// Lattice corners of sub-triangle `index` at `level` of a grid with lattice size `n`.
+#[inline]
+pub const fn sub_triangle(n: u32, level: u32, index: u32) -> [Lattice; 3] {
+    let mut corners = [[0, 0], [n, 0], [0, n]];
+    let mut l = level;
+    while l > 0 {
+        l -= 1;
+        corners = child_corners(corners, (index >> (2 * l)) & 3);
+    }
+    corners
+}
+
+/// Deepest leaf resolution the static triangle list covers: a leaf holds up to `4^3` triangles.
+pub const MAX_LEAF_DEPTH: u32 = 3;
+
+/// Offset of the `4^k` triangles of a depth-`k` leaf in [`MICRO_TRIANGLES`].
+#[inline]
+pub const fn micro_table_offset(k: u32) -> u32 {
+    level_start(k)
+}
+
+/// The static index list: for every leaf depth `k <= MAX_LEAF_DEPTH`, the `4^k` triangles of a
+/// sub-triangle subdivided `k` times, in recursion order, as local lattice corners `(a, b)`
+/// with `a + b <= 2^k` packed four bits each: corner `c` in bits `8c .. 8c + 8`, `a` low.
+/// The same list serves every grid, every leaf and every level of detail.
+pub const MICRO_TRIANGLES: [u32; level_start(MAX_LEAF_DEPTH + 1) as usize] = build_micro_triangles();
+
+const fn build_micro_triangles() -> [u32; level_start(MAX_LEAF_DEPTH + 1) as usize] {
+    let mut table = [0u32; level_start(MAX_LEAF_DEPTH + 1) as usize];
+    let mut k = 0;
+    while k <= MAX_LEAF_DEPTH {
+        let m = 1 << k;
+        let mut t = 0;
+        while t < triangle_count(k) {
+            let c = sub_triangle(m, k, t);
+            let mut packed = 0;
+            let mut v = 0;
+            while v < 3 {
+                packed |= (c[v][0] | (c[v][1] << 4)) << (8 * v);
+                v += 1;
+            }
+            table[(micro_table_offset(k) + t) as usize] = packed;
+            t += 1;
+        }
+        k += 1;
+    }
+    table
+}
+
+/// Lattice corners of micro-triangle `t` of a leaf sub-triangle `leaf` subdivided `k` more
+/// times, read from the static list.
+#[inline]
+pub fn leaf_triangle(leaf: [Lattice; 3], k: u32, t: u32) -> [Lattice; 3] {
+    let packed = MICRO_TRIANGLES[(micro_table_offset(k) + t) as usize];
+    let m = 1 << k;
+    let [a, b, c] = leaf;
+    // Edge vectors of the leaf, per unit of the local lattice (exact: they are multiples of m).
+    let e1 = [(b[0] as i32 - a[0] as i32) / m, (b[1] as i32 - a[1] as i32) / m];
+    let e2 = [(c[0] as i32 - a[0] as i32) / m, (c[1] as i32 - a[1] as i32) / m];
+    let mut out = [[0u32; 2]; 3];
+    let mut v = 0;
+    while v < 3 {
+        let byte = (packed >> (8 * v)) & 0xff;
+        let la = (byte & 0xf) as i32;
+        let lb = (byte >> 4) as i32;
+        out[v] = [
+            (a[0] as i32 + la * e1[0] + lb * e2[0]) as u32,
+            (a[1] as i32 + la * e1[1] + lb * e2[1]) as u32,
+        ];
+        v += 1;
+    }
+    out
+}
+
+/// Where the vertex at lattice point `(i, j)` of a grid lives in the vertex buffer: its own
+/// inner area, the shared area of one of its base edges, or the shared corner area.
+#[inline]
+pub fn vertex_slot(
+    p: Lattice,
+    n: u32,
+    grid: u32,
+    header: &GridHeader,
+    inner_count: u32,
+    edge_offset: u32,
+    corner_offset: u32,
+) -> u32 {
+    let [i, j] = p;
+    let k = n - i - j;
+    // Corners first, then the three edges, then the inside.
+    if i == 0 && j == 0 {
+        corner_offset + header.corners[0]
+    } else if i == n {
+        corner_offset + header.corners[1]
+    } else if j == n {
+        corner_offset + header.corners[2]
+    } else if j == 0 {
+        edge_offset + edge_slot(header.edges[0], i, n)
+    } else if k == 0 {
+        edge_offset + edge_slot(header.edges[1], j, n)
+    } else if i == 0 {
+        edge_offset + edge_slot(header.edges[2], k, n)
+    } else {
+        grid * inner_count + inner_index(i, j, n)
+    }
+}
+
+/// Slot of the vertex `s` steps (1..n) along a grid edge, counted from the edge's first corner.
+#[inline]
+fn edge_slot(entry: u32, s: u32, n: u32) -> u32 {
+    let id = entry >> 1;
+    let along = if entry & 1 == 0 { s } else { n - s };
+    id * (n - 1) + along - 1
+}
+
+/// Index of inner vertex `(i, j)` (`i, j >= 1`, `i + j <= n - 1`) within its grid: rows of
+/// constant `j`, row `j` holding `n - 1 - j` vertices.
+#[inline]
+pub const fn inner_index(i: u32, j: u32, n: u32) -> u32 {
+    let r = j - 1;
+    r * (n - 1) - r * (r + 1) / 2 + (i - 1)
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use std::collections::BTreeSet;
+    use std::vec::Vec;
+
+    fn lattice(n: u32) -> Vec<Lattice> {
+        (0..=n).flat_map(|j| (0..=n - j).map(move |i| [i, j])).collect()
+    }
+
+    #[test]
+    fn lattice_index_is_a_bijection() {
+        for levels in 0..=5 {
+            let n = grid_size(levels);
+            for (k, p) in lattice(n).into_iter().enumerate() {
+                assert_eq!(lattice_index(p[0], p[1], n), k as u32);
+                assert_eq!(lattice_from_index(k as u32, n), p);
+            }
+        }
+    }
+
+    /// Every lattice point of a grid lands in a distinct slot, and the slots fill the inner,
+    /// edge and corner areas exactly, for both orientations of every edge.
+    #[test]
+    fn vertex_slots_are_a_bijection() {
+        for levels in 1..=5 {
+            let n = grid_size(levels);
+            let inner = inner_vertex_count(levels);
+            let edge = edge_vertex_count(levels);
+            for flips in 0..8u32 {
+                let header = GridHeader {
+                    edges: [(2 << 1) | (flips & 1), (5 << 1) | ((flips >> 1) & 1), ((flips >> 2) & 1)],
+                    corners: [4, 1, 7],
+                };
+                let (grid, edge_offset, corner_offset) = (3, 1000, 5000);
+                let slots: BTreeSet<u32> = lattice(n)
+                    .into_iter()
+                    .map(|p| vertex_slot(p, n, grid, &header, inner, edge_offset, corner_offset))
+                    .collect();
+                assert_eq!(slots.len() as u32, vertex_count(levels));
+                let mut expected = BTreeSet::new();
+                expected.extend((0..inner).map(|k| grid * inner + k));
+                for id in [2u32, 5, 0] {
+                    expected.extend((0..edge).map(|k| edge_offset + id * edge + k));
+                }
+                expected.extend([4u32, 1, 7].map(|c| corner_offset + c));
+                assert_eq!(slots, expected, "levels {levels} flips {flips}");
+            }
+        }
+    }
+
+    /// A flipped edge is read backwards: the vertex `s` steps from corner 0 on edge 0 is the
+    /// one `n - s` steps from the other end.
+    #[test]
+    fn flipped_edges_read_backwards() {
+        let n = 8;
+        let fwd = GridHeader { edges: [0, 2, 4], corners: [0, 1, 2] };
+        let back = GridHeader { edges: [1, 2, 4], corners: [0, 1, 2] };
+        for s in 1..n {
+            let a = vertex_slot([s, 0], n, 0, &fwd, 21, 100, 200);
+            let b = vertex_slot([n - s, 0], n, 0, &back, 21, 100, 200);
+            assert_eq!(a, b);
+        }
+    }
+
+    /// The level-L sub-triangles are exactly the micro-triangles of the lattice, each once:
+    /// `n^2` distinct triangles with unit edges, all with the base winding.
+    #[test]
+    fn sub_triangles_tile_the_grid() {
+        for levels in 0..=5 {
+            let n = grid_size(levels);
+            let mut seen = BTreeSet::new();
+            for t in 0..triangle_count(levels) {
+                let c = sub_triangle(n, levels, t);
+                let area2 = (c[1][0] as i64 - c[0][0] as i64) * (c[2][1] as i64 - c[0][1] as i64)
+                    - (c[2][0] as i64 - c[0][0] as i64) * (c[1][1] as i64 - c[0][1] as i64);
+                assert_eq!(area2, 1, "unit area and counter-clockwise");
+                let mut key = c;
+                key.sort();
+                assert!(seen.insert(key), "triangle {t} at level {levels} repeated");
+            }
+            assert_eq!(seen.len() as u32, n * n);
+        }
+    }
+
+    /// Children of BFS node `id` are `4 id + 1 ..= 4 id + 4` and lie inside their parent.
+    #[test]
+    fn breadth_first_numbering() {
+        let n = grid_size(5);
+        for level in 0..4 {
+            for p in 0..triangle_count(level) {
+                let id = level_start(level) + p;
+                for c in 0..4 {
+                    assert_eq!(level_start(level + 1) + 4 * p + c, 4 * id + 1 + c);
+                    let child = sub_triangle(n, level + 1, 4 * p + c);
+                    assert_eq!(child, child_corners(sub_triangle(n, level, p), c));
+                }
+            }
+        }
+        assert_eq!(sphere_count(1), 5);
+        assert_eq!(sphere_count(0), 1);
+    }
+
+    /// The static list gives the same micro-triangles, in the same order and with the same
+    /// corner order, as walking the recursion from the root, for every leaf and depth.
+    #[test]
+    fn static_list_matches_the_recursion() {
+        for levels in 0..=5u32 {
+            let n = grid_size(levels);
+            for leaf_level in 0..=levels {
+                let k = levels - leaf_level;
+                if k > MAX_LEAF_DEPTH {
+                    continue;
+                }
+                for p in 0..triangle_count(leaf_level) {
+                    let leaf = sub_triangle(n, leaf_level, p);
+                    for t in 0..triangle_count(k) {
+                        assert_eq!(leaf_triangle(leaf, k, t), sub_triangle(n, levels, p * triangle_count(k) + t));
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn inner_index_is_dense() {
+        for levels in 2..=5 {
+            let n = grid_size(levels);
+            let mut k = 0;
+            for j in 1..n - 1 {
+                for i in 1..n - j {
+                    assert_eq!(inner_index(i, j, n), k);
+                    k += 1;
+                }
+            }
+            assert_eq!(k, inner_vertex_count(levels));
+        }
+    }
+}

@@ -1,0 +1,138 @@
+//! Every type that crosses the host/GPU boundary, defined once.
+//!
+//! All fields are 4-byte scalars or arrays of them, so `#[repr(C)]` gives the same offsets in
+//! Rust, in the SPIR-V that rust-gpu emits and in std430 storage buffers.
+
+#[cfg(not(target_arch = "spirv"))]
+use bytemuck::{Pod, Zeroable};
+
+/// One node of a binary BVH (32 bytes). `count == 0`: interior node whose children are
+/// `first` and `first + 1`. `count > 0`: leaf over primitives `first .. first + count` of the
+/// primitive buffer, which the builder reorders so every leaf is a contiguous range.
+#[repr(C)]
+#[derive(Copy, Clone, Default)]
+#[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable, Debug, PartialEq))]
+pub struct BvhNode {
+    pub min: [f32; 3],
+    pub first: u32,
+    pub max: [f32; 3],
+    pub count: u32,
+}
+
+impl BvhNode {
+    #[inline]
+    pub fn is_leaf(&self) -> bool {
+        self.count > 0
+    }
+}
+
+/// Where a grid finds the vertices it shares with its neighbours (24 bytes).
+///
+/// Its inner vertices and sphere radii need no pointer: they sit at `grid * inner_count` and
+/// `grid * sphere_count` in their areas.
+#[repr(C)]
+#[derive(Copy, Clone, Default)]
+#[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable, Debug, PartialEq))]
+pub struct GridHeader {
+    /// Edge `e` runs from corner `e` to corner `(e + 1) % 3`. Stored as `edge_id << 1 | flip`:
+    /// the edge area holds the `2^L - 1` vertices of each base edge once, from its lower to its
+    /// higher base vertex id, and `flip` says this grid walks it the other way.
+    pub edges: [u32; 3],
+    /// Base vertex ids of the three corners: indices into the corner area.
+    pub corners: [u32; 3],
+}
+
+/// Pinhole camera: the ray through pixel centre `(x + 0.5, y + 0.5)` leaves `origin` towards
+/// `top_left + (x + 0.5) / width * horizontal + (y + 0.5) / height * vertical`.
+#[repr(C)]
+#[derive(Copy, Clone, Default)]
+#[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable, Debug, PartialEq))]
+pub struct Camera {
+    pub origin: [f32; 3],
+    pub width: u32,
+    pub top_left: [f32; 3],
+    pub height: u32,
+    pub horizontal: [f32; 3],
+    pub _pad0: u32,
+    pub vertical: [f32; 3],
+    pub _pad1: u32,
+}
+
+/// Shading modes understood by [`crate::shade::shade`].
+pub const SHADE_EYE_LIGHT: u32 = 0;
+pub const SHADE_NORMAL: u32 = 1;
+pub const SHADE_PRIMITIVE: u32 = 2;
+
+/// How the grid buffers are to be read; all zero for a triangle scene.
+#[repr(C)]
+#[derive(Copy, Clone, Default)]
+#[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable, Debug, PartialEq))]
+pub struct GridParams {
+    /// Subdivision depth `L` the grids were built at.
+    pub levels: u32,
+    /// Depth `D <= L` rendered (level of detail).
+    pub lod: u32,
+    /// Deepest level of the sphere hierarchy, `max(L - excluded, 0)`: its sub-triangles are
+    /// the leaves whose micro-triangles are tested directly.
+    pub leaf_level: u32,
+    /// Spheres per grid, `(4^(leaf_level + 1) - 1) / 3`.
+    pub sphere_count: u32,
+    /// Inner vertices per grid, `(2^L - 1)(2^L - 2) / 2`.
+    pub inner_count: u32,
+    /// First vertex of the edge area (the inner area starts at 0).
+    pub edge_offset: u32,
+    /// First vertex of the corner area.
+    pub corner_offset: u32,
+    pub _pad: u32,
+}
+
+/// Everything one dispatch needs besides geometry.
+#[repr(C)]
+#[derive(Copy, Clone, Default)]
+#[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable, Debug, PartialEq))]
+pub struct FrameParams {
+    pub camera: Camera,
+    pub grid: GridParams,
+    pub shading: u32,
+    pub _pad: [u32; 3],
+}
+
+/// Primitive id of a miss.
+pub const NO_HIT: u32 = u32::MAX;
+
+/// Closest hit found so far. `prim` is the index of the triangle in the (reordered) triangle
+/// buffer, or `grid_slot * 4^lod + micro-triangle id` for grids.
+#[repr(C)]
+#[derive(Copy, Clone)]
+#[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable, Debug, PartialEq))]
+pub struct Hit {
+    pub t: f32,
+    pub u: f32,
+    pub v: f32,
+    pub prim: u32,
+    /// Unnormalised geometric normal of the hit triangle.
+    pub normal: [f32; 3],
+    pub _pad: u32,
+}
+
+impl Hit {
+    #[inline]
+    pub fn miss(t_max: f32) -> Self {
+        Hit {
+            t: t_max,
+            u: 0.0,
+            v: 0.0,
+            prim: NO_HIT,
+            normal: [0.0; 3],
+            _pad: 0,
+        }
+    }
+
+    #[inline]
+    pub fn is_hit(&self) -> bool {
+        self.prim != NO_HIT
+    }
+}
+
+/// Threads per workgroup of the render kernels, in x and y.
+pub const WORKGROUP_SIZE: u32 = 8;

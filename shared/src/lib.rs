@@ -1,0 +1,18 @@
+//! Everything that runs per ray, written once and compiled twice: natively for the CPU backend and
+//! the tests, and to SPIR-V (through `kernel`) for the GPU backend.
+//!
+//! Nothing here allocates or knows where its slices live: the same functions read wgpu storage
+//! buffers inside a shader and plain `Vec`s on the host.
+#![no_std]
+
+pub use spirv_std::glam;
+
+pub mod aabb;
+pub mod camera;
+pub mod grid_index;
+pub mod layout;
+pub mod ray;
+pub mod shade;
+pub mod sphere;
+pub mod traverse;
+pub mod triangle;

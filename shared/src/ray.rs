@@ -1,0 +1,66 @@
+use crate::glam::Vec3;
+
+/// "No bound" and "no intersection" distance. Finite on purpose: shader translators reject
+/// infinite float constants, and every comparison works the same with the largest float.
+pub const T_FAR: f32 = f32::MAX;
+
+/// A ray plus the per-ray constants every box and triangle test needs, computed once.
+#[derive(Copy, Clone, Debug)]
+pub struct Ray {
+    pub origin: Vec3,
+    pub dir: Vec3,
+    /// Component-wise reciprocal of `dir` (infinite where `dir` is zero) for the slab test.
+    pub inv_dir: Vec3,
+    /// Axis permutation of the watertight triangle test: `kz` is the dominant axis of `dir`.
+    pub kx: u32,
+    pub ky: u32,
+    pub kz: u32,
+    /// Shear constants of the watertight triangle test.
+    pub shear: Vec3,
+}
+
+impl Ray {
+    pub fn new(origin: Vec3, dir: Vec3) -> Self {
+        let a = dir.abs();
+        let kz = if a.x >= a.y && a.x >= a.z {
+            0
+        } else if a.y >= a.z {
+            1
+        } else {
+            2
+        };
+        let mut kx = (kz + 1) % 3;
+        let mut ky = (kx + 1) % 3;
+        // Keep the winding: swapping x and y when the dominant component is negative.
+        if component(dir, kz) < 0.0 {
+            core::mem::swap(&mut kx, &mut ky);
+        }
+        let dz = component(dir, kz);
+        let shear = Vec3::new(component(dir, kx) / dz, component(dir, ky) / dz, 1.0 / dz);
+        Ray {
+            origin,
+            dir,
+            inv_dir: Vec3::ONE / dir,
+            kx,
+            ky,
+            kz,
+            shear,
+        }
+    }
+
+    pub fn at(&self, t: f32) -> Vec3 {
+        self.origin + self.dir * t
+    }
+}
+
+/// `v[k]` written as selects, which every target handles without dynamic vector indexing.
+#[inline]
+pub fn component(v: Vec3, k: u32) -> f32 {
+    if k == 0 {
+        v.x
+    } else if k == 1 {
+        v.y
+    } else {
+        v.z
+    }
+}

@@ -1,0 +1,58 @@
+use crate::glam::Vec3;
+use crate::layout::{Hit, SHADE_NORMAL, SHADE_PRIMITIVE};
+use crate::ray::Ray;
+// On the GPU, float methods come from a trait (GLSL.std.450 underneath); natively from core.
+#[cfg(target_arch = "spirv")]
+use spirv_std::num_traits::Float;
+
+/// Colour of a pixel from its closest hit.
+///
+/// - eye light: a two-sided headlight, so the shape reads without any light set-up;
+/// - normal: the unit geometric normal mapped to RGB;
+/// - primitive: a colour hashed from the primitive id, to see the micro-triangles.
+pub fn shade(hit: &Hit, ray: &Ray, mode: u32) -> Vec3 {
+    if !hit.is_hit() {
+        // A quiet vertical gradient, so silhouettes stand out.
+        let up = 0.5 * (1.0 - ray.dir.normalize().y);
+        return Vec3::new(0.12, 0.13, 0.16).lerp(Vec3::new(0.32, 0.34, 0.40), up);
+    }
+    // Not `normalize_or_zero`: its finiteness check compares with an infinite constant, which
+    // shader translators reject.
+    let n = Vec3::from(hit.normal);
+    let len2 = n.dot(n);
+    let n = if len2 > 0.0 { n / len2.sqrt() } else { Vec3::ZERO };
+    if mode == SHADE_NORMAL {
+        return n * 0.5 + Vec3::splat(0.5);
+    }
+    let facing = n.dot(ray.dir.normalize()).abs();
+    let base = if mode == SHADE_PRIMITIVE {
+        hash_color(hit.prim)
+    } else {
+        Vec3::new(0.85, 0.78, 0.62)
+    };
+    base * (0.15 + 0.85 * facing)
+}
+
+fn hash_color(id: u32) -> Vec3 {
+    // Wang-style integer hash; three bytes become the colour.
+    let mut h = id ^ 61 ^ (id >> 16);
+    h = h.wrapping_mul(9);
+    h ^= h >> 4;
+    h = h.wrapping_mul(0x27d4_eb2d);
+    h ^= h >> 15;
+    Vec3::new(
+        (h & 0xff) as f32 / 255.0,
+        ((h >> 8) & 0xff) as f32 / 255.0,
+        ((h >> 16) & 0xff) as f32 / 255.0,
+    ) * 0.7
+        + Vec3::splat(0.3)
+}
+
+/// Linear colour in `[0, 1]` to packed RGBA8 (red in the low byte), with a 2.2 gamma.
+pub fn pack_rgba8(color: Vec3) -> u32 {
+    let c = color.clamp(Vec3::ZERO, Vec3::ONE);
+    let r = (c.x.powf(1.0 / 2.2) * 255.0 + 0.5) as u32;
+    let g = (c.y.powf(1.0 / 2.2) * 255.0 + 0.5) as u32;
+    let b = (c.z.powf(1.0 / 2.2) * 255.0 + 0.5) as u32;
+    r | (g << 8) | (b << 16) | (255 << 24)
+}

@@ -1,0 +1,56 @@
+use crate::glam::Vec3;
+use crate::ray::{Ray, T_FAR};
+// On the GPU, float methods come from a trait (GLSL.std.450 underneath); natively from core.
+#[cfg(target_arch = "spirv")]
+use spirv_std::num_traits::Float;
+
+/// Ray against a bounding sphere. Returns the entry distance (clamped to 0 when the origin is
+/// inside) when the sphere overlaps `[0, t_max]` along the ray, otherwise `T_FAR`.
+///
+/// Written relative to the projection of the centre on the ray: the discriminant
+/// `r^2 - |oc - b d|^2` loses far less precision than `b^2 - c` when the sphere is small and far
+/// away, which is exactly the case of the deep levels of a grid's hierarchy.
+#[inline]
+pub fn intersect_sphere(center: Vec3, radius: f32, ray: &Ray, t_max: f32) -> f32 {
+    let dd = ray.dir.dot(ray.dir);
+    let oc = center - ray.origin;
+    let b = oc.dot(ray.dir) / dd;
+    let closest = oc - ray.dir * b;
+    let h = radius * radius - closest.dot(closest);
+    if h < 0.0 {
+        return T_FAR;
+    }
+    let s = (h / dd).sqrt();
+    let t_enter = b - s;
+    let t_exit = b + s;
+    if t_exit >= 0.0 && t_enter <= t_max {
+        t_enter.max(0.0)
+    } else {
+        T_FAR
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn enter_inside_and_miss() {
+        let r = Ray::new(Vec3::new(0.0, 0.0, -5.0), Vec3::new(0.0, 0.0, 2.0));
+        // Unnormalised direction: t is in units of `dir`.
+        assert!((intersect_sphere(Vec3::ZERO, 1.0, &r, T_FAR) - 2.0).abs() < 1e-6);
+        assert_eq!(intersect_sphere(Vec3::ZERO, 1.0, &r, 1.0), T_FAR);
+        assert_eq!(intersect_sphere(Vec3::new(0.0, 1.5, 0.0), 1.0, &r, T_FAR), T_FAR);
+        let inside = Ray::new(Vec3::ZERO, Vec3::X);
+        assert_eq!(intersect_sphere(Vec3::ZERO, 1.0, &inside, T_FAR), 0.0);
+        let behind = Ray::new(Vec3::new(0.0, 0.0, 5.0), Vec3::Z);
+        assert_eq!(intersect_sphere(Vec3::ZERO, 1.0, &behind, T_FAR), T_FAR);
+    }
+
+    #[test]
+    fn small_far_sphere_is_found() {
+        let r = Ray::new(Vec3::new(0.0, 0.0, -1.0e4), Vec3::Z);
+        let t = intersect_sphere(Vec3::new(1.0e-3, 0.0, 0.0), 2.0e-3, &r, T_FAR);
+        assert!(t < T_FAR && (t - 1.0e4).abs() < 1.0);
+    }
+}

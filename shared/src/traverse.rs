@@ -1,0 +1,256 @@
+//! Closest-hit traversal: one binary-BVH loop, used both for the baseline (leaves hold
+//! triangles) and as the top level of the grid scene (leaves hold grids, each searched by the
+//! bottom-level loop over its sphere hierarchy).
+
+use crate::aabb::intersect_aabb;
+use crate::glam::Vec3;
+use crate::grid_index::{
+    leaf_triangle, level_start, sub_triangle, triangle_count, vertex_slot, Lattice,
+};
+use crate::layout::{BvhNode, GridHeader, GridParams, Hit};
+use crate::ray::{Ray, T_FAR};
+use crate::sphere::intersect_sphere;
+use crate::triangle::{intersect_triangle, triangle_normal};
+
+/// Deepest BVH the traversal can walk; the builder never makes a deeper one.
+pub const MAX_BVH_DEPTH: usize = 64;
+
+/// What a BVH leaf refers to.
+pub trait LeafPrimitives {
+    /// Intersects primitives `first .. first + count`, shrinking `hit.t` on every closer hit.
+    fn intersect_leaf(&self, first: u32, count: u32, ray: &Ray, hit: &mut Hit);
+}
+
+/// Closest hit along `ray` closer than `hit.t`. A near-first, stack-based loop: descend into
+/// the nearer child while the farther one waits on the stack with its entry distance, so it can
+/// be skipped once a closer hit is known.
+pub fn traverse_bvh<P: LeafPrimitives>(nodes: &[BvhNode], prims: &P, ray: &Ray, hit: &mut Hit) {
+    if nodes.is_empty() {
+        return;
+    }
+    let mut stack = [0u32; MAX_BVH_DEPTH];
+    let mut stack_t = [0f32; MAX_BVH_DEPTH];
+    let mut sp = 0usize;
+    let root = nodes[0];
+    let mut node = 0u32;
+    let mut live = intersect_aabb(Vec3::from(root.min), Vec3::from(root.max), ray, hit.t) < T_FAR;
+    while live {
+        let n = nodes[node as usize];
+        if n.is_leaf() {
+            prims.intersect_leaf(n.first, n.count, ray, hit);
+        } else {
+            let left = nodes[n.first as usize];
+            let right = nodes[n.first as usize + 1];
+            let tl = intersect_aabb(Vec3::from(left.min), Vec3::from(left.max), ray, hit.t);
+            let tr = intersect_aabb(Vec3::from(right.min), Vec3::from(right.max), ray, hit.t);
+            if tl < T_FAR || tr < T_FAR {
+                let (near, far, t_far) = if tl <= tr {
+                    (n.first, n.first + 1, tr)
+                } else {
+                    (n.first + 1, n.first, tl)
+                };
+                if t_far < T_FAR && sp < MAX_BVH_DEPTH {
+                    stack[sp] = far;
+                    stack_t[sp] = t_far;
+                    sp += 1;
+                }
+                node = near;
+                continue;
+            }
+        }
+        // Leaf done or both children missed: resume with the nearest waiting node that can
+        // still hold a closer hit.
+        live = false;
+        while sp > 0 {
+            sp -= 1;
+            if stack_t[sp] < hit.t {
+                node = stack[sp];
+                live = true;
+                break;
+            }
+        }
+    }
+}
+
+#[inline]
+fn load_vec3(data: &[f32], index: u32) -> Vec3 {
+    let i = 3 * index as usize;
+    Vec3::new(data[i], data[i + 1], data[i + 2])
+}
+
+#[inline]
+fn record_hit(hit: &mut Hit, found: (f32, f32, f32), prim: u32, normal: Vec3) {
+    hit.t = found.0;
+    hit.u = found.1;
+    hit.v = found.2;
+    hit.prim = prim;
+    hit.normal = normal.to_array();
+}
+
+/// The baseline: an indexed triangle list (`positions` xyz per vertex, `indices` three per
+/// triangle) whose triangles the BVH leaves name by index.
+pub struct TriangleMesh<'a> {
+    pub positions: &'a [f32],
+    pub indices: &'a [u32],
+}
+
+impl LeafPrimitives for TriangleMesh<'_> {
+    fn intersect_leaf(&self, first: u32, count: u32, ray: &Ray, hit: &mut Hit) {
+        let mut tri = first;
+        while tri < first + count {
+            let base = 3 * tri as usize;
+            let v0 = load_vec3(self.positions, self.indices[base]);
+            let v1 = load_vec3(self.positions, self.indices[base + 1]);
+            let v2 = load_vec3(self.positions, self.indices[base + 2]);
+            if let Some(found) = intersect_triangle(v0, v1, v2, ray, hit.t) {
+                record_hit(hit, found, tri, triangle_normal(v0, v1, v2));
+            }
+            tri += 1;
+        }
+    }
+}
+
+/// Closest hit in a triangle mesh.
+pub fn trace_triangles(nodes: &[BvhNode], mesh: &TriangleMesh, ray: &Ray, t_max: f32) -> Hit {
+    let mut hit = Hit::miss(t_max);
+    traverse_bvh(nodes, mesh, ray, &mut hit);
+    hit
+}
+
+/// Most spheres a grid hierarchy may be deep: levels `0 ..= MAX_SPHERE_LEVEL`.
+pub const MAX_SPHERE_LEVEL: u32 = 6;
+/// A 4-ary depth-first search pushes at most three siblings per level plus one.
+const GRID_STACK: usize = 3 * MAX_SPHERE_LEVEL as usize + 4;
+
+/// Grid primitives: headers, the three vertex areas in one buffer, and the sphere radii.
+pub struct GridScene<'a> {
+    pub headers: &'a [GridHeader],
+    pub vertices: &'a [f32],
+    pub radii: &'a [f32],
+    pub params: GridParams,
+}
+
+impl GridScene<'_> {
+    #[inline]
+    fn vertex(&self, grid: u32, header: &GridHeader, p: Lattice) -> Vec3 {
+        let g = &self.params;
+        let slot = vertex_slot(
+            p,
+            1 << g.levels,
+            grid,
+            header,
+            g.inner_count,
+            g.edge_offset,
+            g.corner_offset,
+        );
+        load_vec3(self.vertices, slot)
+    }
+
+    /// Sphere of the sub-triangle `index` at `level`: centre from its corners, radius stored.
+    #[inline]
+    fn sphere_entry(&self, grid: u32, header: &GridHeader, level: u32, index: u32, ray: &Ray, t_max: f32) -> f32 {
+        let c = sub_triangle(1 << self.params.levels, level, index);
+        let center = (self.vertex(grid, header, c[0]) + self.vertex(grid, header, c[1]) + self.vertex(grid, header, c[2]))
+            * (1.0 / 3.0);
+        let radius = self.radii[(grid * self.params.sphere_count + level_start(level) + index) as usize];
+        intersect_sphere(center, radius, ray, t_max)
+    }
+
+    /// Tests the `4^k` micro-triangles of the leaf sub-triangle `index` at `level`, `k` levels
+    /// below it being the rendered depth.
+    fn intersect_leaf_triangles(&self, grid: u32, header: &GridHeader, level: u32, index: u32, ray: &Ray, hit: &mut Hit) {
+        let n = 1 << self.params.levels;
+        let leaf = sub_triangle(n, level, index);
+        let k = self.params.lod - level;
+        let count = triangle_count(k);
+        let first_id = grid * triangle_count(self.params.lod) + index * count;
+        let mut t = 0;
+        while t < count {
+            let c = leaf_triangle(leaf, k, t);
+            let v0 = self.vertex(grid, header, c[0]);
+            let v1 = self.vertex(grid, header, c[1]);
+            let v2 = self.vertex(grid, header, c[2]);
+            if let Some(found) = intersect_triangle(v0, v1, v2, ray, hit.t) {
+                record_hit(hit, found, first_id + t, triangle_normal(v0, v1, v2));
+            }
+            t += 1;
+        }
+    }
+
+    /// The bottom level: depth-first, nearest sphere first, over the grid's 4-ary hierarchy.
+    pub fn intersect_grid(&self, grid: u32, ray: &Ray, hit: &mut Hit) {
+        let header = self.headers[grid as usize];
+        // At a coarse level of detail the hierarchy is cut where the rendered triangles are.
+        let leaf_level = if self.params.leaf_level < self.params.lod {
+            self.params.leaf_level
+        } else {
+            self.params.lod
+        };
+        if self.sphere_entry(grid, &header, 0, 0, ray, hit.t) == T_FAR {
+            return;
+        }
+        // Entries pack `index << 4 | level`, with the sphere's entry distance beside them.
+        let mut stack = [0u32; GRID_STACK];
+        let mut stack_t = [0f32; GRID_STACK];
+        let mut sp = 1usize;
+        stack[0] = 0;
+        stack_t[0] = 0.0;
+        while sp > 0 {
+            sp -= 1;
+            if stack_t[sp] >= hit.t {
+                continue;
+            }
+            let level = stack[sp] & 0xf;
+            let index = stack[sp] >> 4;
+            if level == leaf_level {
+                self.intersect_leaf_triangles(grid, &header, level, index, ray, hit);
+                continue;
+            }
+            // Test the four children, then push the hit ones farthest first.
+            let mut child_t = [0f32; 4];
+            let mut order = [0u32; 4];
+            let mut hits = 0usize;
+            let mut c = 0u32;
+            while c < 4 {
+                let t = self.sphere_entry(grid, &header, level + 1, 4 * index + c, ray, hit.t);
+                if t < T_FAR {
+                    // Insertion into `order`, sorted by decreasing entry distance.
+                    let mut s = hits;
+                    while s > 0 && child_t[s - 1] < t {
+                        child_t[s] = child_t[s - 1];
+                        order[s] = order[s - 1];
+                        s -= 1;
+                    }
+                    child_t[s] = t;
+                    order[s] = c;
+                    hits += 1;
+                }
+                c += 1;
+            }
+            let mut s = 0usize;
+            while s < hits {
+                stack[sp] = ((4 * index + order[s]) << 4) | (level + 1);
+                stack_t[sp] = child_t[s];
+                sp += 1;
+                s += 1;
+            }
+        }
+    }
+}
+
+impl LeafPrimitives for GridScene<'_> {
+    fn intersect_leaf(&self, first: u32, count: u32, ray: &Ray, hit: &mut Hit) {
+        let mut grid = first;
+        while grid < first + count {
+            self.intersect_grid(grid, ray, hit);
+            grid += 1;
+        }
+    }
+}
+
+/// Closest hit among grid primitives under a top-level BVH.
+pub fn trace_grids(nodes: &[BvhNode], scene: &GridScene, ray: &Ray, t_max: f32) -> Hit {
+    let mut hit = Hit::miss(t_max);
+    traverse_bvh(nodes, scene, ray, &mut hit);
+    hit
+}

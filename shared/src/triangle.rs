@@ -1,0 +1,138 @@
+use crate::glam::Vec3;
+use crate::ray::{component, Ray};
+
+/// Watertight ray/triangle intersection (Woop, Benthin and Wald, JCGT 2013).
+///
+/// The ray is sheared so it runs along +z; the three 2D edge functions are then evaluated
+/// in a way that gives the same result for a shared edge from both of its triangles, so a ray
+/// through an edge or a vertex of a closed mesh always hits at least one of them. A zero edge
+/// function counts as inside.
+///
+/// Returns `(t, b1, b2)` (barycentrics of `v1` and `v2`) with `t` in `(0, t_max)`, or `None`.
+#[inline]
+pub fn intersect_triangle(v0: Vec3, v1: Vec3, v2: Vec3, ray: &Ray, t_max: f32) -> Option<(f32, f32, f32)> {
+    let a = v0 - ray.origin;
+    let b = v1 - ray.origin;
+    let c = v2 - ray.origin;
+    let (sx, sy, sz) = (ray.shear.x, ray.shear.y, ray.shear.z);
+    let (az, bz, cz) = (component(a, ray.kz), component(b, ray.kz), component(c, ray.kz));
+    let ax = component(a, ray.kx) - sx * az;
+    let ay = component(a, ray.ky) - sy * az;
+    let bx = component(b, ray.kx) - sx * bz;
+    let by = component(b, ray.ky) - sy * bz;
+    let cx = component(c, ray.kx) - sx * cz;
+    let cy = component(c, ray.ky) - sy * cz;
+
+    let u = cx * by - cy * bx;
+    let v = ax * cy - ay * cx;
+    let w = bx * ay - by * ax;
+    if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+        return None;
+    }
+    let det = u + v + w;
+    if det == 0.0 {
+        return None;
+    }
+    let t_scaled = u * (sz * az) + v * (sz * bz) + w * (sz * cz);
+    // Compare before dividing: t = t_scaled / det must lie in (0, t_max).
+    if det > 0.0 {
+        if t_scaled <= 0.0 || t_scaled >= t_max * det {
+            return None;
+        }
+    } else if t_scaled >= 0.0 || t_scaled <= t_max * det {
+        return None;
+    }
+    let inv_det = 1.0 / det;
+    Some((t_scaled * inv_det, v * inv_det, w * inv_det))
+}
+
+/// Unnormalised geometric normal, `(v1 - v0) x (v2 - v0)`.
+#[inline]
+pub fn triangle_normal(v0: Vec3, v1: Vec3, v2: Vec3) -> Vec3 {
+    (v1 - v0).cross(v2 - v0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ray::T_FAR;
+
+    fn ray(o: [f32; 3], d: [f32; 3]) -> Ray {
+        Ray::new(Vec3::from(o), Vec3::from(d))
+    }
+
+    const A: Vec3 = Vec3::new(0.0, 0.0, 0.0);
+    const B: Vec3 = Vec3::new(1.0, 0.0, 0.0);
+    const C: Vec3 = Vec3::new(0.0, 1.0, 0.0);
+    const D: Vec3 = Vec3::new(1.0, 1.0, 0.0);
+
+    #[test]
+    fn hits_inside_with_barycentrics() {
+        let (t, u, v) = intersect_triangle(A, B, C, &ray([0.25, 0.5, 2.0], [0.0, 0.0, -1.0]), T_FAR).unwrap();
+        assert!((t - 2.0).abs() < 1e-6);
+        assert!((u - 0.25).abs() < 1e-6 && (v - 0.5).abs() < 1e-6);
+    }
+
+    #[test]
+    fn both_sides_hit_and_outside_misses() {
+        assert!(intersect_triangle(A, B, C, &ray([0.2, 0.2, -1.0], [0.0, 0.0, 1.0]), T_FAR).is_some());
+        assert!(intersect_triangle(A, B, C, &ray([0.8, 0.8, 1.0], [0.0, 0.0, -1.0]), T_FAR).is_none());
+        assert!(intersect_triangle(A, B, C, &ray([-0.1, 0.5, 1.0], [0.0, 0.0, -1.0]), T_FAR).is_none());
+    }
+
+    #[test]
+    fn respects_the_interval() {
+        let r = ray([0.2, 0.2, 1.0], [0.0, 0.0, -1.0]);
+        assert!(intersect_triangle(A, B, C, &r, 0.5).is_none());
+        assert!(intersect_triangle(A, B, C, &ray([0.2, 0.2, -1.0], [0.0, 0.0, -1.0]), T_FAR).is_none());
+    }
+
+    #[test]
+    fn parallel_ray_misses() {
+        assert!(intersect_triangle(A, B, C, &ray([-1.0, 0.2, 0.0], [1.0, 0.0, 0.0]), T_FAR).is_none());
+        assert!(intersect_triangle(A, B, C, &ray([-1.0, 0.2, 0.5], [1.0, 0.0, 0.0]), T_FAR).is_none());
+    }
+
+    #[test]
+    fn shared_edges_and_vertices_are_never_missed() {
+        // Quad A B D C split along B-C; rays through points on the diagonal, on the outer
+        // edges and at the vertices, from oblique directions.
+        let dirs = [[0.0, 0.0, -1.0], [0.3, -0.2, -1.0], [-0.7, 0.4, -0.5], [0.01, 0.02, -1.0]];
+        let mut targets = [[0.0f32; 3]; 13];
+        for (k, t) in targets.iter_mut().enumerate().take(9) {
+            let s = k as f32 / 8.0;
+            *t = [1.0 - s, s, 0.0];
+        }
+        targets[9] = [0.0, 0.0, 0.0];
+        targets[10] = [1.0, 1.0, 0.0];
+        targets[11] = [1.0 / 3.0, 2.0 / 3.0, 0.0];
+        targets[12] = [0.1, 0.9, 0.0];
+        for d in dirs {
+            for p in targets {
+                let dir = Vec3::from(d);
+                let r = Ray::new(Vec3::from(p) - dir * 3.0, dir);
+                let first = intersect_triangle(A, B, C, &r, T_FAR);
+                let second = intersect_triangle(B, D, C, &r, T_FAR);
+                let inside_quad = p[0] > 0.0 && p[1] > 0.0 && p[0] < 1.0 && p[1] < 1.0;
+                if inside_quad {
+                    assert!(first.is_some() || second.is_some(), "ray {d:?} through {p:?} slipped through");
+                }
+                for (t, _, _) in first.into_iter().chain(second) {
+                    assert!((t - 3.0).abs() < 1e-5);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn hits_exactly_at_a_vertex() {
+        let r = ray([1.0, 0.0, 1.0], [0.0, 0.0, -1.0]);
+        let (t, u, v) = intersect_triangle(A, B, C, &r, T_FAR).unwrap();
+        assert!((t - 1.0).abs() < 1e-6 && (u - 1.0).abs() < 1e-6 && v.abs() < 1e-6);
+    }
+
+    #[test]
+    fn degenerate_triangle_misses() {
+        assert!(intersect_triangle(A, B, B * 2.0, &ray([0.5, 0.0, 1.0], [0.0, 0.0, -1.0]), T_FAR).is_none());
+    }
+}

@@ -1,0 +1,99 @@
+//! Helpers shared by the integration tests.
+
+use std::path::PathBuf;
+
+use gridrt::bvh::Aabb;
+use gridrt::gpu::Gpu;
+use gridrt::mesh::Mesh;
+use gridrt::scene::Scene;
+use gridrt::subdiv::{subdivide, Scheme, Subdivided};
+use gridrt::{grid, triangles};
+use gridrt_shared::glam::Vec3;
+
+/// The GPU, or `None` with the reason printed. Under CI (`CI=true`) a missing adapter fails
+/// the test instead: CI must exercise the GPU path.
+pub fn gpu_or_skip(test: &str) -> Option<Gpu> {
+    match Gpu::new() {
+        Ok(gpu) => {
+            eprintln!("{test}: GPU tests on {}", gpu.describe());
+            Some(gpu)
+        }
+        Err(e) if std::env::var("CI").is_ok_and(|v| v == "true") => {
+            panic!("{test}: CI=true but no GPU adapter: {e:#}")
+        }
+        Err(e) => {
+            eprintln!("{test}: SKIPPED, no GPU adapter: {e:#}");
+            None
+        }
+    }
+}
+
+/// `../shared/meshes` beside the repository, if present.
+pub fn meshes_dir() -> Option<PathBuf> {
+    let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/meshes"));
+    dir.is_dir().then_some(dir)
+}
+
+/// The `gridrt` binary that `cargo test --workspace` builds beside the test executables.
+pub fn gridrt_exe() -> PathBuf {
+    let deps = std::env::current_exe().expect("test executable path");
+    let exe = deps.parent().and_then(|d| d.parent()).expect("target directory").join("gridrt");
+    assert!(exe.is_file(), "{} not found: run the tests with `cargo test --workspace`", exe.display());
+    exe
+}
+
+/// Both representations of `mesh` subdivided `levels` times, rendered at depth `lod`.
+pub struct Pair {
+    pub sub: Subdivided,
+    pub grids: Scene,
+    pub triangles: Scene,
+    pub bounds: Aabb,
+}
+
+pub fn build_pair(mesh: &Mesh, levels: u32, lod: u32, scheme: Scheme) -> Pair {
+    let sub = subdivide(mesh, levels, scheme);
+    let mut g = grid::build(mesh, &sub, grid::DEFAULT_EXCLUDED_LEVELS).expect("grid build");
+    g.set_lod(lod).unwrap();
+    let t = triangles::build(&sub.positions, &sub.micro_triangles(lod));
+    let bounds = Aabb::from_points(sub.positions.iter().copied());
+    Pair {
+        sub,
+        grids: Scene::Grids(g),
+        triangles: Scene::Triangles(t),
+        bounds,
+    }
+}
+
+/// A small deterministic generator (PCG32), so every run tests the same rays.
+pub struct Rng(u64);
+
+impl Rng {
+    pub fn new(seed: u64) -> Self {
+        Rng(seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407))
+    }
+
+    pub fn next_u32(&mut self) -> u32 {
+        let old = self.0;
+        self.0 = old.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        let xorshifted = (((old >> 18) ^ old) >> 27) as u32;
+        xorshifted.rotate_right((old >> 59) as u32)
+    }
+
+    /// Uniform in `[0, 1)`.
+    pub fn next_f32(&mut self) -> f32 {
+        (self.next_u32() >> 8) as f32 / (1u32 << 24) as f32
+    }
+
+    /// Uniform on the unit sphere.
+    pub fn direction(&mut self) -> Vec3 {
+        let z = 2.0 * self.next_f32() - 1.0;
+        let phi = std::f32::consts::TAU * self.next_f32();
+        let r = (1.0 - z * z).max(0.0).sqrt();
+        Vec3::new(r * phi.cos(), r * phi.sin(), z)
+    }
+
+    /// Uniform in a box.
+    pub fn point_in(&mut self, b: &Aabb) -> Vec3 {
+        b.min + (b.max - b.min) * Vec3::new(self.next_f32(), self.next_f32(), self.next_f32())
+    }
+}
