@@ -342,7 +342,8 @@ mod tests {
         assert!(sub.positions[sub.vertex(0, [1, 0]) as usize].distance(expect) < 1e-6);
     }
 
-    /// Corners converge to the Loop limit position `(3/8 v + beta sum) / (3/8 + n beta)`.
+    /// Corners converge to the Loop limit position `v_inf = (3/8 v + beta sum) / (3/8 + n beta)`,
+    /// and exactly as the stencil predicts: `v_k - v_inf = (5/8 - n beta)^k (v_0 - v_inf)`.
     #[test]
     fn corners_converge_to_the_limit_positions() {
         for mesh in [tetrahedron(), cube()] {
@@ -356,21 +357,22 @@ mod tests {
                     }
                 }
             }
-            let limit: Vec<Vec3> = (0..mesh.positions.len())
-                .map(|v| {
+            for levels in [1, 3, 5] {
+                let sub = subdivide(&mesh, levels, Scheme::Loop);
+                for v in 0..mesh.positions.len() {
                     let n = ring[v].len() as f32;
                     let beta = loop_beta(ring[v].len() as u32);
                     let sum: Vec3 = ring[v].iter().map(|&u| mesh.positions[u]).sum();
-                    (mesh.positions[v] * 0.375 + sum * beta) / (0.375 + n * beta)
-                })
-                .collect();
-            let error = |levels| {
-                let sub = subdivide(&mesh, levels, Scheme::Loop);
-                (0..mesh.positions.len()).map(|v| sub.positions[v].distance(limit[v])).fold(0.0, f32::max)
-            };
-            let (e1, e4) = (error(1), error(4));
-            assert!(e4 < 1e-4, "not converged: {e4}");
-            assert!(e4 < e1 || e1 < 1e-6);
+                    let limit = (mesh.positions[v] * 0.375 + sum * beta) / (0.375 + n * beta);
+                    let shrink = (0.625 - n * beta).powi(levels as i32);
+                    let expect = limit + (mesh.positions[v] - limit) * shrink;
+                    let got = sub.positions[v];
+                    assert!(got.distance(expect) < 1e-5, "valence {n}, L={levels}: {got} vs {expect}");
+                    if levels == 5 {
+                        assert!(got.distance(limit) < 2e-3, "valence {n}: not near the limit");
+                    }
+                }
+            }
         }
     }
 

@@ -1,9 +1,13 @@
 use crate::glam::Vec3;
 use crate::ray::{Ray, T_FAR};
 
+/// Makes the exit distance conservative against the rounding of the six slab distances
+/// (Ize, "Robust BVH ray traversal", JCGT 2013): without it a flat box, or a ray through a
+/// box's edge, can come out empty and hide a triangle that the watertight test would hit.
+const EXIT_SCALE: f32 = 1.0 + 4.0 * f32::EPSILON;
+
 /// Slab test. Returns the entry distance when the box overlaps `[0, t_max]` along the ray,
-/// otherwise `T_FAR`. NaNs from `0 * inf` (ray in a slab plane) are discarded by
-/// `min`/`max`, which return the non-NaN operand.
+/// otherwise `T_FAR`.
 #[inline]
 pub fn intersect_aabb(min: Vec3, max: Vec3, ray: &Ray, t_max: f32) -> f32 {
     let t0 = (min - ray.origin) * ray.inv_dir;
@@ -11,7 +15,7 @@ pub fn intersect_aabb(min: Vec3, max: Vec3, ray: &Ray, t_max: f32) -> f32 {
     let near = t0.min(t1);
     let far = t0.max(t1);
     let t_enter = near.x.max(near.y).max(near.z).max(0.0);
-    let t_exit = far.x.min(far.y).min(far.z).min(t_max);
+    let t_exit = (far.x.min(far.y).min(far.z) * EXIT_SCALE).min(t_max);
     if t_enter <= t_exit {
         t_enter
     } else {

@@ -9,7 +9,9 @@ pub const T_FAR: f32 = f32::MAX;
 pub struct Ray {
     pub origin: Vec3,
     pub dir: Vec3,
-    /// Component-wise reciprocal of `dir` (infinite where `dir` is zero) for the slab test.
+    /// Component-wise reciprocal of `dir` for the slab test; a zero component is replaced by a
+    /// tiny one so the reciprocal stays finite and `0 * 1/dir` never makes a NaN (which GPU
+    /// `min`/`max` would resolve arbitrarily).
     pub inv_dir: Vec3,
     /// Axis permutation of the watertight triangle test: `kz` is the dominant axis of `dir`.
     pub kx: u32,
@@ -40,7 +42,7 @@ impl Ray {
         Ray {
             origin,
             dir,
-            inv_dir: Vec3::ONE / dir,
+            inv_dir: Vec3::ONE / Vec3::new(nonzero(dir.x), nonzero(dir.y), nonzero(dir.z)),
             kx,
             ky,
             kz,
@@ -50,6 +52,18 @@ impl Ray {
 
     pub fn at(&self, t: f32) -> Vec3 {
         self.origin + self.dir * t
+    }
+}
+
+#[inline]
+fn nonzero(c: f32) -> f32 {
+    const TINY: f32 = 1e-30;
+    if c.abs() >= TINY {
+        c
+    } else if c < 0.0 {
+        -TINY
+    } else {
+        TINY
     }
 }
 

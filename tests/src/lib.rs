@@ -34,12 +34,15 @@ pub fn meshes_dir() -> Option<PathBuf> {
     dir.is_dir().then_some(dir)
 }
 
-/// The `gridrt` binary that `cargo test --workspace` builds beside the test executables.
+/// The `gridrt` binary that `cargo test --workspace` builds into the profile directory, found
+/// from the test executable, which lives somewhere below that directory.
 pub fn gridrt_exe() -> PathBuf {
-    let deps = std::env::current_exe().expect("test executable path");
-    let exe = deps.parent().and_then(|d| d.parent()).expect("target directory").join("gridrt");
-    assert!(exe.is_file(), "{} not found: run the tests with `cargo test --workspace`", exe.display());
-    exe
+    let test_exe = std::env::current_exe().expect("test executable path");
+    test_exe
+        .ancestors()
+        .map(|dir| dir.join("gridrt"))
+        .find(|exe| exe.is_file())
+        .unwrap_or_else(|| panic!("no gridrt binary above {}: run `cargo test --workspace`", test_exe.display()))
 }
 
 /// Both representations of `mesh` subdivided `levels` times, rendered at depth `lod`.

@@ -20,7 +20,11 @@ impl Mesh {
     /// Min/max over all positions; `(Vec3::INFINITY, Vec3::NEG_INFINITY)` for an empty mesh so that
     /// merging bounds needs no special case.
     pub fn bounds(&self) -> (Vec3, Vec3) {
-        self.positions.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)))
+        self.positions
+            .iter()
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| {
+                (lo.min(p), hi.max(p))
+            })
     }
 
     /// Checks and cleans a freshly loaded mesh: error if any position is not finite (name the first offending
@@ -29,7 +33,12 @@ impl Mesh {
     pub fn validate(mut self, source: &str) -> anyhow::Result<(Mesh, usize)> {
         if let Some(i) = self.positions.iter().position(|p| !p.is_finite()) {
             let p = self.positions[i];
-            bail!("{source}: vertex {i} has a non-finite coordinate ({}, {}, {})", p.x, p.y, p.z);
+            bail!(
+                "{source}: vertex {i} has a non-finite coordinate ({}, {}, {})",
+                p.x,
+                p.y,
+                p.z
+            );
         }
         let n = self.positions.len();
         for (t, tri) in self.triangles.iter().enumerate() {
@@ -55,7 +64,10 @@ impl Mesh {
 pub fn load_mesh(path: &Path) -> anyhow::Result<Mesh> {
     let (mesh, dropped) = load_mesh_quiet(path)?;
     if dropped > 0 {
-        eprintln!("warning: {}: dropped {dropped} degenerate triangles (repeated vertex)", path.display());
+        eprintln!(
+            "warning: {}: dropped {dropped} degenerate triangles (repeated vertex)",
+            path.display()
+        );
     }
     Ok(mesh)
 }
@@ -130,7 +142,10 @@ pub(crate) mod test_util {
             Err(_) => panic!("{name}: loader panicked"),
         };
         let shown = path.display().to_string();
-        assert!(msg.starts_with(&format!("{shown}: ")), "message does not start with the path: {msg}");
+        assert!(
+            msg.starts_with(&format!("{shown}: ")),
+            "message does not start with the path: {msg}"
+        );
         assert!(!msg.contains('\n'), "message is not one line: {msg}");
         for needle in needles {
             assert!(msg.contains(needle), "message lacks {needle:?}: {msg}");
@@ -153,28 +168,46 @@ mod tests {
     #[test]
     fn validate_drops_degenerates_and_rejects_bad_meshes() {
         let p = vec![Vec3::ZERO, Vec3::X, Vec3::Y];
-        let mesh = Mesh { positions: p.clone(), triangles: vec![[0, 1, 2], [0, 0, 1], [2, 1, 2]] };
+        let mesh = Mesh {
+            positions: p.clone(),
+            triangles: vec![[0, 1, 2], [0, 0, 1], [2, 1, 2]],
+        };
         let (clean, dropped) = mesh.validate("m").unwrap();
         assert_eq!((clean.triangles, dropped), (vec![[0, 1, 2]], 2));
 
-        let oob = Mesh { positions: p.clone(), triangles: vec![[0, 1, 2], [0, 1, 7]] };
+        let oob = Mesh {
+            positions: p.clone(),
+            triangles: vec![[0, 1, 2], [0, 1, 7]],
+        };
         let e = oob.validate("m").unwrap_err().to_string();
         assert!(e.contains("m: triangle 1 refers to vertex 7"), "{e}");
 
-        let mut nan = Mesh { positions: p.clone(), triangles: vec![[0, 1, 2]] };
+        let mut nan = Mesh {
+            positions: p.clone(),
+            triangles: vec![[0, 1, 2]],
+        };
         nan.positions[1].y = f32::NAN;
         let e = nan.validate("m").unwrap_err().to_string();
         assert!(e.contains("m: vertex 1 has a non-finite"), "{e}");
 
         let e = Mesh::default().validate("m").unwrap_err().to_string();
         assert_eq!(e, "m: no triangles");
-        let e = Mesh { positions: p, triangles: vec![[1, 1, 1]] }.validate("m").unwrap_err().to_string();
+        let e = Mesh {
+            positions: p,
+            triangles: vec![[1, 1, 1]],
+        }
+        .validate("m")
+        .unwrap_err()
+        .to_string();
         assert!(e.starts_with("m: no triangles left"), "{e}");
     }
 
     #[test]
     fn bounds_cover_all_positions() {
-        let m = Mesh { positions: vec![Vec3::new(1.0, -2.0, 3.0), Vec3::new(-1.0, 5.0, 0.0)], triangles: vec![] };
+        let m = Mesh {
+            positions: vec![Vec3::new(1.0, -2.0, 3.0), Vec3::new(-1.0, 5.0, 0.0)],
+            triangles: vec![],
+        };
         assert_eq!(m.bounds(), (Vec3::new(-1.0, -2.0, 0.0), Vec3::new(1.0, 5.0, 3.0)));
     }
 
@@ -186,7 +219,10 @@ mod tests {
         expect_err("noext", b"v 0 0 0\n", &["unsupported format"]);
         let missing = std::env::temp_dir().join("gridrt-definitely-missing-dir/missing.obj");
         let e = format!("{:#}", load_mesh(&missing).unwrap_err());
-        assert_eq!(e, format!("{}: cannot open: No such file or directory", missing.display()));
+        assert_eq!(
+            e,
+            format!("{}: cannot open: No such file or directory", missing.display())
+        );
     }
 
     #[test]
@@ -213,8 +249,16 @@ mod tests {
         ] {
             let (m, dropped) = load_mesh_quiet(&dir.join(file)).unwrap_or_else(|e| panic!("{e:#}"));
             let (lo, hi) = m.bounds();
-            println!("{file}: {} triangles, {} vertices, {dropped} dropped, bounds {lo} .. {hi}", m.triangles.len(), m.positions.len());
-            assert_eq!((m.triangles.len() + dropped, m.positions.len()), (tris, verts), "{file}");
+            println!(
+                "{file}: {} triangles, {} vertices, {dropped} dropped, bounds {lo} .. {hi}",
+                m.triangles.len(),
+                m.positions.len()
+            );
+            assert_eq!(
+                (m.triangles.len() + dropped, m.positions.len()),
+                (tris, verts),
+                "{file}"
+            );
         }
     }
 }

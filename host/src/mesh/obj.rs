@@ -35,8 +35,13 @@ pub fn parse_obj(bytes: &[u8]) -> anyhow::Result<Mesh> {
     for model in models {
         let m = model.mesh;
         let base = mesh.positions.len() as u32;
-        mesh.positions.extend(m.positions.chunks_exact(3).map(|p| Vec3::new(p[0], p[1], p[2])));
-        mesh.triangles.extend(m.indices.chunks_exact(3).map(|t| [base + t[0], base + t[1], base + t[2]]));
+        mesh.positions
+            .extend(m.positions.chunks_exact(3).map(|p| Vec3::new(p[0], p[1], p[2])));
+        mesh.triangles.extend(
+            m.indices
+                .chunks_exact(3)
+                .map(|t| [base + t[0], base + t[1], base + t[2]]),
+        );
     }
     Ok(mesh)
 }
@@ -52,13 +57,23 @@ fn check_vertices(text: &str) -> anyhow::Result<usize> {
         count += 1;
         let mut xyz = [0.0f32; 3];
         for (axis, c) in ["x", "y", "z"].into_iter().zip(&mut xyz) {
-            let word = words.next().ok_or_else(|| anyhow!("line {line_no}: vertex {count} has no {axis} coordinate"))?;
+            let word = words
+                .next()
+                .ok_or_else(|| anyhow!("line {line_no}: vertex {count} has no {axis} coordinate"))?;
             *c = word.parse().map_err(|_| {
-                anyhow!("line {line_no}: vertex {count} has a non-numeric {axis} coordinate {}", quote(word))
+                anyhow!(
+                    "line {line_no}: vertex {count} has a non-numeric {axis} coordinate {}",
+                    quote(word)
+                )
             })?;
         }
         if !xyz.iter().all(|c| c.is_finite()) {
-            bail!("line {line_no}: vertex {count} has a non-finite coordinate ({}, {}, {})", xyz[0], xyz[1], xyz[2]);
+            bail!(
+                "line {line_no}: vertex {count} has a non-finite coordinate ({}, {}, {})",
+                xyz[0],
+                xyz[1],
+                xyz[2]
+            );
         }
     }
     Ok(count)
@@ -105,7 +120,9 @@ fn canonicalize(text: &str, total: usize) -> anyhow::Result<String> {
 /// `before` is the number of vertices defined above the face, which relative indices count back from.
 fn resolve(word: &str, before: usize, total: usize) -> Result<usize, String> {
     let head = word.split('/').next().unwrap_or_default();
-    let raw: i64 = head.parse().map_err(|_| format!("has a non-numeric vertex reference {}", quote(word)))?;
+    let raw: i64 = head
+        .parse()
+        .map_err(|_| format!("has a non-numeric vertex reference {}", quote(word)))?;
     let index = match raw {
         0 => return Err("refers to vertex 0 but OBJ indices start at 1".into()),
         // OBJ allows positive indices to point below the face; tobj resolves them after reading the whole file.
@@ -153,7 +170,11 @@ mod tests {
     fn index_forms_and_groups_share_vertices() {
         let body = "vt 0 0\nvn 0 0 1\no first\nusemtl a\nf 1/1/1 2/1/1 3//1\ng second\nf -4 -2 -1\ns 1\nl 1 2\np 1\n";
         let (m, _) = load_ok("forms.obj", &obj(body));
-        assert_eq!(m.positions.len(), 4, "groups must not duplicate the vertices they share");
+        assert_eq!(
+            m.positions.len(),
+            4,
+            "groups must not duplicate the vertices they share"
+        );
         assert_eq!(m.triangles.len(), 2);
         let corners: Vec<[Vec3; 3]> = m.triangles.iter().map(|t| t.map(|i| m.positions[i as usize])).collect();
         assert_eq!(corners[1], [Vec3::ZERO, Vec3::new(1.0, 1.0, 0.0), Vec3::Y]);
@@ -167,19 +188,47 @@ mod tests {
 
     #[test]
     fn index_out_of_range() {
-        expect_err("oob.obj", &obj("f 1 2 3\nf 1 2 900\n"), &["face 2 refers to vertex 900 but the file has 4 vertices"]);
-        expect_err("zero.obj", &obj("f 0 1 2\n"), &["face 1 refers to vertex 0", "start at 1"]);
-        expect_err("rel.obj", &obj("f -1 -2 -9\n"), &["face 1 refers to vertex -9 but only 4 vertices precede it"]);
-        expect_err("huge.obj", &obj("f 1 2 99999999999999999999\n"), &["face 1", "non-numeric"]);
+        expect_err(
+            "oob.obj",
+            &obj("f 1 2 3\nf 1 2 900\n"),
+            &["face 2 refers to vertex 900 but the file has 4 vertices"],
+        );
+        expect_err(
+            "zero.obj",
+            &obj("f 0 1 2\n"),
+            &["face 1 refers to vertex 0", "start at 1"],
+        );
+        expect_err(
+            "rel.obj",
+            &obj("f -1 -2 -9\n"),
+            &["face 1 refers to vertex -9 but only 4 vertices precede it"],
+        );
+        expect_err(
+            "huge.obj",
+            &obj("f 1 2 99999999999999999999\n"),
+            &["face 1", "non-numeric"],
+        );
     }
 
     #[test]
     fn malformed_lines() {
-        expect_err("nonnum.obj", &obj("v 1 oops 2\nf 1 2 3\n"), &["line 6", "vertex 5", "non-numeric y", "\"oops\""]);
+        expect_err(
+            "nonnum.obj",
+            &obj("v 1 oops 2\nf 1 2 3\n"),
+            &["line 6", "vertex 5", "non-numeric y", "\"oops\""],
+        );
         expect_err("short.obj", &obj("v 1 2\nf 1 2 3\n"), &["line 6", "vertex 5 has no z"]);
-        expect_err("nan.obj", &obj("v 1 NaN 2\nf 1 2 3\n"), &["line 6", "vertex 5", "non-finite", "NaN"]);
+        expect_err(
+            "nan.obj",
+            &obj("v 1 NaN 2\nf 1 2 3\n"),
+            &["line 6", "vertex 5", "non-finite", "NaN"],
+        );
         expect_err("inf.obj", &obj("v 1 1e39 2\nf 1 2 3\n"), &["vertex 5", "non-finite"]);
-        expect_err("badref.obj", &obj("f 1 x/2 3\n"), &["face 1 has a non-numeric vertex reference \"x/2\"", "line 6"]);
+        expect_err(
+            "badref.obj",
+            &obj("f 1 x/2 3\n"),
+            &["face 1 has a non-numeric vertex reference \"x/2\"", "line 6"],
+        );
         expect_err("noref.obj", &obj("f 1 //2 3\n"), &["face 1", "non-numeric"]);
         expect_err("twoverts.obj", &obj("f 1 2\n"), &["face 1 has only 2 vertices"]);
         expect_err("nofaces.obj", SQUARE, &["no triangles"]);

@@ -28,14 +28,28 @@ pub fn default_scene() -> Mesh {
 
 /// A regular tetrahedron inscribed in the cube [-1, 1]^3: 4 vertices, 4 triangles.
 pub fn tetrahedron() -> Mesh {
-    let positions = vec![Vec3::new(1.0, 1.0, 1.0), Vec3::new(1.0, -1.0, -1.0), Vec3::new(-1.0, 1.0, -1.0), Vec3::new(-1.0, -1.0, 1.0)];
+    let positions = vec![
+        Vec3::new(1.0, 1.0, 1.0),
+        Vec3::new(1.0, -1.0, -1.0),
+        Vec3::new(-1.0, 1.0, -1.0),
+        Vec3::new(-1.0, -1.0, 1.0),
+    ];
     convex_from_edges(positions, 8f32.sqrt())
 }
 
 /// The cube [-1, 1]^3: 8 vertices (vertex i has x from bit 0, y from bit 1, z from bit 2), 12 triangles.
 pub fn cube() -> Mesh {
-    let positions = (0..8).map(|i| Vec3::new(sign(i & 1), sign(i & 2), sign(i & 4))).collect();
-    let quads = [[0, 1, 3, 2], [4, 5, 7, 6], [0, 1, 5, 4], [2, 3, 7, 6], [0, 2, 6, 4], [1, 3, 7, 5]];
+    let positions = (0..8)
+        .map(|i| Vec3::new(sign(i & 1), sign(i & 2), sign(i & 4)))
+        .collect();
+    let quads = [
+        [0, 1, 3, 2],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 3, 7, 6],
+        [0, 2, 6, 4],
+        [1, 3, 7, 5],
+    ];
     let triangles = quads.iter().flat_map(|&[a, b, c, d]| [[a, b, c], [a, c, d]]).collect();
     orient_convex(Mesh { positions, triangles })
 }
@@ -76,7 +90,8 @@ fn torus(major: f32, minor: f32, segments: u32, sides: u32) -> Mesh {
         for j in 0..sides {
             let v = TAU * j as f32 / sides as f32;
             let ring = major + minor * v.cos();
-            mesh.positions.push(Vec3::new(ring * u.cos(), minor * v.sin(), ring * u.sin()));
+            mesh.positions
+                .push(Vec3::new(ring * u.cos(), minor * v.sin(), ring * u.sin()));
         }
     }
     let id = |i: u32, j: u32| (i % segments) * sides + j % sides;
@@ -102,7 +117,8 @@ fn slab(x: [f32; 2], z: [f32; 2], thickness: f32, cells: [u32; 2]) -> Mesh {
         for k in 0..=nz {
             for i in 0..=nx {
                 let (fx, fz) = (i as f32 / nx as f32, k as f32 / nz as f32);
-                mesh.positions.push(Vec3::new(x[0] + (x[1] - x[0]) * fx, y, z[0] + (z[1] - z[0]) * fz));
+                mesh.positions
+                    .push(Vec3::new(x[0] + (x[1] - x[0]) * fx, y, z[0] + (z[1] - z[0]) * fz));
             }
         }
     }
@@ -110,7 +126,12 @@ fn slab(x: [f32; 2], z: [f32; 2], thickness: f32, cells: [u32; 2]) -> Mesh {
     for face in 0..2 {
         for k in 0..nz {
             for i in 0..nx {
-                quad([id(face, i, k), id(face, i + 1, k), id(face, i + 1, k + 1), id(face, i, k + 1)]);
+                quad([
+                    id(face, i, k),
+                    id(face, i + 1, k),
+                    id(face, i + 1, k + 1),
+                    id(face, i, k + 1),
+                ]);
             }
         }
     }
@@ -169,7 +190,8 @@ fn transformed(mut mesh: Mesh, rotation: Quat, offset: Vec3) -> Mesh {
 fn append(to: &mut Mesh, part: Mesh) {
     let base = to.positions.len() as u32;
     to.positions.extend(part.positions);
-    to.triangles.extend(part.triangles.into_iter().map(|t| t.map(|i| i + base)));
+    to.triangles
+        .extend(part.triangles.into_iter().map(|t| t.map(|i| i + base)));
 }
 
 #[cfg(test)]
@@ -199,7 +221,10 @@ mod tests {
             fans[c as usize].insert(a, b);
         }
         for (v, fan) in fans.iter().enumerate() {
-            let start = *fan.keys().next().unwrap_or_else(|| panic!("{name}: vertex {v} is unused"));
+            let start = *fan
+                .keys()
+                .next()
+                .unwrap_or_else(|| panic!("{name}: vertex {v} is unused"));
             let (mut at, mut steps) = (fan[&start], 1);
             while at != start {
                 at = fan[&at];
@@ -208,7 +233,11 @@ mod tests {
             assert_eq!(steps, fan.len(), "{name}: vertex {v} is not manifold");
         }
         let distinct: HashSet<[u32; 3]> = mesh.positions.iter().map(|p| p.to_array().map(f32::to_bits)).collect();
-        assert_eq!(distinct.len(), mesh.positions.len(), "{name}: duplicate vertex positions");
+        assert_eq!(
+            distinct.len(),
+            mesh.positions.len(),
+            "{name}: duplicate vertex positions"
+        );
         let volume: f32 = mesh
             .triangles
             .iter()
@@ -225,7 +254,11 @@ mod tests {
         assert_eq!((cube().positions.len(), cube().triangles.len()), (8, 12));
         assert_eq!((icosahedron().positions.len(), icosahedron().triangles.len()), (12, 20));
         assert_eq!((octahedron().positions.len(), octahedron().triangles.len()), (6, 8));
-        for (name, mesh) in [("tetrahedron", tetrahedron()), ("cube", cube()), ("icosahedron", icosahedron())] {
+        for (name, mesh) in [
+            ("tetrahedron", tetrahedron()),
+            ("cube", cube()),
+            ("icosahedron", icosahedron()),
+        ] {
             assert_eq!(check_closed(name, &mesh), 2, "{name}: not a sphere");
         }
         assert_eq!(check_closed("octahedron", &octahedron()), 2);
@@ -247,6 +280,10 @@ mod tests {
         let above = scene.positions.iter().filter(|p| p.y > 0.0).count();
         assert_eq!(above, 16 * 8 + 12 + 6);
         assert!(scene.positions.iter().all(|p| p.y <= 0.0 || p.y >= 0.0099));
-        println!("default scene: {} vertices, {} triangles, bounds {lo} .. {hi}", scene.positions.len(), scene.triangles.len());
+        println!(
+            "default scene: {} vertices, {} triangles, bounds {lo} .. {hi}",
+            scene.positions.len(),
+            scene.triangles.len()
+        );
     }
 }
