@@ -238,20 +238,20 @@ pub fn sah_cost(nodes: &[BvhNode], params: &BuildParams) -> f32 {
             min: Vec3::from(n.min),
             max: Vec3::from(n.max),
         }
-        .area()
+        .area() as f64
     };
-    let inv_root = 1.0 / area(root).max(f32::MIN_POSITIVE);
-    nodes
+    // Summed in f64: millions of small f32 terms would lose the digits that compare builders.
+    let total: f64 = nodes
         .iter()
         .map(|n| {
-            let a = area(n) * inv_root;
             if n.is_leaf() {
-                a * n.count as f32 * params.intersection_cost
+                area(n) * n.count as f64 * params.intersection_cost as f64
             } else {
-                a * params.traversal_cost
+                area(n) * params.traversal_cost as f64
             }
         })
-        .sum()
+        .sum();
+    (total / area(root).max(f32::MIN_POSITIVE as f64)) as f32
 }
 
 /// Depth of the deepest leaf (the root alone has depth 1).

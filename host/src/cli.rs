@@ -12,7 +12,7 @@ use crate::gpu::Gpu;
 use crate::mesh::{self, Mesh};
 use crate::scene::{render_cpu, Scene};
 use crate::subdiv::{self, Scheme, Subdivided};
-use crate::{camera, grid, image_io, stats, triangles};
+use crate::{bench, camera, grid, image_io, stats, triangles};
 
 #[derive(Parser, Debug)]
 #[command(name = "gridrt", version, about = "Ray tracing of triangular grid primitives (micro-meshes) on the GPU and the CPU")]
@@ -27,6 +27,8 @@ pub enum Command {
     Render(RenderArgs),
     /// Print the memory and build time of both representations of a mesh.
     Stats(StatsArgs),
+    /// Measure memory, build time and ray throughput of grids against the baseline.
+    Bench(BenchArgs),
 }
 
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -108,10 +110,47 @@ pub struct StatsArgs {
     pub json: bool,
 }
 
+#[derive(clap::Args, Debug)]
+pub struct BenchArgs {
+    /// Meshes to measure (.obj or .ply).
+    #[arg(required = true)]
+    pub meshes: Vec<PathBuf>,
+    #[command(flatten)]
+    pub build: BuildArgs,
+    #[arg(long, value_enum, default_value_t = Backend::Cpu)]
+    pub backend: Backend,
+    /// Camera views on an orbit around each mesh.
+    #[arg(long, default_value_t = 4)]
+    pub views: u32,
+    #[arg(long, default_value_t = 480)]
+    pub width: u32,
+    #[arg(long, default_value_t = 360)]
+    pub height: u32,
+    /// Ambient-occlusion rays per primary hit.
+    #[arg(long, default_value_t = 4)]
+    pub ao_samples: u32,
+    /// Untimed runs before the timed ones.
+    #[arg(long, default_value_t = 1)]
+    pub warmup: usize,
+    /// Timed runs per representation and ray kind; the median is reported.
+    #[arg(long, default_value_t = 5)]
+    pub repeats: usize,
+    /// Builds per representation; the median is reported.
+    #[arg(long, default_value_t = 5)]
+    pub build_repeats: usize,
+    /// Also write the results as JSON (one object per mesh, in an array).
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Also write the markdown table to a file.
+    #[arg(long)]
+    pub markdown: Option<PathBuf>,
+}
+
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Render(args) => render(&args),
         Command::Stats(args) => stats::run(&args),
+        Command::Bench(args) => bench::run(&args),
     }
 }
 

@@ -1,8 +1,10 @@
 //! The GPU backend: headless wgpu compute running the rust-gpu kernels (built from `kernel/` by
 //! the build script and embedded here) on whatever adapter exists, lavapipe included.
 
+use std::time::Instant;
+
 use anyhow::{anyhow, bail, Context, Result};
-use gridrt_shared::layout::{FrameParams, WORKGROUP_SIZE};
+use gridrt_shared::layout::{FrameParams, HitRecord, RayRecord, TraceParams, TRACE_WORKGROUP_SIZE, WORKGROUP_SIZE};
 use wgpu::util::DeviceExt;
 
 use crate::scene::Scene;
@@ -10,13 +12,35 @@ use crate::scene::Scene;
 /// The SPIR-V module of the `kernel` crate.
 pub const KERNEL_SPV: &[u8] = include_bytes!(env!("kernel.spv"));
 
+/// One representation's pipelines: an image renderer and a ray-list tracer.
+struct Pipelines {
+    render: wgpu::ComputePipeline,
+    trace: wgpu::ComputePipeline,
+}
+
 pub struct Gpu {
     device: wgpu::Device,
     queue: wgpu::Queue,
     limits: wgpu::Limits,
+    timestamps: bool,
     pub adapter: wgpu::AdapterInfo,
-    triangles: wgpu::ComputePipeline,
-    grids: wgpu::ComputePipeline,
+    triangles: Pipelines,
+    grids: Pipelines,
+}
+
+/// A scene's geometry in GPU buffers, uploaded once and traced many times.
+pub struct GpuScene<'a> {
+    scene: &'a Scene,
+    buffers: Vec<wgpu::Buffer>,
+}
+
+/// How a dispatch was timed.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum Timing {
+    /// GPU timestamp queries around the compute pass.
+    Timestamps,
+    /// Wall time from submission to completion (the adapter has no timestamp queries).
+    FenceToFence,
 }
 
 impl Gpu {
@@ -39,9 +63,14 @@ impl Gpu {
             )
         })?;
         let limits = adapter.limits();
+        let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("gridrt"),
-            required_features: wgpu::Features::empty(),
+            required_features: if timestamps {
+                wgpu::Features::TIMESTAMP_QUERY
+            } else {
+                wgpu::Features::empty()
+            },
             required_limits: limits.clone(),
             ..Default::default()
         }))
@@ -62,8 +91,14 @@ impl Gpu {
                 cache: None,
             })
         };
-        let triangles = pipeline("render_triangles");
-        let grids = pipeline("render_grids");
+        let triangles = Pipelines {
+            render: pipeline("render_triangles"),
+            trace: pipeline("trace_triangles_rays"),
+        };
+        let grids = Pipelines {
+            render: pipeline("render_grids"),
+            trace: pipeline("trace_grids_rays"),
+        };
         if let Some(e) = pollster::block_on(device.pop_error_scope()) {
             bail!("the GPU driver rejected the gridrt kernels: {e}");
         }
@@ -72,6 +107,7 @@ impl Gpu {
             device,
             queue,
             limits,
+            timestamps,
             triangles,
             grids,
         })
@@ -79,22 +115,32 @@ impl Gpu {
 
     /// One line naming the adapter, e.g. `llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan, Cpu)`.
     pub fn describe(&self) -> String {
-        format!(
-            "{} ({:?}, {:?})",
-            self.adapter.name, self.adapter.backend, self.adapter.device_type
-        )
+        format!("{} ({:?}, {:?})", self.adapter.name, self.adapter.backend, self.adapter.device_type)
     }
 
-    fn storage(&self, name: &str, bytes: &[u8]) -> Result<wgpu::Buffer> {
+    /// How [`Gpu::time_trace`] measures on this adapter.
+    pub fn timing(&self) -> Timing {
+        if self.timestamps {
+            Timing::Timestamps
+        } else {
+            Timing::FenceToFence
+        }
+    }
+
+    fn check_size(&self, name: &str, bytes: u64) -> Result<()> {
         let limit = (self.limits.max_storage_buffer_binding_size as u64).min(self.limits.max_buffer_size);
-        if bytes.len() as u64 > limit {
+        if bytes > limit {
             bail!(
-                "the {name} buffer needs {} bytes, more than the {limit} bytes this GPU ({}) allows in one storage \
-                 buffer; render fewer levels or use --backend cpu",
-                bytes.len(),
+                "the {name} buffer needs {bytes} bytes, more than the {limit} bytes this GPU ({}) allows in one \
+                 storage buffer; use fewer levels, fewer rays or --backend cpu",
                 self.adapter.name
             );
         }
+        Ok(())
+    }
+
+    fn storage(&self, name: &str, bytes: &[u8]) -> Result<wgpu::Buffer> {
+        self.check_size(name, bytes.len() as u64)?;
         // wgpu rejects zero-sized bindings; an empty area still needs a placeholder.
         let contents: &[u8] = if bytes.is_empty() { &[0; 16] } else { bytes };
         Ok(self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -104,50 +150,49 @@ impl Gpu {
         }))
     }
 
-    /// Renders one frame; packed RGBA8, row-major, top row first (as `render_cpu`).
-    pub fn render(&self, scene: &Scene, frame: &FrameParams) -> Result<Vec<u32>> {
-        let (w, h) = (frame.camera.width, frame.camera.height);
-        let pixels = (w as u64) * (h as u64);
-        let out_bytes = pixels * 4;
-        let params = self.storage("frame parameters", bytemuck::bytes_of(frame))?;
-        let (pipeline, mut buffers) = match scene {
-            Scene::Triangles(s) => (
-                &self.triangles,
-                vec![
-                    params,
-                    self.storage("BVH", bytemuck::cast_slice(&s.nodes))?,
-                    self.storage("vertex", bytemuck::cast_slice(&s.positions))?,
-                    self.storage("index", bytemuck::cast_slice(&s.indices))?,
-                ],
-            ),
-            Scene::Grids(s) => (
-                &self.grids,
-                vec![
-                    params,
-                    self.storage("top-level BVH", bytemuck::cast_slice(&s.nodes))?,
-                    self.storage("grid header", bytemuck::cast_slice(&s.headers))?,
-                    self.storage("grid vertex", bytemuck::cast_slice(&s.vertices))?,
-                    self.storage("sphere radius", bytemuck::cast_slice(&s.radii))?,
-                ],
-            ),
+    fn output(&self, name: &str, bytes: u64) -> Result<(wgpu::Buffer, wgpu::Buffer)> {
+        self.check_size(name, bytes)?;
+        let make = |usage| {
+            self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(name),
+                size: bytes.max(16),
+                usage,
+                mapped_at_creation: false,
+            })
         };
-        if out_bytes > self.limits.max_storage_buffer_binding_size as u64 {
-            bail!("a {w}x{h} image is larger than this GPU's storage buffer limit");
+        Ok((
+            make(wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC),
+            make(wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST),
+        ))
+    }
+
+    /// Uploads a scene's geometry, in the binding order the kernels expect after their
+    /// parameters (binding 0).
+    pub fn upload<'a>(&self, scene: &'a Scene) -> Result<GpuScene<'a>> {
+        let buffers = match scene {
+            Scene::Triangles(s) => vec![
+                self.storage("BVH", bytemuck::cast_slice(&s.nodes))?,
+                self.storage("vertex", bytemuck::cast_slice(&s.positions))?,
+                self.storage("index", bytemuck::cast_slice(&s.indices))?,
+            ],
+            Scene::Grids(s) => vec![
+                self.storage("top-level BVH", bytemuck::cast_slice(&s.nodes))?,
+                self.storage("grid header", bytemuck::cast_slice(&s.headers))?,
+                self.storage("grid vertex", bytemuck::cast_slice(&s.vertices))?,
+                self.storage("sphere radius", bytemuck::cast_slice(&s.radii))?,
+            ],
+        };
+        Ok(GpuScene { scene, buffers })
+    }
+
+    fn pipelines(&self, scene: &Scene) -> &Pipelines {
+        match scene {
+            Scene::Triangles(_) => &self.triangles,
+            Scene::Grids(_) => &self.grids,
         }
-        let output = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("image"),
-            size: out_bytes,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let readback = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("image readback"),
-            size: out_bytes,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        buffers.push(output);
-        let layout = pipeline.get_bind_group_layout(0);
+    }
+
+    fn bind(&self, pipeline: &wgpu::ComputePipeline, buffers: &[&wgpu::Buffer]) -> wgpu::BindGroup {
         let entries: Vec<wgpu::BindGroupEntry> = buffers
             .iter()
             .enumerate()
@@ -156,38 +201,167 @@ impl Gpu {
                 resource: b.as_entire_binding(),
             })
             .collect();
-        let bind_group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: None,
-            layout: &layout,
+            layout: &pipeline.get_bind_group_layout(0),
             entries: &entries,
-        });
+        })
+    }
+
+    /// Encodes one dispatch (optionally between two timestamps), submits it and waits.
+    fn dispatch(
+        &self,
+        pipeline: &wgpu::ComputePipeline,
+        bind_group: &wgpu::BindGroup,
+        groups: (u32, u32),
+        copy: Option<(&wgpu::Buffer, &wgpu::Buffer, u64)>,
+        queries: Option<&(wgpu::QuerySet, wgpu::Buffer, wgpu::Buffer)>,
+    ) -> Result<()> {
         self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let mut encoder = self.device.create_command_encoder(&Default::default());
         {
-            let mut pass = encoder.begin_compute_pass(&Default::default());
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: None,
+                timestamp_writes: queries.map(|(set, _, _)| wgpu::ComputePassTimestampWrites {
+                    query_set: set,
+                    beginning_of_pass_write_index: Some(0),
+                    end_of_pass_write_index: Some(1),
+                }),
+            });
             pass.set_pipeline(pipeline);
-            pass.set_bind_group(0, &bind_group, &[]);
-            pass.dispatch_workgroups(w.div_ceil(WORKGROUP_SIZE), h.div_ceil(WORKGROUP_SIZE), 1);
+            pass.set_bind_group(0, bind_group, &[]);
+            pass.dispatch_workgroups(groups.0, groups.1, 1);
         }
-        encoder.copy_buffer_to_buffer(buffers.last().unwrap(), 0, &readback, 0, out_bytes);
+        if let Some((set, resolve, readback)) = queries {
+            encoder.resolve_query_set(set, 0..2, resolve, 0);
+            encoder.copy_buffer_to_buffer(resolve, 0, readback, 0, 16);
+        }
+        if let Some((from, to, bytes)) = copy {
+            encoder.copy_buffer_to_buffer(from, 0, to, 0, bytes);
+        }
         self.queue.submit([encoder.finish()]);
         if let Some(e) = pollster::block_on(self.device.pop_error_scope()) {
-            bail!("the GPU rejected the render: {e}");
+            bail!("the GPU rejected the dispatch: {e}");
         }
-        self.read_back(&readback)
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .context("GPU device lost")?;
+        Ok(())
     }
 
-    fn read_back(&self, buffer: &wgpu::Buffer) -> Result<Vec<u32>> {
-        let slice = buffer.slice(..);
+    /// Renders one frame; packed RGBA8, row-major, top row first (as `render_cpu`).
+    pub fn render(&self, scene: &Scene, frame: &FrameParams) -> Result<Vec<u32>> {
+        let uploaded = self.upload(scene)?;
+        self.render_uploaded(&uploaded, frame)
+    }
+
+    pub fn render_uploaded(&self, scene: &GpuScene, frame: &FrameParams) -> Result<Vec<u32>> {
+        let (w, h) = (frame.camera.width, frame.camera.height);
+        let bytes = w as u64 * h as u64 * 4;
+        let params = self.storage("frame parameters", bytemuck::bytes_of(frame))?;
+        let (image, readback) = self.output("image", bytes)?;
+        let pipeline = &self.pipelines(scene.scene).render;
+        let mut buffers = vec![&params];
+        buffers.extend(scene.buffers.iter());
+        buffers.push(&image);
+        let bind_group = self.bind(pipeline, &buffers);
+        let groups = (w.div_ceil(WORKGROUP_SIZE), h.div_ceil(WORKGROUP_SIZE));
+        self.dispatch(pipeline, &bind_group, groups, Some((&image, &readback, bytes)), None)?;
+        self.read_back(&readback, bytes)
+    }
+
+    /// Workgroup grid and parameters for `count` rays.
+    fn trace_params(&self, scene: &Scene, count: u32) -> ((u32, u32), TraceParams) {
+        let groups = count.div_ceil(TRACE_WORKGROUP_SIZE).max(1);
+        let x = groups.min(self.limits.max_compute_workgroups_per_dimension.min(32768));
+        let y = groups.div_ceil(x);
+        let params = TraceParams {
+            grid: match scene {
+                Scene::Triangles(_) => Default::default(),
+                Scene::Grids(s) => s.params,
+            },
+            ray_count: count,
+            threads_per_row: x * TRACE_WORKGROUP_SIZE,
+            _pad: [0; 2],
+        };
+        ((x, y), params)
+    }
+
+    /// Traces a list of rays: closest hit of each.
+    pub fn trace(&self, scene: &GpuScene, rays: &[RayRecord]) -> Result<Vec<HitRecord>> {
+        let (hits, _) = self.time_trace(scene, rays, 1)?;
+        Ok(hits)
+    }
+
+    /// Traces `rays` `repeats` times; returns the hits and the seconds of each repetition,
+    /// measured as [`Gpu::timing`] says.
+    pub fn time_trace(&self, scene: &GpuScene, rays: &[RayRecord], repeats: usize) -> Result<(Vec<HitRecord>, Vec<f64>)> {
+        let count = u32::try_from(rays.len()).context("too many rays for one dispatch")?;
+        let ((x, y), params) = self.trace_params(scene.scene, count);
+        let params = self.storage("trace parameters", bytemuck::bytes_of(&params))?;
+        let ray_buffer = self.storage("ray", bytemuck::cast_slice(rays))?;
+        let bytes = rays.len() as u64 * std::mem::size_of::<HitRecord>() as u64;
+        let (hits, readback) = self.output("hit", bytes)?;
+        let pipeline = &self.pipelines(scene.scene).trace;
+        let mut buffers = vec![&params];
+        buffers.extend(scene.buffers.iter());
+        buffers.extend([&ray_buffer, &hits]);
+        let bind_group = self.bind(pipeline, &buffers);
+        let queries = self.timestamps.then(|| {
+            let set = self.device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("trace timestamps"),
+                ty: wgpu::QueryType::Timestamp,
+                count: 2,
+            });
+            let make = |usage| {
+                self.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("timestamps"),
+                    size: 16,
+                    usage,
+                    mapped_at_creation: false,
+                })
+            };
+            (
+                set,
+                make(wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC),
+                make(wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST),
+            )
+        });
+        let period = self.queue.get_timestamp_period() as f64 * 1e-9;
+        let mut seconds = Vec::with_capacity(repeats);
+        for k in 0..repeats.max(1) {
+            let last = k + 1 == repeats.max(1);
+            let copy = last.then_some((&hits, &readback, bytes));
+            let start = Instant::now();
+            self.dispatch(pipeline, &bind_group, (x, y), copy, queries.as_ref())?;
+            let wall = start.elapsed().as_secs_f64();
+            seconds.push(match &queries {
+                Some((_, _, ts)) => {
+                    let t: Vec<u64> = bytemuck::cast_slice(&self.read_back_bytes(ts, 16)?).to_vec();
+                    t[1].saturating_sub(t[0]) as f64 * period
+                }
+                None => wall,
+            });
+        }
+        let hits = bytemuck::cast_slice(&self.read_back_bytes(&readback, bytes)?).to_vec();
+        Ok((hits, seconds))
+    }
+
+    fn read_back(&self, buffer: &wgpu::Buffer, bytes: u64) -> Result<Vec<u32>> {
+        Ok(bytemuck::cast_slice(&self.read_back_bytes(buffer, bytes)?).to_vec())
+    }
+
+    fn read_back_bytes(&self, buffer: &wgpu::Buffer, bytes: u64) -> Result<Vec<u8>> {
+        let slice = buffer.slice(..bytes);
         let (tx, rx) = std::sync::mpsc::channel();
         slice.map_async(wgpu::MapMode::Read, move |r| {
             let _ = tx.send(r);
         });
         self.device
             .poll(wgpu::PollType::wait_indefinitely())
-            .context("GPU device lost while rendering")?;
-        rx.recv()?.context("cannot read the image back from the GPU")?;
-        let data = bytemuck::cast_slice(&slice.get_mapped_range()).to_vec();
+            .context("GPU device lost while reading back")?;
+        rx.recv()?.context("cannot read back from the GPU")?;
+        let data = slice.get_mapped_range().to_vec();
         buffer.unmap();
         Ok(data)
     }

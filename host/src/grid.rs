@@ -11,7 +11,7 @@ use gridrt_shared::grid_index::{
     triangle_count, Lattice,
 };
 use gridrt_shared::layout::{BvhNode, GridHeader, GridParams};
-use gridrt_shared::traverse::MAX_SPHERE_LEVEL;
+use gridrt_shared::traverse::{sphere_center, MAX_SPHERE_LEVEL};
 use rayon::prelude::*;
 
 use crate::bvh::{self, Aabb, BuildParams};
@@ -207,7 +207,7 @@ pub fn grid_radii(sub: &Subdivided, g: usize, leaf_level: u32) -> Vec<f32> {
         for index in 0..triangle_count(level) {
             debug_assert_eq!(radii.len() as u32, level_start(level) + index);
             let [a, b, c] = sub_triangle(n, level, index);
-            let center = (pos(a) + pos(b) + pos(c)) * (1.0 / 3.0);
+            let center = sphere_center(pos(a), pos(b), pos(c));
             let m = n >> level;
             let mut r2 = 0f32;
             for lb in 0..=m {
@@ -286,7 +286,7 @@ mod tests {
                 for level in 0..=g.leaf_level {
                     for index in 0..triangle_count(level) {
                         let c = sub_triangle(n, level, index).map(|p| lattice_vertex(&scene, slot, p));
-                        let center = (c[0] + c[1] + c[2]) * (1.0 / 3.0);
+                        let center = sphere_center(c[0], c[1], c[2]);
                         let r = scene.radii[slot * g.sphere_count as usize + (level_start(level) + index) as usize];
                         // Every micro-triangle below this node, through its corners.
                         let below = levels - level;

@@ -4,6 +4,7 @@
 //! [`triangles`] build the two representations (each over [`bvh`]), and [`scene`] (CPU) or
 //! [`gpu`] traces them with the one implementation in `gridrt_shared`.
 
+pub mod bench;
 pub mod bvh;
 pub mod camera;
 pub mod cli;
@@ -11,6 +12,7 @@ pub mod gpu;
 pub mod grid;
 pub mod image_io;
 pub mod mesh;
+pub mod rays;
 pub mod scene;
 pub mod stats;
 pub mod subdiv;

@@ -4,7 +4,12 @@
 use gridrt_shared::camera::primary_ray;
 use gridrt_shared::glam::UVec3;
 use gridrt_shared::ray::T_FAR;
-use gridrt_shared::layout::{BvhNode, FrameParams, GridHeader, WORKGROUP_SIZE};
+use gridrt_shared::layout::{
+    BvhNode, FrameParams, GridHeader, HitRecord, RayRecord, TraceParams, TRACE_WORKGROUP_SIZE, WORKGROUP_SIZE,
+};
+use gridrt_shared::layout::Hit;
+use gridrt_shared::glam::Vec3;
+use gridrt_shared::ray::Ray;
 use gridrt_shared::shade::{pack_rgba8, shade};
 use gridrt_shared::traverse::{trace_grids, trace_triangles, GridScene, TriangleMesh};
 use spirv_std::spirv;
@@ -55,5 +60,59 @@ pub fn render_grids(
     image[(id.y * cam.width + id.x) as usize] = pack_rgba8(shade(&hit, &ray, params.shading));
 }
 
-// The workgroup size above is a literal because attribute arguments cannot name constants.
-const _: () = assert!(WORKGROUP_SIZE == 8);
+/// The ray this thread traces, if any.
+fn ray_of(id: UVec3, params: &TraceParams, rays: &[RayRecord]) -> Option<(usize, Ray, f32)> {
+    let index = id.x + id.y * params.threads_per_row;
+    if index >= params.ray_count {
+        return None;
+    }
+    let r = rays[index as usize];
+    Some((index as usize, Ray::new(Vec3::from(r.origin), Vec3::from(r.dir)), r.t_max))
+}
+
+fn record(hit: &Hit) -> HitRecord {
+    HitRecord { t: hit.t, prim: hit.prim }
+}
+
+/// A list of rays against the baseline (benchmarks, and anything that brings its own rays).
+#[spirv(compute(threads(64, 1, 1)))]
+pub fn trace_triangles_rays(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] nodes: &[BvhNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] positions: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] indices: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] rays: &[RayRecord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] hits: &mut [HitRecord],
+) {
+    if let Some((index, ray, t_max)) = ray_of(id, params, rays) {
+        let mesh = TriangleMesh { positions, indices };
+        hits[index] = record(&trace_triangles(nodes, &mesh, &ray, t_max));
+    }
+}
+
+/// A list of rays against grid primitives.
+#[spirv(compute(threads(64, 1, 1)))]
+pub fn trace_grids_rays(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] nodes: &[BvhNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] headers: &[GridHeader],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] vertices: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] radii: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] rays: &[RayRecord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] hits: &mut [HitRecord],
+) {
+    if let Some((index, ray, t_max)) = ray_of(id, params, rays) {
+        let scene = GridScene {
+            headers,
+            vertices,
+            radii,
+            params: params.grid,
+        };
+        hits[index] = record(&trace_grids(nodes, &scene, &ray, t_max));
+    }
+}
+
+// The workgroup sizes above is a literal because attribute arguments cannot name constants.
+const _: () = assert!(WORKGROUP_SIZE == 8 && TRACE_WORKGROUP_SIZE == 64);

@@ -136,3 +136,39 @@ impl Hit {
 
 /// Threads per workgroup of the render kernels, in x and y.
 pub const WORKGROUP_SIZE: u32 = 8;
+
+/// One ray to trace (32 bytes): the benchmark traces the same list through both
+/// representations.
+#[repr(C)]
+#[derive(Copy, Clone, Default)]
+#[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable, Debug, PartialEq))]
+pub struct RayRecord {
+    pub origin: [f32; 3],
+    pub t_max: f32,
+    pub dir: [f32; 3],
+    pub _pad: u32,
+}
+
+/// The closest hit of a [`RayRecord`]: distance and primitive (`NO_HIT` for a miss).
+#[repr(C)]
+#[derive(Copy, Clone, Default)]
+#[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable, Debug, PartialEq))]
+pub struct HitRecord {
+    pub t: f32,
+    pub prim: u32,
+}
+
+/// Parameters of a ray-list dispatch. Rays are numbered `x + y * threads_per_row` over a 2D
+/// grid of workgroups, because one dimension holds at most 65535 of them.
+#[repr(C)]
+#[derive(Copy, Clone, Default)]
+#[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable, Debug, PartialEq))]
+pub struct TraceParams {
+    pub grid: GridParams,
+    pub ray_count: u32,
+    pub threads_per_row: u32,
+    pub _pad: [u32; 2],
+}
+
+/// Threads per workgroup of the ray-list kernels.
+pub const TRACE_WORKGROUP_SIZE: u32 = 64;

@@ -5,7 +5,8 @@
 use crate::aabb::intersect_aabb;
 use crate::glam::Vec3;
 use crate::grid_index::{
-    leaf_triangle, level_start, sub_triangle, triangle_count, vertex_slot, Lattice,
+    lattice_index, level_start, micro_table_offset, sub_triangle, triangle_count, vertex_count, vertex_slot, Lattice,
+    MAX_LEAF_DEPTH, MICRO_TRIANGLES,
 };
 use crate::layout::{BvhNode, GridHeader, GridParams, Hit};
 use crate::ray::{Ray, T_FAR};
@@ -130,6 +131,21 @@ pub struct GridScene<'a> {
     pub params: GridParams,
 }
 
+/// Most vertices a leaf can hold: a sub-triangle subdivided `MAX_LEAF_DEPTH` times.
+const LEAF_VERTICES: usize = vertex_count(MAX_LEAF_DEPTH) as usize;
+
+#[inline]
+fn midpoint(a: Lattice, b: Lattice) -> Lattice {
+    [(a[0] + b[0]) / 2, (a[1] + b[1]) / 2]
+}
+
+/// Mean of three corners, summed in corner order: the host computes the radii around exactly
+/// this point.
+#[inline]
+pub fn sphere_center(a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
+    (a + b + c) * (1.0 / 3.0)
+}
+
 impl GridScene<'_> {
     #[inline]
     fn vertex(&self, grid: u32, header: &GridHeader, p: Lattice) -> Vec3 {
@@ -146,30 +162,54 @@ impl GridScene<'_> {
         load_vec3(self.vertices, slot)
     }
 
-    /// Sphere of the sub-triangle `index` at `level`: centre from its corners, radius stored.
     #[inline]
-    fn sphere_entry(&self, grid: u32, header: &GridHeader, level: u32, index: u32, ray: &Ray, t_max: f32) -> f32 {
-        let c = sub_triangle(1 << self.params.levels, level, index);
-        let center = (self.vertex(grid, header, c[0]) + self.vertex(grid, header, c[1]) + self.vertex(grid, header, c[2]))
-            * (1.0 / 3.0);
-        let radius = self.radii[(grid * self.params.sphere_count + level_start(level) + index) as usize];
-        intersect_sphere(center, radius, ray, t_max)
+    fn radius(&self, grid: u32, node: u32) -> f32 {
+        self.radii[(grid * self.params.sphere_count + node) as usize]
     }
 
-    /// Tests the `4^k` micro-triangles of the leaf sub-triangle `index` at `level`, `k` levels
-    /// below it being the rendered depth.
-    fn intersect_leaf_triangles(&self, grid: u32, header: &GridHeader, level: u32, index: u32, ray: &Ray, hit: &mut Hit) {
-        let n = 1 << self.params.levels;
-        let leaf = sub_triangle(n, level, index);
-        let k = self.params.lod - level;
+    /// Tests the `4^k` micro-triangles of a leaf sub-triangle with corners `leaf`: its
+    /// vertices are loaded once, then the static index list names the triangles among them.
+    #[allow(clippy::too_many_arguments)]
+    fn intersect_leaf_triangles(
+        &self,
+        grid: u32,
+        header: &GridHeader,
+        leaf: [Lattice; 3],
+        k: u32,
+        first_id: u32,
+        ray: &Ray,
+        hit: &mut Hit,
+    ) {
+        let m = 1u32 << k;
+        let [a, b, c] = leaf;
+        let e1 = [(b[0] as i32 - a[0] as i32) / m as i32, (b[1] as i32 - a[1] as i32) / m as i32];
+        let e2 = [(c[0] as i32 - a[0] as i32) / m as i32, (c[1] as i32 - a[1] as i32) / m as i32];
+        let mut verts = [Vec3::ZERO; LEAF_VERTICES];
+        let mut slot = 0usize;
+        let mut lb = 0u32;
+        while lb <= m {
+            let mut la = 0u32;
+            while la <= m - lb {
+                let p = [
+                    (a[0] as i32 + la as i32 * e1[0] + lb as i32 * e2[0]) as u32,
+                    (a[1] as i32 + la as i32 * e1[1] + lb as i32 * e2[1]) as u32,
+                ];
+                verts[slot] = self.vertex(grid, header, p);
+                slot += 1;
+                la += 1;
+            }
+            lb += 1;
+        }
+        let offset = micro_table_offset(k);
         let count = triangle_count(k);
-        let first_id = grid * triangle_count(self.params.lod) + index * count;
         let mut t = 0;
         while t < count {
-            let c = leaf_triangle(leaf, k, t);
-            let v0 = self.vertex(grid, header, c[0]);
-            let v1 = self.vertex(grid, header, c[1]);
-            let v2 = self.vertex(grid, header, c[2]);
+            let packed = MICRO_TRIANGLES[(offset + t) as usize];
+            let corner = |v: u32| {
+                let byte = (packed >> (8 * v)) & 0xff;
+                verts[lattice_index(byte & 0xf, byte >> 4, m) as usize]
+            };
+            let (v0, v1, v2) = (corner(0), corner(1), corner(2));
             if let Some(found) = intersect_triangle(v0, v1, v2, ray, hit.t) {
                 record_hit(hit, found, first_id + t, triangle_normal(v0, v1, v2));
             }
@@ -180,13 +220,21 @@ impl GridScene<'_> {
     /// The bottom level: depth-first, nearest sphere first, over the grid's 4-ary hierarchy.
     pub fn intersect_grid(&self, grid: u32, ray: &Ray, hit: &mut Hit) {
         let header = self.headers[grid as usize];
+        let n = 1u32 << self.params.levels;
+        let lod = self.params.lod;
         // At a coarse level of detail the hierarchy is cut where the rendered triangles are.
-        let leaf_level = if self.params.leaf_level < self.params.lod {
+        let leaf_level = if self.params.leaf_level < lod {
             self.params.leaf_level
         } else {
-            self.params.lod
+            lod
         };
-        if self.sphere_entry(grid, &header, 0, 0, ray, hit.t) == T_FAR {
+        let root = [[0, 0], [n, 0], [0, n]];
+        let center = sphere_center(
+            self.vertex(grid, &header, root[0]),
+            self.vertex(grid, &header, root[1]),
+            self.vertex(grid, &header, root[2]),
+        );
+        if intersect_sphere(center, self.radius(grid, 0), ray, hit.t) == T_FAR {
             return;
         }
         // Entries pack `index << 4 | level`, with the sphere's entry distance beside them.
@@ -202,17 +250,35 @@ impl GridScene<'_> {
             }
             let level = stack[sp] & 0xf;
             let index = stack[sp] >> 4;
+            let corners = sub_triangle(n, level, index);
             if level == leaf_level {
-                self.intersect_leaf_triangles(grid, &header, level, index, ray, hit);
+                let k = lod - level;
+                let first_id = grid * triangle_count(lod) + index * triangle_count(k);
+                self.intersect_leaf_triangles(grid, &header, corners, k, first_id, ray, hit);
                 continue;
             }
+            // The four children share six vertices: three corners and three midpoints.
+            let pa = self.vertex(grid, &header, corners[0]);
+            let pb = self.vertex(grid, &header, corners[1]);
+            let pc = self.vertex(grid, &header, corners[2]);
+            let pab = self.vertex(grid, &header, midpoint(corners[0], corners[1]));
+            let pbc = self.vertex(grid, &header, midpoint(corners[1], corners[2]));
+            let pca = self.vertex(grid, &header, midpoint(corners[2], corners[0]));
+            // Children in `child_corners` order; their radii are adjacent in BFS order.
+            let centers = [
+                sphere_center(pa, pab, pca),
+                sphere_center(pab, pb, pbc),
+                sphere_center(pca, pbc, pc),
+                sphere_center(pbc, pca, pab),
+            ];
+            let first_child = level_start(level + 1) + 4 * index;
             // Test the four children, then push the hit ones farthest first.
             let mut child_t = [0f32; 4];
             let mut order = [0u32; 4];
             let mut hits = 0usize;
             let mut c = 0u32;
             while c < 4 {
-                let t = self.sphere_entry(grid, &header, level + 1, 4 * index + c, ray, hit.t);
+                let t = intersect_sphere(centers[c as usize], self.radius(grid, first_child + c), ray, hit.t);
                 if t < T_FAR {
                     // Insertion into `order`, sorted by decreasing entry distance.
                     let mut s = hits;

@@ -19,6 +19,8 @@ pub fn parse_obj(bytes: &[u8]) -> anyhow::Result<Mesh> {
     let text = String::from_utf8_lossy(bytes);
     let total = check_vertices(&text)?;
     let canonical = canonicalize(&text, total)?;
+    // Spelled out in full today; the update stays for the fields tobj's `merging`/`reordering` features add.
+    #[allow(clippy::needless_update)]
     let options = tobj::LoadOptions {
         triangulate: true,
         single_index: false,
@@ -33,15 +35,11 @@ pub fn parse_obj(bytes: &[u8]) -> anyhow::Result<Mesh> {
 
     let mut mesh = Mesh::default();
     for model in models {
-        let m = model.mesh;
         let base = mesh.positions.len() as u32;
-        mesh.positions
-            .extend(m.positions.chunks_exact(3).map(|p| Vec3::new(p[0], p[1], p[2])));
-        mesh.triangles.extend(
-            m.indices
-                .chunks_exact(3)
-                .map(|t| [base + t[0], base + t[1], base + t[2]]),
-        );
+        let (positions, _) = model.mesh.positions.as_chunks::<3>();
+        mesh.positions.extend(positions.iter().map(|&p| Vec3::from_array(p)));
+        let (triangles, _) = model.mesh.indices.as_chunks::<3>();
+        mesh.triangles.extend(triangles.iter().map(|t| t.map(|i| base + i)));
     }
     Ok(mesh)
 }

@@ -1,0 +1,250 @@
+//! `gridrt bench`: the published Table 1 measured here, on the same rays for both
+//! representations: memory, build time and ray throughput of grids against the baseline.
+
+use std::fmt::Write as _;
+use std::time::Instant;
+
+use anyhow::{bail, Result};
+use indicatif::{ProgressBar, ProgressStyle};
+use serde::Serialize;
+
+use crate::bvh::Aabb;
+use crate::cli::{self, Backend, BenchArgs};
+use crate::gpu::{Gpu, Timing};
+use crate::rays::{ao_rays, primary_rays, trace_cpu, triangle_normal};
+use crate::scene::Scene;
+use crate::stats::{self, Stats};
+use crate::{grid, triangles};
+use gridrt_shared::layout::{HitRecord, RayRecord};
+
+#[derive(Serialize, Debug, Clone, Copy, Default)]
+pub struct PerKind {
+    pub primary: f64,
+    pub ao: f64,
+}
+
+#[derive(Serialize, Debug, Clone, Copy, Default)]
+pub struct PerRepresentation {
+    pub grid: PerKind,
+    pub triangles: PerKind,
+}
+
+/// One mesh's row: the keys of `gridrt stats` and the ray tracing figures.
+#[derive(Serialize, Debug, Clone)]
+pub struct BenchResult {
+    #[serde(flatten)]
+    pub stats: Stats,
+    pub backend: String,
+    pub device: String,
+    pub timing: String,
+    pub views: u32,
+    pub width: u32,
+    pub height: u32,
+    pub rays: PerKind,
+    pub mrays_per_s: PerRepresentation,
+    /// `(max - min) / median` of the repetitions, per representation and ray kind.
+    pub spread: PerRepresentation,
+    pub rt_impact_percent: PerKind,
+    /// Fraction of rays whose closest hit (micro-triangle) is the same in both.
+    pub hit_agreement: PerKind,
+}
+
+/// Median and relative spread of a set of timings.
+fn summarize(mut seconds: Vec<f64>) -> (f64, f64) {
+    seconds.sort_by(f64::total_cmp);
+    let median = seconds[seconds.len() / 2];
+    let spread = (seconds[seconds.len() - 1] - seconds[0]) / median.max(1e-12);
+    (median, spread)
+}
+
+enum Device {
+    Cpu,
+    Gpu(Box<Gpu>),
+}
+
+impl Device {
+    /// Hits of the last run and the seconds of each timed repetition (after the warm-up).
+    fn time(&self, scene: &Scene, rays: &[RayRecord], warmup: usize, repeats: usize) -> Result<(Vec<HitRecord>, Vec<f64>)> {
+        match self {
+            Device::Cpu => {
+                let mut hits = Vec::new();
+                let mut seconds = Vec::new();
+                for k in 0..warmup + repeats {
+                    let start = Instant::now();
+                    hits = trace_cpu(scene, rays);
+                    if k >= warmup {
+                        seconds.push(start.elapsed().as_secs_f64());
+                    }
+                }
+                Ok((hits, seconds))
+            }
+            Device::Gpu(gpu) => {
+                let uploaded = gpu.upload(scene)?;
+                let (hits, mut seconds) = gpu.time_trace(&uploaded, rays, warmup + repeats)?;
+                seconds.drain(..warmup.min(seconds.len()));
+                Ok((hits, seconds))
+            }
+        }
+    }
+}
+
+fn agreement(a: &Scene, ha: &[HitRecord], b: &Scene, hb: &[HitRecord]) -> f64 {
+    let same = ha
+        .iter()
+        .zip(hb)
+        .filter(|(x, y)| {
+            let (hx, hy) = (x.prim != gridrt_shared::layout::NO_HIT, y.prim != gridrt_shared::layout::NO_HIT);
+            hx == hy && (!hx || a.original_triangle(x.prim) == b.original_triangle(y.prim))
+        })
+        .count();
+    same as f64 / ha.len().max(1) as f64
+}
+
+pub fn run(args: &BenchArgs) -> Result<()> {
+    if args.meshes.is_empty() {
+        bail!("name at least one mesh to benchmark");
+    }
+    let device = match args.backend {
+        Backend::Cpu => Device::Cpu,
+        Backend::Gpu => Device::Gpu(Box::new(Gpu::new()?)),
+        Backend::Auto => match Gpu::new() {
+            Ok(g) => Device::Gpu(Box::new(g)),
+            Err(e) => {
+                eprintln!("note: {e:#}; benchmarking the CPU");
+                Device::Cpu
+            }
+        },
+    };
+    let (backend, device_name, timing) = match &device {
+        Device::Cpu => (
+            "cpu",
+            format!("CPU, {} threads", rayon::current_num_threads()),
+            "wall clock".to_string(),
+        ),
+        Device::Gpu(g) => (
+            "gpu",
+            g.describe(),
+            match g.timing() {
+                Timing::Timestamps => "GPU timestamp queries".to_string(),
+                Timing::FenceToFence => "fence to fence (no timestamp queries on this adapter)".to_string(),
+            },
+        ),
+    };
+    // Per mesh: load+subdivide, stats, rays, then 4 timed runs.
+    let steps = 7;
+    let bar = ProgressBar::new((args.meshes.len() * steps) as u64);
+    bar.set_style(ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}").unwrap());
+    let mut results = Vec::new();
+    for path in &args.meshes {
+        let name = path.display().to_string();
+        bar.set_message(format!("{name}: subdividing"));
+        let (_, mesh) = cli::load(Some(path))?;
+        let sub = cli::subdivide(&mesh, &args.build);
+        bar.inc(1);
+        bar.set_message(format!("{name}: building ({} times each)", args.build_repeats));
+        let stats = stats::measure(&name, &mesh, &sub, &args.build, args.build_repeats)?;
+        let grids = Scene::Grids(grid::build(&mesh, &sub, args.build.excluded_levels)?);
+        let tris = Scene::Triangles(triangles::build(&sub.positions, &sub.micro_triangles(sub.levels)));
+        bar.inc(1);
+        bar.set_message(format!("{name}: generating rays"));
+        let bounds = Aabb::from_points(sub.positions.iter().copied());
+        let primary = primary_rays(&bounds, args.views, args.width, args.height);
+        let Scene::Triangles(t) = &tris else { unreachable!() };
+        let first_hits = trace_cpu(&tris, &primary);
+        let ao = ao_rays(&primary, &first_hits, args.ao_samples, &bounds, |p| triangle_normal(t, p));
+        bar.inc(1);
+        let mut mrays = PerRepresentation::default();
+        let mut spread = PerRepresentation::default();
+        let mut agree = PerKind::default();
+        for (kind, rays) in [("primary", &primary), ("ao", &ao)] {
+            let mut hits = Vec::new();
+            for (label, scene) in [("grid", &grids), ("triangles", &tris)] {
+                bar.set_message(format!("{name}: {} {kind} rays through {label}", rays.len()));
+                let (h, seconds) = device.time(scene, rays, args.warmup, args.repeats)?;
+                let (median, rel) = summarize(seconds);
+                let rate = rays.len() as f64 / median / 1e6;
+                let (m, s) = match label {
+                    "grid" => (&mut mrays.grid, &mut spread.grid),
+                    _ => (&mut mrays.triangles, &mut spread.triangles),
+                };
+                match kind {
+                    "primary" => (m.primary, s.primary) = (rate, rel),
+                    _ => (m.ao, s.ao) = (rate, rel),
+                }
+                hits.push(h);
+                bar.inc(1);
+            }
+            let a = agreement(&grids, &hits[0], &tris, &hits[1]);
+            match kind {
+                "primary" => agree.primary = a,
+                _ => agree.ao = a,
+            }
+        }
+        let impact = |g: f64, t: f64| (t / g - 1.0) * 100.0;
+        results.push(BenchResult {
+            stats,
+            backend: backend.to_string(),
+            device: device_name.clone(),
+            timing: timing.clone(),
+            views: args.views,
+            width: args.width,
+            height: args.height,
+            rays: PerKind {
+                primary: primary.len() as f64,
+                ao: ao.len() as f64,
+            },
+            rt_impact_percent: PerKind {
+                primary: impact(mrays.grid.primary, mrays.triangles.primary),
+                ao: impact(mrays.grid.ao, mrays.triangles.ao),
+            },
+            mrays_per_s: mrays,
+            spread,
+            hit_agreement: agree,
+        });
+    }
+    bar.finish_and_clear();
+    let table = markdown(&results);
+    println!("{table}");
+    if let Some(path) = &args.json {
+        std::fs::write(path, serde_json::to_string_pretty(&results)? + "\n")
+            .map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", path.display()))?;
+    }
+    if let Some(path) = &args.markdown {
+        std::fs::write(path, table).map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", path.display()))?;
+    }
+    Ok(())
+}
+
+/// The published Table 1 columns (RT impact, compression gain, construction gain) plus
+/// bytes per triangle and throughput.
+pub fn markdown(results: &[BenchResult]) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "| mesh | micro-triangles | RT impact primary | RT impact AO | compression gain | construction gain | \
+         grid B/tri | triangles B/tri | grid Mrays/s (primary / AO) | triangles Mrays/s (primary / AO) |"
+    );
+    let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    for r in results {
+        let name = std::path::Path::new(&r.stats.mesh)
+            .file_name()
+            .map(|f| f.to_string_lossy().into_owned())
+            .unwrap_or_else(|| r.stats.mesh.clone());
+        let _ = writeln!(
+            s,
+            "| {name} | {} | {:+.1}% | {:+.1}% | {:.2}x | {:.1}x | {:.2} | {:.2} | {:.2} / {:.2} | {:.2} / {:.2} |",
+            r.stats.micro_triangles,
+            r.rt_impact_percent.primary,
+            r.rt_impact_percent.ao,
+            r.stats.compression_gain,
+            r.stats.construction_gain,
+            r.stats.grid.bytes_per_triangle,
+            r.stats.triangles.bytes_per_triangle,
+            r.mrays_per_s.grid.primary,
+            r.mrays_per_s.grid.ao,
+            r.mrays_per_s.triangles.primary,
+            r.mrays_per_s.triangles.ao,
+        );
+    }
+    s
+}
