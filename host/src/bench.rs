@@ -10,7 +10,7 @@ use serde::Serialize;
 
 use crate::bvh::Aabb;
 use crate::cli::{self, Backend, BenchArgs};
-use crate::gpu::{Gpu, Timing};
+use crate::gpu::{Gpu, NoAdapter, Timing};
 use crate::rays::{ao_rays, primary_rays, trace_cpu, triangle_normal};
 use crate::scene::Scene;
 use crate::stats::{self, Stats};
@@ -109,10 +109,11 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         Backend::Gpu => Device::Gpu(Box::new(Gpu::new()?)),
         Backend::Auto => match Gpu::new() {
             Ok(g) => Device::Gpu(Box::new(g)),
-            Err(e) => {
-                eprintln!("note: {e:#}; benchmarking the CPU");
+            Err(e) if e.is::<NoAdapter>() => {
+                eprintln!("note: {e}; benchmarking the CPU");
                 Device::Cpu
             }
+            Err(e) => return Err(e),
         },
     };
     let (backend, device_name, timing) = match &device {

@@ -8,7 +8,7 @@ use clap::{Parser, Subcommand, ValueEnum};
 use gridrt_shared::layout::{SHADE_EYE_LIGHT, SHADE_NORMAL, SHADE_PRIMITIVE};
 
 use crate::bvh::Aabb;
-use crate::gpu::Gpu;
+use crate::gpu::{Gpu, NoAdapter};
 use crate::mesh::{self, Mesh};
 use crate::scene::{render_cpu, Scene};
 use crate::subdiv::{self, Scheme, Subdivided};
@@ -211,10 +211,11 @@ fn render(args: &RenderArgs) -> Result<()> {
         }
         Backend::Auto => match Gpu::new() {
             Ok(gpu) => (gpu.render(&scene, &frame)?, gpu.describe()),
-            Err(e) => {
-                eprintln!("note: {e:#}; rendering on the CPU");
+            Err(e) if e.is::<NoAdapter>() => {
+                eprintln!("note: {e}; rendering on the CPU");
                 (render_cpu(&scene, &frame), "CPU".to_string())
             }
+            Err(e) => return Err(e),
         },
     };
     image_io::write_png(&args.output, &pixels, args.width, args.height)?;

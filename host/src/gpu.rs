@@ -3,7 +3,7 @@
 
 use std::time::Instant;
 
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{bail, Context, Result};
 use gridrt_shared::layout::{FrameParams, HitRecord, RayRecord, TraceParams, TRACE_WORKGROUP_SIZE, WORKGROUP_SIZE};
 use wgpu::util::DeviceExt;
 
@@ -34,6 +34,23 @@ pub struct GpuScene<'a> {
     buffers: Vec<wgpu::Buffer>,
 }
 
+/// wgpu found no adapter at all: the one GPU failure that falling back to the CPU answers.
+#[derive(Debug)]
+pub struct NoAdapter(pub String);
+
+impl std::fmt::Display for NoAdapter {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "no GPU adapter found ({}); install a Vulkan driver (Debian: mesa-vulkan-drivers libvulkan1) or use \
+             --backend cpu",
+            self.0
+        )
+    }
+}
+
+impl std::error::Error for NoAdapter {}
+
 /// How a dispatch was timed.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum Timing {
@@ -56,12 +73,7 @@ impl Gpu {
             force_fallback_adapter: false,
             compatible_surface: None,
         }))
-        .map_err(|e| {
-            anyhow!(
-                "no GPU adapter found ({e}); install a Vulkan driver (Debian: mesa-vulkan-drivers libvulkan1) \
-                 or use --backend cpu"
-            )
-        })?;
+        .map_err(|e| NoAdapter(e.to_string()))?;
         let limits = adapter.limits();
         let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
@@ -100,7 +112,7 @@ impl Gpu {
             trace: pipeline("trace_grids_rays"),
         };
         if let Some(e) = pollster::block_on(device.pop_error_scope()) {
-            bail!("the GPU driver rejected the gridrt kernels: {e}");
+            bail!("the GPU driver rejected the gridrt kernels: {}", error_chain(&e));
         }
         Ok(Gpu {
             adapter: adapter.get_info(),
@@ -241,7 +253,7 @@ impl Gpu {
         }
         self.queue.submit([encoder.finish()]);
         if let Some(e) = pollster::block_on(self.device.pop_error_scope()) {
-            bail!("the GPU rejected the dispatch: {e}");
+            bail!("the GPU rejected the dispatch: {}", error_chain(&e));
         }
         self.device
             .poll(wgpu::PollType::wait_indefinitely())
@@ -365,4 +377,16 @@ impl Gpu {
         buffer.unmap();
         Ok(data)
     }
+}
+
+/// A wgpu error with its causes on one line (its `Display` alone says only "Validation Error").
+fn error_chain(e: &dyn std::error::Error) -> String {
+    let mut text = e.to_string();
+    let mut source = e.source();
+    while let Some(cause) = source {
+        text.push_str(": ");
+        text.push_str(cause.to_string().trim());
+        source = cause.source();
+    }
+    text.split_whitespace().collect::<Vec<_>>().join(" ")
 }

@@ -60,14 +60,20 @@ pub fn render_grids(
     image[(id.y * cam.width + id.x) as usize] = pack_rgba8(shade(&hit, &ray, params.shading));
 }
 
-/// The ray this thread traces, if any.
-fn ray_of(id: UVec3, params: &TraceParams, rays: &[RayRecord]) -> Option<(usize, Ray, f32)> {
+/// The index of the ray this thread traces, or `None` past the end of the list. (No tuples or
+/// other reordered Rust layouts cross function boundaries here: shader translators reject
+/// struct members out of offset order.)
+fn ray_index(id: UVec3, params: &TraceParams) -> Option<usize> {
     let index = id.x + id.y * params.threads_per_row;
-    if index >= params.ray_count {
-        return None;
+    if index < params.ray_count {
+        Some(index as usize)
+    } else {
+        None
     }
-    let r = rays[index as usize];
-    Some((index as usize, Ray::new(Vec3::from(r.origin), Vec3::from(r.dir)), r.t_max))
+}
+
+fn ray_of(r: &RayRecord) -> Ray {
+    Ray::new(Vec3::from(r.origin), Vec3::from(r.dir))
 }
 
 fn record(hit: &Hit) -> HitRecord {
@@ -85,9 +91,9 @@ pub fn trace_triangles_rays(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] rays: &[RayRecord],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] hits: &mut [HitRecord],
 ) {
-    if let Some((index, ray, t_max)) = ray_of(id, params, rays) {
+    if let Some(index) = ray_index(id, params) {
         let mesh = TriangleMesh { positions, indices };
-        hits[index] = record(&trace_triangles(nodes, &mesh, &ray, t_max));
+        hits[index] = record(&trace_triangles(nodes, &mesh, &ray_of(&rays[index]), rays[index].t_max));
     }
 }
 
@@ -103,14 +109,14 @@ pub fn trace_grids_rays(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] rays: &[RayRecord],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] hits: &mut [HitRecord],
 ) {
-    if let Some((index, ray, t_max)) = ray_of(id, params, rays) {
+    if let Some(index) = ray_index(id, params) {
         let scene = GridScene {
             headers,
             vertices,
             radii,
             params: params.grid,
         };
-        hits[index] = record(&trace_grids(nodes, &scene, &ray, t_max));
+        hits[index] = record(&trace_grids(nodes, &scene, &ray_of(&rays[index]), rays[index].t_max));
     }
 }
 

@@ -5,6 +5,7 @@ use crate::glam::Vec3;
 pub const T_FAR: f32 = f32::MAX;
 
 /// A ray plus the per-ray constants every box and triangle test needs, computed once.
+#[repr(C)]
 #[derive(Copy, Clone, Debug)]
 pub struct Ray {
     pub origin: Vec3,

@@ -3,14 +3,15 @@
 use std::path::PathBuf;
 
 use gridrt::bvh::Aabb;
-use gridrt::gpu::Gpu;
+use gridrt::gpu::{Gpu, NoAdapter};
 use gridrt::mesh::Mesh;
 use gridrt::scene::Scene;
 use gridrt::subdiv::{subdivide, Scheme, Subdivided};
 use gridrt::{grid, triangles};
 use gridrt_shared::glam::Vec3;
 
-/// The GPU, or `None` with the reason printed. Under CI (`CI=true`) a missing adapter fails
+/// The GPU, or `None` with the reason printed when there is no adapter at all; any other GPU
+/// failure fails the test. Under CI (`CI=true`) a missing adapter fails
 /// the test instead: CI must exercise the GPU path.
 pub fn gpu_or_skip(test: &str) -> Option<Gpu> {
     match Gpu::new() {
@@ -18,11 +19,12 @@ pub fn gpu_or_skip(test: &str) -> Option<Gpu> {
             eprintln!("{test}: GPU tests on {}", gpu.describe());
             Some(gpu)
         }
+        Err(e) if !e.is::<NoAdapter>() => panic!("{test}: the GPU backend failed: {e:#}"),
         Err(e) if std::env::var("CI").is_ok_and(|v| v == "true") => {
             panic!("{test}: CI=true but no GPU adapter: {e:#}")
         }
         Err(e) => {
-            eprintln!("{test}: SKIPPED, no GPU adapter: {e:#}");
+            eprintln!("{test}: SKIPPED: {e:#}");
             None
         }
     }

@@ -66,3 +66,34 @@ fn teapot_gpu_equals_cpu() {
     };
     both_modes(&gpu, "teapot L=2", &load_mesh(&dir.join("teapot.obj")).unwrap(), 2);
 }
+
+/// The ray-list kernels the benchmark times find the same hits as the CPU.
+#[test]
+fn ray_lists_gpu_equal_cpu() {
+    let Some(gpu) = gpu_or_skip("ray_lists_gpu_equal_cpu") else {
+        return;
+    };
+    use gridrt::rays::{ao_rays, primary_rays, trace_cpu, triangle_normal};
+    let pair = build_pair(&default_scene(), 3, 3, Scheme::Loop);
+    let primary = primary_rays(&pair.bounds, 2, 96, 64);
+    let Scene::Triangles(t) = &pair.triangles else { unreachable!() };
+    let first = trace_cpu(&pair.triangles, &primary);
+    let ao = ao_rays(&primary, &first, 2, &pair.bounds, |p| triangle_normal(t, p));
+    assert!(ao.len() > primary.len() / 4);
+    for (name, scene) in [("grids", &pair.grids), ("triangles", &pair.triangles)] {
+        let uploaded = gpu.upload(scene).unwrap();
+        for (kind, rays) in [("primary", &primary), ("ao", &ao)] {
+            let cpu = trace_cpu(scene, rays);
+            let gpu_hits = gpu.trace(&uploaded, rays).unwrap();
+            assert_eq!(cpu.len(), gpu_hits.len());
+            let same = cpu
+                .iter()
+                .zip(&gpu_hits)
+                .filter(|(a, b)| a.prim == b.prim && (a.t - b.t).abs() <= 1e-4 * a.t.abs().max(1e-6))
+                .count();
+            let fraction = same as f64 / cpu.len() as f64;
+            eprintln!("{name} {kind}: {} rays, {:.4}% same hit on GPU and CPU", rays.len(), 100.0 * fraction);
+            assert!(fraction >= 0.999, "{name} {kind}: only {:.4}% agree", 100.0 * fraction);
+        }
+    }
+}
