@@ -10,7 +10,7 @@ use gridrt_shared::grid_index::{
     edge_vertex_count, grid_size, inner_index, inner_vertex_count, level_start, sphere_count, sub_triangle,
     triangle_count, Lattice,
 };
-use gridrt_shared::layout::{BvhNode, GridHeader, GridParams};
+use gridrt_shared::layout::{BvhNode, GridHeader, GridParams, MAX_HEADER_ID};
 use gridrt_shared::traverse::{sphere_center, MAX_SPHERE_LEVEL};
 use rayon::prelude::*;
 
@@ -106,21 +106,23 @@ pub fn build(base: &Mesh, sub: &Subdivided, excluded: u32) -> Result<GridScene> 
     // Undirected base edges, each stored once from its lower to its higher vertex id.
     let mut edge_ids: HashMap<(u32, u32), u32> = HashMap::new();
     let mut edge_owner: Vec<(usize, usize)> = Vec::new(); // (grid, edge within grid)
+    if base.positions.len() > MAX_HEADER_ID as usize + 1 {
+        bail!("{} base vertices are more than a grid header can address ({})", base.positions.len(), MAX_HEADER_ID + 1);
+    }
     let mut headers_by_base = Vec::with_capacity(grids);
     for (g, t) in base.triangles.iter().enumerate() {
-        let mut h = GridHeader {
-            edges: [0; 3],
-            corners: *t,
-        };
+        let mut edges = [0; 3];
         for e in 0..3 {
             let (a, b) = (t[e], t[(e + 1) % 3]);
-            let id = *edge_ids.entry((a.min(b), a.max(b))).or_insert_with(|| {
+            edges[e] = *edge_ids.entry((a.min(b), a.max(b))).or_insert_with(|| {
                 edge_owner.push((g, e));
                 edge_owner.len() as u32 - 1
             });
-            h.edges[e] = (id << 1) | (a > b) as u32;
         }
-        headers_by_base.push(h);
+        headers_by_base.push((edges, *t));
+    }
+    if edge_owner.len() > MAX_HEADER_ID as usize + 1 {
+        bail!("{} base edges are more than a grid header can address ({})", edge_owner.len(), MAX_HEADER_ID + 1);
     }
 
     // Top level first, so grids can be stored in leaf order and need no indirection.
@@ -155,7 +157,14 @@ pub fn build(base: &Mesh, sub: &Subdivided, excluded: u32) -> Result<GridScene> 
     // Base vertex v stays vertex v through subdivision (at its moved position).
     vertices.extend_from_slice(&sub.positions[..base.positions.len()]);
 
-    let headers: Vec<GridHeader> = top.order.iter().map(|&g| headers_by_base[g as usize]).collect();
+    let headers: Vec<GridHeader> = top
+        .order
+        .iter()
+        .map(|&g| {
+            let (edges, corners) = headers_by_base[g as usize];
+            GridHeader::new(edges, corners)
+        })
+        .collect();
     let params = GridParams {
         levels,
         lod: levels,

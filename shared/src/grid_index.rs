@@ -13,6 +13,8 @@
 //! node `id` are `4 id + 1 ..= 4 id + 4`.
 
 use crate::layout::GridHeader;
+#[cfg(test)]
+use crate::layout::MAX_HEADER_ID;
 
 /// A lattice point `(i, j)` of a grid.
 pub type Lattice = [u32; 2];
@@ -192,28 +194,28 @@ pub fn vertex_slot(
     let k = n - i - j;
     // Corners first, then the three edges, then the inside.
     if i == 0 && j == 0 {
-        corner_offset + header.corners[0]
+        corner_offset + header.corner(0)
     } else if i == n {
-        corner_offset + header.corners[1]
+        corner_offset + header.corner(1)
     } else if j == n {
-        corner_offset + header.corners[2]
+        corner_offset + header.corner(2)
     } else if j == 0 {
-        edge_offset + edge_slot(header.edges[0], i, n)
+        edge_offset + edge_slot(header, 0, i, n)
     } else if k == 0 {
-        edge_offset + edge_slot(header.edges[1], j, n)
+        edge_offset + edge_slot(header, 1, j, n)
     } else if i == 0 {
-        edge_offset + edge_slot(header.edges[2], k, n)
+        edge_offset + edge_slot(header, 2, k, n)
     } else {
         grid * inner_count + inner_index(i, j, n)
     }
 }
 
-/// Slot of the vertex `s` steps (1..n) along a grid edge, counted from the edge's first corner.
+/// Slot of the vertex `s` steps (1..n) along grid edge `e`, counted from the edge's first
+/// corner.
 #[inline]
-fn edge_slot(entry: u32, s: u32, n: u32) -> u32 {
-    let id = entry >> 1;
-    let along = if entry & 1 == 0 { s } else { n - s };
-    id * (n - 1) + along - 1
+fn edge_slot(header: &GridHeader, e: u32, s: u32, n: u32) -> u32 {
+    let along = if header.edge_reversed(e) { n - s } else { s };
+    header.edge(e) * (n - 1) + along - 1
 }
 
 /// Index of inner vertex `(i, j)` (`i, j >= 1`, `i + j <= n - 1`) within its grid: rows of
@@ -254,11 +256,9 @@ mod tests {
             let n = grid_size(levels);
             let inner = inner_vertex_count(levels);
             let edge = edge_vertex_count(levels);
-            for flips in 0..8u32 {
-                let header = GridHeader {
-                    edges: [(2 << 1) | (flips & 1), (5 << 1) | ((flips >> 1) & 1), ((flips >> 2) & 1)],
-                    corners: [4, 1, 7],
-                };
+            // Every order of the corner ids, so every edge is walked both ways.
+            for corners in [[4u32, 1, 7], [1, 4, 7], [7, 4, 1], [1, 7, 4], [4, 7, 1], [7, 1, 4]] {
+                let header = GridHeader::new([2, 5, 0], corners);
                 let (grid, edge_offset, corner_offset) = (3, 1000, 5000);
                 let slots: BTreeSet<u32> = lattice(n)
                     .into_iter()
@@ -271,22 +271,35 @@ mod tests {
                     expected.extend((0..edge).map(|k| edge_offset + id * edge + k));
                 }
                 expected.extend([4u32, 1, 7].map(|c| corner_offset + c));
-                assert_eq!(slots, expected, "levels {levels} flips {flips}");
+                assert_eq!(slots, expected, "levels {levels} corners {corners:?}");
             }
         }
     }
 
-    /// A flipped edge is read backwards: the vertex `s` steps from corner 0 on edge 0 is the
-    /// one `n - s` steps from the other end.
+    /// A reversed edge is read backwards: the vertex `s` steps from corner 0 on edge 0 is the
+    /// one `n - s` steps from the other end when the corner ids are swapped.
     #[test]
-    fn flipped_edges_read_backwards() {
+    fn reversed_edges_read_backwards() {
         let n = 8;
-        let fwd = GridHeader { edges: [0, 2, 4], corners: [0, 1, 2] };
-        let back = GridHeader { edges: [1, 2, 4], corners: [0, 1, 2] };
+        let fwd = GridHeader::new([0, 1, 2], [3, 4, 5]);
+        let back = GridHeader::new([0, 1, 2], [4, 3, 5]);
+        assert!(!fwd.edge_reversed(0) && back.edge_reversed(0));
         for s in 1..n {
             let a = vertex_slot([s, 0], n, 0, &fwd, 21, 100, 200);
             let b = vertex_slot([n - s, 0], n, 0, &back, 21, 100, 200);
             assert_eq!(a, b);
+        }
+    }
+
+    #[test]
+    fn header_ids_round_trip() {
+        let ids = [[0, 1, 2], [MAX_HEADER_ID, 0, MAX_HEADER_ID], [1 << 20, (1 << 11) + 5, 2047], [77, 3 << 19, 9]];
+        for e in ids {
+            for c in ids {
+                let h = GridHeader::new(e, c);
+                assert_eq!([h.edge(0), h.edge(1), h.edge(2)], e);
+                assert_eq!([h.corner(0), h.corner(1), h.corner(2)], c);
+            }
         }
     }
 

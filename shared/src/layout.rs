@@ -26,20 +26,70 @@ impl BvhNode {
     }
 }
 
-/// Where a grid finds the vertices it shares with its neighbours (24 bytes).
+/// Where a grid finds the vertices it shares with its neighbours (16 bytes).
 ///
 /// Its inner vertices and sphere radii need no pointer: they sit at `grid * inner_count` and
-/// `grid * sphere_count` in their areas.
+/// `grid * sphere_count` in their areas. What remains are the ids of its three base edges
+/// (into the edge area, which holds the `2^L - 1` vertices of each base edge once, from its
+/// lower to its higher base vertex id) and of its three corners (base vertex ids, into the
+/// corner area), 21 bits each, three to a 64-bit pair. Edge `e` runs from corner `e` to corner
+/// `(e + 1) % 3`; whether the grid walks it backwards follows from the corner ids, so no flag
+/// is stored.
 #[repr(C)]
 #[derive(Copy, Clone, Default)]
 #[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable, Debug, PartialEq))]
 pub struct GridHeader {
-    /// Edge `e` runs from corner `e` to corner `(e + 1) % 3`. Stored as `edge_id << 1 | flip`:
-    /// the edge area holds the `2^L - 1` vertices of each base edge once, from its lower to its
-    /// higher base vertex id, and `flip` says this grid walks it the other way.
-    pub edges: [u32; 3],
-    /// Base vertex ids of the three corners: indices into the corner area.
-    pub corners: [u32; 3],
+    pub edges: [u32; 2],
+    pub corners: [u32; 2],
+}
+
+/// Largest base edge or vertex id a header can hold, `2^21 - 1`.
+pub const MAX_HEADER_ID: u32 = (1 << 21) - 1;
+
+#[inline]
+fn unpack21(pair: [u32; 2], i: u32) -> u32 {
+    if i == 0 {
+        pair[0] & MAX_HEADER_ID
+    } else if i == 1 {
+        (pair[0] >> 21) | ((pair[1] & 0x3ff) << 11)
+    } else {
+        (pair[1] >> 10) & MAX_HEADER_ID
+    }
+}
+
+#[cfg(not(target_arch = "spirv"))]
+fn pack21(v: [u32; 3]) -> [u32; 2] {
+    assert!(v.iter().all(|&x| x <= MAX_HEADER_ID), "header id beyond 21 bits");
+    [v[0] | (v[1] << 21), (v[1] >> 11) | (v[2] << 10)]
+}
+
+impl GridHeader {
+    #[cfg(not(target_arch = "spirv"))]
+    pub fn new(edges: [u32; 3], corners: [u32; 3]) -> Self {
+        GridHeader {
+            edges: pack21(edges),
+            corners: pack21(corners),
+        }
+    }
+
+    /// Base vertex id of corner `c`.
+    #[inline]
+    pub fn corner(&self, c: u32) -> u32 {
+        unpack21(self.corners, c)
+    }
+
+    /// Id of base edge `e`.
+    #[inline]
+    pub fn edge(&self, e: u32) -> u32 {
+        unpack21(self.edges, e)
+    }
+
+    /// Whether edge `e` runs against its stored direction (from its higher vertex id).
+    #[inline]
+    pub fn edge_reversed(&self, e: u32) -> bool {
+        let next = if e == 2 { 0 } else { e + 1 };
+        self.corner(e) > self.corner(next)
+    }
 }
 
 /// Pinhole camera: the ray through pixel centre `(x + 0.5, y + 0.5)` leaves `origin` towards

@@ -202,9 +202,10 @@ impl GridScene<'_> {
         }
         let offset = micro_table_offset(k);
         let count = triangle_count(k);
+        let table = MICRO_TRIANGLES;
         let mut t = 0;
         while t < count {
-            let packed = MICRO_TRIANGLES[(offset + t) as usize];
+            let packed = table[(offset + t) as usize];
             let corner = |v: u32| {
                 let byte = (packed >> (8 * v)) & 0xff;
                 verts[lattice_index(byte & 0xf, byte >> 4, m) as usize]
@@ -272,35 +273,57 @@ impl GridScene<'_> {
                 sphere_center(pbc, pca, pab),
             ];
             let first_child = level_start(level + 1) + 4 * index;
-            // Test the four children, then push the hit ones farthest first.
-            let mut child_t = [0f32; 4];
-            let mut order = [0u32; 4];
-            let mut hits = 0usize;
-            let mut c = 0u32;
-            while c < 4 {
-                let t = intersect_sphere(centers[c as usize], self.radius(grid, first_child + c), ray, hit.t);
-                if t < T_FAR {
-                    // Insertion into `order`, sorted by decreasing entry distance.
-                    let mut s = hits;
-                    while s > 0 && child_t[s - 1] < t {
-                        child_t[s] = child_t[s - 1];
-                        order[s] = order[s - 1];
-                        s -= 1;
-                    }
-                    child_t[s] = t;
-                    order[s] = c;
-                    hits += 1;
-                }
-                c += 1;
-            }
-            let mut s = 0usize;
-            while s < hits {
-                stack[sp] = ((4 * index + order[s]) << 4) | (level + 1);
-                stack_t[sp] = child_t[s];
+            // Test the four children, sort them by entry distance with a fixed network (no
+            // dynamically indexed arrays: those are slow on GPUs), push the hit ones farthest
+            // first so the nearest is popped next.
+            let r = |c: u32| self.radius(grid, first_child + c);
+            let mut a = Entry { t: intersect_sphere(centers[0], r(0), ray, hit.t), child: 0 };
+            let mut b = Entry { t: intersect_sphere(centers[1], r(1), ray, hit.t), child: 1 };
+            let mut c = Entry { t: intersect_sphere(centers[2], r(2), ray, hit.t), child: 2 };
+            let mut d = Entry { t: intersect_sphere(centers[3], r(3), ray, hit.t), child: 3 };
+            sort_descending(&mut a, &mut b);
+            sort_descending(&mut c, &mut d);
+            sort_descending(&mut a, &mut c);
+            sort_descending(&mut b, &mut d);
+            sort_descending(&mut b, &mut c);
+            let node = |e: &Entry| ((4 * index + e.child) << 4) | (level + 1);
+            if a.t < T_FAR {
+                stack[sp] = node(&a);
+                stack_t[sp] = a.t;
                 sp += 1;
-                s += 1;
+            }
+            if b.t < T_FAR {
+                stack[sp] = node(&b);
+                stack_t[sp] = b.t;
+                sp += 1;
+            }
+            if c.t < T_FAR {
+                stack[sp] = node(&c);
+                stack_t[sp] = c.t;
+                sp += 1;
+            }
+            if d.t < T_FAR {
+                stack[sp] = node(&d);
+                stack_t[sp] = d.t;
+                sp += 1;
             }
         }
+    }
+}
+
+/// A child sphere's entry distance and which child it is.
+#[repr(C)]
+#[derive(Copy, Clone)]
+struct Entry {
+    t: f32,
+    child: u32,
+}
+
+/// Orders two children so the farther comes first.
+#[inline]
+fn sort_descending(x: &mut Entry, y: &mut Entry) {
+    if x.t < y.t {
+        core::mem::swap(x, y);
     }
 }
 
