@@ -7,6 +7,7 @@ use std::collections::HashMap;
 use anyhow::{bail, Result};
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::grid_index::{
+    lattice_index, vertex_slot,
     edge_vertex_count, grid_size, inner_index, inner_vertex_count, level_start, sphere_count, sub_triangle,
     triangle_count, Lattice,
 };
@@ -28,7 +29,8 @@ pub struct GridScene {
     pub headers: Vec<GridHeader>,
     /// Inner area, then edge area, then corner area; xyz per vertex.
     pub vertices: Vec<f32>,
-    pub radii: Vec<f32>,
+    /// Half-float radii, two per word (see `GridParams::radius_scale`).
+    pub radii: Vec<u32>,
     pub params: GridParams,
     /// `base_triangle[slot]`: which base triangle the grid stored at `slot` is.
     pub base_triangle: Vec<u32>,
@@ -86,9 +88,39 @@ pub fn top_level_params() -> BuildParams {
     }
 }
 
-/// Builds the grids of `sub` (subdivided from `base`), leaving the last `excluded` levels of
-/// the sphere hierarchy out.
-pub fn build(base: &Mesh, sub: &Subdivided, excluded: u32) -> Result<GridScene> {
+/// The grids as subdivision hands them over, in base-triangle order: headers and the three
+/// vertex areas, but no acceleration structure yet.
+#[derive(Clone, Debug)]
+pub struct GridLayout {
+    pub levels: u32,
+    pub leaf_level: u32,
+    pub headers: Vec<GridHeader>,
+    /// Inner area (grid after grid), edge area, corner area.
+    pub vertices: Vec<Vec3>,
+    pub edge_offset: u32,
+    pub corner_offset: u32,
+}
+
+impl GridLayout {
+    /// Position of lattice point `p` of grid `g`, read through the header as the GPU reads it.
+    #[inline]
+    fn vertex(&self, g: usize, p: Lattice) -> Vec3 {
+        let slot = vertex_slot(
+            p,
+            grid_size(self.levels),
+            g as u32,
+            &self.headers[g],
+            inner_vertex_count(self.levels),
+            self.edge_offset,
+            self.corner_offset,
+        );
+        self.vertices[slot as usize]
+    }
+}
+
+/// Lays out the grids of `sub` (subdivided from `base`): shared edge and corner vertices
+/// stored once, the last `excluded` levels of the sphere hierarchy left out.
+pub fn layout(base: &Mesh, sub: &Subdivided, excluded: u32) -> Result<GridLayout> {
     let levels = sub.levels;
     let leaf_level = levels.saturating_sub(excluded);
     if leaf_level > MAX_SPHERE_LEVEL {
@@ -101,15 +133,15 @@ pub fn build(base: &Mesh, sub: &Subdivided, excluded: u32) -> Result<GridScene> 
     if (grids as u64) * (triangle_count(levels) as u64) >= u32::MAX as u64 {
         bail!("{grids} grids of {} micro-triangles overflow 32-bit primitive ids", triangle_count(levels));
     }
-    let n = grid_size(levels);
-
-    // Undirected base edges, each stored once from its lower to its higher vertex id.
-    let mut edge_ids: HashMap<(u32, u32), u32> = HashMap::new();
-    let mut edge_owner: Vec<(usize, usize)> = Vec::new(); // (grid, edge within grid)
     if base.positions.len() > MAX_HEADER_ID as usize + 1 {
         bail!("{} base vertices are more than a grid header can address ({})", base.positions.len(), MAX_HEADER_ID + 1);
     }
-    let mut headers_by_base = Vec::with_capacity(grids);
+    let n = grid_size(levels);
+
+    // Undirected base edges, each stored once from its lower to its higher vertex id.
+    let mut edge_ids: HashMap<(u32, u32), u32> = HashMap::with_capacity(grids * 3 / 2 + 16);
+    let mut edge_owner: Vec<(usize, usize)> = Vec::new(); // (grid, edge within grid)
+    let mut headers = Vec::with_capacity(grids);
     for (g, t) in base.triangles.iter().enumerate() {
         let mut edges = [0; 3];
         for e in 0..3 {
@@ -119,29 +151,21 @@ pub fn build(base: &Mesh, sub: &Subdivided, excluded: u32) -> Result<GridScene> 
                 edge_owner.len() as u32 - 1
             });
         }
-        headers_by_base.push((edges, *t));
+        headers.push(GridHeader::new(edges, *t));
     }
     if edge_owner.len() > MAX_HEADER_ID as usize + 1 {
         bail!("{} base edges are more than a grid header can address ({})", edge_owner.len(), MAX_HEADER_ID + 1);
     }
 
-    // Top level first, so grids can be stored in leaf order and need no indirection.
-    let boxes: Vec<Aabb> = (0..grids)
-        .into_par_iter()
-        .map(|g| Aabb::from_points(lattice_points(n).map(|p| sub.positions[sub.vertex(g, p) as usize])))
-        .collect();
-    let top = bvh::build(&boxes, &top_level_params());
-
     let inner_count = inner_vertex_count(levels);
-    let edge_len = edge_vertex_count(levels);
     let edge_offset = grids as u32 * inner_count;
-    let corner_offset = edge_offset + edge_ids.len() as u32 * edge_len;
+    let corner_offset = edge_offset + edge_owner.len() as u32 * edge_vertex_count(levels);
     let mut vertices: Vec<Vec3> = Vec::with_capacity(corner_offset as usize + base.positions.len());
-    for &g in &top.order {
+    for g in 0..grids {
         for j in 1..n.saturating_sub(1) {
             for i in 1..n - j {
                 debug_assert_eq!(inner_index(i, j, n) as usize, vertices.len() % inner_count.max(1) as usize);
-                vertices.push(sub.positions[sub.vertex(g as usize, [i, j]) as usize]);
+                vertices.push(sub.positions[sub.vertex(g, [i, j]) as usize]);
             }
         }
     }
@@ -156,38 +180,103 @@ pub fn build(base: &Mesh, sub: &Subdivided, excluded: u32) -> Result<GridScene> 
     }
     // Base vertex v stays vertex v through subdivision (at its moved position).
     vertices.extend_from_slice(&sub.positions[..base.positions.len()]);
-
-    let headers: Vec<GridHeader> = top
-        .order
-        .iter()
-        .map(|&g| {
-            let (edges, corners) = headers_by_base[g as usize];
-            GridHeader::new(edges, corners)
-        })
-        .collect();
-    let params = GridParams {
+    Ok(GridLayout {
         levels,
-        lod: levels,
         leaf_level,
-        sphere_count: sphere_count(leaf_level),
-        inner_count,
+        headers,
+        vertices,
         edge_offset,
         corner_offset,
-        _pad: 0,
-    };
-    let radii: Vec<f32> = top
-        .order
-        .par_iter()
-        .flat_map_iter(|&g| grid_radii(sub, g as usize, leaf_level))
+    })
+}
+
+/// Lays out and builds in one go.
+pub fn build(base: &Mesh, sub: &Subdivided, excluded: u32) -> Result<GridScene> {
+    Ok(build_from_layout(&layout(base, sub, excluded)?))
+}
+
+/// The grid representation's build proper, what `stats` and `bench` time: grid bounds, the
+/// top-level BVH, grids reordered into its leaf order, and the sphere radii.
+pub fn build_from_layout(layout: &GridLayout) -> GridScene {
+    let grids = layout.headers.len();
+    let spheres = sphere_count(layout.leaf_level) as usize;
+    // One pass over each grid's vertices gives its box and its radii.
+    let mut boxes = vec![Aabb::EMPTY; grids];
+    let mut radii_by_base = vec![0f32; grids * spheres];
+    boxes
+        .par_iter_mut()
+        .zip(radii_by_base.par_chunks_mut(spheres))
+        .enumerate()
+        .for_each(|(g, (bounds, radii))| *bounds = grid_bounds_and_radii(layout, g, radii));
+    let top = bvh::build(&boxes, &top_level_params());
+
+    // Store grids in leaf order, so leaves name contiguous ranges and need no indirection.
+    let inner_count = inner_vertex_count(layout.levels) as usize;
+    let mut vertices = Vec::with_capacity(layout.vertices.len() * 3);
+    let mut radii = Vec::with_capacity(radii_by_base.len());
+    for &g in &top.order {
+        let g = g as usize;
+        let inner = &layout.vertices[g * inner_count..(g + 1) * inner_count];
+        vertices.extend(inner.iter().flat_map(|v| v.to_array()));
+        radii.extend_from_slice(&radii_by_base[g * spheres..(g + 1) * spheres]);
+    }
+    let shared = &layout.vertices[layout.edge_offset as usize..];
+    vertices.extend(shared.iter().flat_map(|v| v.to_array()));
+    let headers: Vec<GridHeader> = top.order.iter().map(|&g| layout.headers[g as usize]).collect();
+
+    let radius_scale = radius_scale(radii.iter().fold(0f32, |m, &r| m.max(r)));
+    let radii = radii
+        .chunks(2)
+        .map(|pair| {
+            let lo = encode_radius(pair[0], radius_scale) as u32;
+            let hi = pair.get(1).map_or(0, |&r| encode_radius(r, radius_scale) as u32);
+            lo | (hi << 16)
+        })
         .collect();
-    Ok(GridScene {
+    GridScene {
         nodes: top.nodes,
         headers,
-        vertices: vertices.iter().flat_map(|v| v.to_array()).collect(),
+        vertices,
         radii,
-        params,
+        params: GridParams {
+            levels: layout.levels,
+            lod: layout.levels,
+            leaf_level: layout.leaf_level,
+            sphere_count: spheres as u32,
+            inner_count: inner_count as u32,
+            edge_offset: layout.edge_offset,
+            corner_offset: layout.corner_offset,
+            radius_scale,
+        },
         base_triangle: top.order,
-    })
+    }
+}
+
+/// The power of two that brings the largest radius to about 2^14 in half-float units: far
+/// from overflow (65504) and with the smallest radii still well above the subnormal range.
+fn radius_scale(max_radius: f32) -> f32 {
+    if max_radius <= 0.0 || !max_radius.is_finite() {
+        return 1.0;
+    }
+    2f32.powi(max_radius.log2().ceil() as i32 - 14)
+}
+
+/// The smallest half float, in units of `scale`, that is not below `r`.
+pub fn encode_radius(r: f32, scale: f32) -> u16 {
+    let v = r / scale;
+    let bits = v.to_bits();
+    let exponent = ((bits >> 23) & 0xff) as i32 - 127;
+    let h = if v <= 0.0 {
+        0
+    } else if exponent < -14 {
+        // Subnormal half: units of 2^-24, rounded up.
+        (v * 16_777_216.0).ceil() as u32
+    } else {
+        let mantissa = (bits & 0x7f_ffff) >> 13;
+        let rest = bits & 0x1fff;
+        (((exponent + 15) as u32) << 10 | mantissa) + (rest != 0) as u32
+    };
+    h.min(0x7bff) as u16
 }
 
 /// All lattice points of a grid of size `n`.
@@ -204,32 +293,34 @@ fn edge_point(e: usize, step: u32, n: u32) -> Lattice {
     }
 }
 
-/// Radii of one grid's spheres in breadth-first order: for each sub-triangle down to
-/// `leaf_level`, the largest distance from the mean of its corners (computed exactly as the
-/// traversal does) to any micro-vertex inside it, padded for the rounding of the GPU's own
-/// centre computation.
-pub fn grid_radii(sub: &Subdivided, g: usize, leaf_level: u32) -> Vec<f32> {
-    let n = grid_size(sub.levels);
-    let pos = |p: Lattice| sub.positions[sub.vertex(g, p) as usize];
-    let mut radii = Vec::with_capacity(sphere_count(leaf_level) as usize);
-    for level in 0..=leaf_level {
+/// The bounds of grid `g`, and its spheres' radii in breadth-first order: for each
+/// sub-triangle down to the leaf level, the largest distance from the mean of its corners
+/// (computed exactly as the traversal does) to any micro-vertex inside it, padded for the
+/// rounding of the GPU's own centre computation.
+fn grid_bounds_and_radii(layout: &GridLayout, g: usize, radii: &mut [f32]) -> Aabb {
+    let n = grid_size(layout.levels);
+    // Gather the grid once; everything below reads this copy.
+    let points: Vec<Vec3> = lattice_points(n).map(|p| layout.vertex(g, p)).collect();
+    let pos = |p: Lattice| points[lattice_index(p[0], p[1], n) as usize];
+    let mut slot = 0;
+    for level in 0..=layout.leaf_level {
         for index in 0..triangle_count(level) {
-            debug_assert_eq!(radii.len() as u32, level_start(level) + index);
+            debug_assert_eq!(slot as u32, level_start(level) + index);
             let [a, b, c] = sub_triangle(n, level, index);
             let center = sphere_center(pos(a), pos(b), pos(c));
             let m = n >> level;
             let mut r2 = 0f32;
             for lb in 0..=m {
                 for la in 0..=m - lb {
-                    let p = lattice_in(a, b, c, m, la, lb);
-                    r2 = r2.max(pos(p).distance_squared(center));
+                    r2 = r2.max(pos(lattice_in(a, b, c, m, la, lb)).distance_squared(center));
                 }
             }
             let r = r2.sqrt();
-            radii.push(r + (r + center.abs().max_element()) * 1e-5);
+            radii[slot] = r + (r + center.abs().max_element()) * 1e-5;
+            slot += 1;
         }
     }
-    radii
+    Aabb::from_points(points)
 }
 
 /// Lattice point `(la, lb)` of the sub-triangle `(a, b, c)` whose edges span `m` lattice steps.
@@ -296,7 +387,7 @@ mod tests {
                     for index in 0..triangle_count(level) {
                         let c = sub_triangle(n, level, index).map(|p| lattice_vertex(&scene, slot, p));
                         let center = sphere_center(c[0], c[1], c[2]);
-                        let r = scene.radii[slot * g.sphere_count as usize + (level_start(level) + index) as usize];
+                        let r = scene.view().radius(slot as u32, level_start(level) + index);
                         // Every micro-triangle below this node, through its corners.
                         let below = levels - level;
                         for t in 0..triangle_count(below) {
@@ -313,11 +404,22 @@ mod tests {
     }
 
     #[test]
+    fn half_radii_round_up() {
+        let scale = radius_scale(3.7);
+        for k in 0..100_000 {
+            let r = 3.7 * (k as f32 / 100_000.0).powi(3);
+            let back = gridrt_shared::sphere::decode_radius(encode_radius(r, scale) as u32, scale);
+            assert!(back >= r, "{r} encoded as {back}");
+            assert!(back <= r * (1.0 + 1.0 / 1024.0) + scale * 2f32.powi(-24), "{r} encoded as {back}");
+        }
+    }
+
+    #[test]
     fn sizes_follow_the_layout() {
         let mesh = cube();
         let sub = subdivide(&mesh, 3, Scheme::Loop);
         let scene = build(&mesh, &sub, 2).unwrap();
-        assert_eq!(scene.radii.len(), 12 * 5);
+        assert_eq!(scene.radii.len(), 12 * 5 / 2);
         assert_eq!(scene.params.inner_count, 21);
         // 18 edges of 7 vertices, 8 corners.
         assert_eq!(scene.vertices.len() / 3, 12 * 21 + 18 * 7 + 8);

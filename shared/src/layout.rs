@@ -133,7 +133,8 @@ pub struct GridParams {
     pub edge_offset: u32,
     /// First vertex of the corner area.
     pub corner_offset: u32,
-    pub _pad: u32,
+    /// Unit of the stored half-float radii (a power of two).
+    pub radius_scale: f32,
 }
 
 /// Everything one dispatch needs besides geometry.

@@ -4,6 +4,20 @@ use crate::ray::{Ray, T_FAR};
 #[cfg(target_arch = "spirv")]
 use spirv_std::num_traits::Float;
 
+/// Radii are stored as IEEE half floats (rounded up on the host, so spheres only grow), in
+/// units of a power-of-two `scale` chosen per scene so the largest radius fits.
+#[inline]
+pub fn decode_radius(half: u32, scale: f32) -> f32 {
+    let exponent = (half >> 10) & 0x1f;
+    let mantissa = half & 0x3ff;
+    let value = if exponent == 0 {
+        mantissa as f32 * (1.0 / 16_777_216.0)
+    } else {
+        f32::from_bits(((exponent + 112) << 23) | (mantissa << 13))
+    };
+    value * scale
+}
+
 /// Ray against a bounding sphere. Returns the entry distance (clamped to 0 when the origin is
 /// inside) when the sphere overlaps `[0, t_max]` along the ray, otherwise `T_FAR`.
 ///
@@ -33,6 +47,16 @@ pub fn intersect_sphere(center: Vec3, radius: f32, ray: &Ray, t_max: f32) -> f32
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn half_radii_decode() {
+        assert_eq!(decode_radius(0x3c00, 1.0), 1.0);
+        assert_eq!(decode_radius(0x3c00, 0.25), 0.25);
+        assert_eq!(decode_radius(0x7bff, 1.0), 65504.0);
+        assert_eq!(decode_radius(0x0001, 1.0), 2f32.powi(-24));
+        assert_eq!(decode_radius(0x0400, 1.0), 2f32.powi(-14));
+        assert_eq!(decode_radius(0x3555, 1.0), 0.33325195);
+    }
 
     #[test]
     fn enter_inside_and_miss() {

@@ -10,7 +10,7 @@ use crate::grid_index::{
 };
 use crate::layout::{BvhNode, GridHeader, GridParams, Hit};
 use crate::ray::{Ray, T_FAR};
-use crate::sphere::intersect_sphere;
+use crate::sphere::{decode_radius, intersect_sphere};
 use crate::triangle::{intersect_triangle, triangle_normal};
 
 /// Deepest BVH the traversal can walk; the builder never makes a deeper one.
@@ -127,7 +127,8 @@ const GRID_STACK: usize = 3 * MAX_SPHERE_LEVEL as usize + 4;
 pub struct GridScene<'a> {
     pub headers: &'a [GridHeader],
     pub vertices: &'a [f32],
-    pub radii: &'a [f32],
+    /// Half-float radii, two to a word, in breadth-first order per grid.
+    pub radii: &'a [u32],
     pub params: GridParams,
 }
 
@@ -162,9 +163,12 @@ impl GridScene<'_> {
         load_vec3(self.vertices, slot)
     }
 
+    /// Radius of sphere `node` (breadth-first id) of `grid`.
     #[inline]
-    fn radius(&self, grid: u32, node: u32) -> f32 {
-        self.radii[(grid * self.params.sphere_count + node) as usize]
+    pub fn radius(&self, grid: u32, node: u32) -> f32 {
+        let k = grid * self.params.sphere_count + node;
+        let half = (self.radii[(k / 2) as usize] >> (16 * (k & 1))) & 0xffff;
+        decode_radius(half, self.params.radius_scale)
     }
 
     /// Tests the `4^k` micro-triangles of a leaf sub-triangle with corners `leaf`: its
