@@ -11,7 +11,7 @@ use crate::grid_index::{
 use crate::layout::{BvhNode, GridHeader, GridParams, Hit};
 use crate::ray::{Ray, T_FAR};
 use crate::sphere::{decode_radius, intersect_sphere};
-use crate::triangle::{intersect_triangle, triangle_normal};
+use crate::triangle::{intersect_sheared, intersect_triangle, shear, triangle_normal};
 
 /// Deepest BVH the traversal can walk; the builder never makes a deeper one.
 pub const MAX_BVH_DEPTH: usize = 64;
@@ -140,6 +140,13 @@ fn midpoint(a: Lattice, b: Lattice) -> Lattice {
     [(a[0] + b[0]) / 2, (a[1] + b[1]) / 2]
 }
 
+/// Slot in a leaf's vertex list of corner `v` of a packed static-list entry.
+#[inline]
+fn corner_slot(packed: u32, v: u32, m: u32) -> usize {
+    let byte = (packed >> (8 * v)) & 0xff;
+    lattice_index(byte & 0xf, byte >> 4, m) as usize
+}
+
 /// Mean of three corners, summed in corner order: the host computes the radii around exactly
 /// this point.
 #[inline]
@@ -188,7 +195,9 @@ impl GridScene<'_> {
         let [a, b, c] = leaf;
         let e1 = [(b[0] as i32 - a[0] as i32) / m as i32, (b[1] as i32 - a[1] as i32) / m as i32];
         let e2 = [(c[0] as i32 - a[0] as i32) / m as i32, (c[1] as i32 - a[1] as i32) / m as i32];
+        // World positions for the normal of a hit, sheared ones for the tests.
         let mut verts = [Vec3::ZERO; LEAF_VERTICES];
+        let mut sheared = [Vec3::ZERO; LEAF_VERTICES];
         let mut slot = 0usize;
         let mut lb = 0u32;
         while lb <= m {
@@ -198,7 +207,9 @@ impl GridScene<'_> {
                     (a[0] as i32 + la as i32 * e1[0] + lb as i32 * e2[0]) as u32,
                     (a[1] as i32 + la as i32 * e1[1] + lb as i32 * e2[1]) as u32,
                 ];
-                verts[slot] = self.vertex(grid, header, p);
+                let v = self.vertex(grid, header, p);
+                verts[slot] = v;
+                sheared[slot] = shear(v, ray);
                 slot += 1;
                 la += 1;
             }
@@ -207,18 +218,26 @@ impl GridScene<'_> {
         let offset = micro_table_offset(k);
         let count = triangle_count(k);
         let table = MICRO_TRIANGLES;
+        // The closest triangle of this leaf, as its three vertex slots (none yet).
+        let mut best = [LEAF_VERTICES as u32; 3];
         let mut t = 0;
         while t < count {
             let packed = table[(offset + t) as usize];
-            let corner = |v: u32| {
-                let byte = (packed >> (8 * v)) & 0xff;
-                verts[lattice_index(byte & 0xf, byte >> 4, m) as usize]
-            };
-            let (v0, v1, v2) = (corner(0), corner(1), corner(2));
-            if let Some(found) = intersect_triangle(v0, v1, v2, ray, hit.t) {
-                record_hit(hit, found, first_id + t, triangle_normal(v0, v1, v2));
+            let i0 = corner_slot(packed, 0, m);
+            let i1 = corner_slot(packed, 1, m);
+            let i2 = corner_slot(packed, 2, m);
+            if let Some(found) = intersect_sheared(sheared[i0], sheared[i1], sheared[i2], hit.t) {
+                hit.t = found.0;
+                hit.u = found.1;
+                hit.v = found.2;
+                hit.prim = first_id + t;
+                best = [i0 as u32, i1 as u32, i2 as u32];
             }
             t += 1;
+        }
+        if best[0] != LEAF_VERTICES as u32 {
+            let n = triangle_normal(verts[best[0] as usize], verts[best[1] as usize], verts[best[2] as usize]);
+            hit.normal = n.to_array();
         }
     }
 

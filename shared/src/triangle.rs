@@ -1,6 +1,20 @@
 use crate::glam::Vec3;
 use crate::ray::{component, Ray};
 
+/// A vertex moved into the ray's sheared frame: the ray runs from the origin along +z, and
+/// `z` is already scaled by the shear. Splitting this from [`intersect_sheared`] lets a grid
+/// leaf transform each of its vertices once for all the triangles that share it.
+#[inline]
+pub fn shear(v: Vec3, ray: &Ray) -> Vec3 {
+    let a = v - ray.origin;
+    let az = component(a, ray.kz);
+    Vec3::new(
+        component(a, ray.kx) - ray.shear.x * az,
+        component(a, ray.ky) - ray.shear.y * az,
+        ray.shear.z * az,
+    )
+}
+
 /// Watertight ray/triangle intersection (Woop, Benthin and Wald, JCGT 2013).
 ///
 /// The ray is sheared so it runs along +z; the three 2D edge functions are then evaluated
@@ -11,21 +25,15 @@ use crate::ray::{component, Ray};
 /// Returns `(t, b1, b2)` (barycentrics of `v1` and `v2`) with `t` in `(0, t_max)`, or `None`.
 #[inline]
 pub fn intersect_triangle(v0: Vec3, v1: Vec3, v2: Vec3, ray: &Ray, t_max: f32) -> Option<(f32, f32, f32)> {
-    let a = v0 - ray.origin;
-    let b = v1 - ray.origin;
-    let c = v2 - ray.origin;
-    let (sx, sy, sz) = (ray.shear.x, ray.shear.y, ray.shear.z);
-    let (az, bz, cz) = (component(a, ray.kz), component(b, ray.kz), component(c, ray.kz));
-    let ax = component(a, ray.kx) - sx * az;
-    let ay = component(a, ray.ky) - sy * az;
-    let bx = component(b, ray.kx) - sx * bz;
-    let by = component(b, ray.ky) - sy * bz;
-    let cx = component(c, ray.kx) - sx * cz;
-    let cy = component(c, ray.ky) - sy * cz;
+    intersect_sheared(shear(v0, ray), shear(v1, ray), shear(v2, ray), t_max)
+}
 
-    let u = cx * by - cy * bx;
-    let v = ax * cy - ay * cx;
-    let w = bx * ay - by * ax;
+/// [`intersect_triangle`] on vertices already passed through [`shear`].
+#[inline]
+pub fn intersect_sheared(a: Vec3, b: Vec3, c: Vec3, t_max: f32) -> Option<(f32, f32, f32)> {
+    let u = c.x * b.y - c.y * b.x;
+    let v = a.x * c.y - a.y * c.x;
+    let w = b.x * a.y - b.y * a.x;
     if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
         return None;
     }
@@ -33,7 +41,7 @@ pub fn intersect_triangle(v0: Vec3, v1: Vec3, v2: Vec3, ray: &Ray, t_max: f32) -
     if det == 0.0 {
         return None;
     }
-    let t_scaled = u * (sz * az) + v * (sz * bz) + w * (sz * cz);
+    let t_scaled = u * a.z + v * b.z + w * c.z;
     // Compare before dividing: t = t_scaled / det must lie in (0, t_max).
     if det > 0.0 {
         if t_scaled <= 0.0 || t_scaled >= t_max * det {
