@@ -210,6 +210,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         std::fs::write(path, serde_json::to_string_pretty(&results)? + "\n")
             .map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", path.display()))?;
     }
+    if let Some(path) = &args.chart {
+        crate::chart::write_chart(&results, path, &args.font)?;
+    }
     if let Some(path) = &args.markdown {
         std::fs::write(path, table).map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", path.display()))?;
     }

@@ -144,6 +144,12 @@ pub struct BenchArgs {
     /// Also write the markdown table to a file.
     #[arg(long)]
     pub markdown: Option<PathBuf>,
+    /// Also draw the three ratios per mesh as a PNG chart.
+    #[arg(long)]
+    pub chart: Option<PathBuf>,
+    /// TrueType font for the chart's labels.
+    #[arg(long, default_value = crate::chart::DEFAULT_FONT)]
+    pub font: PathBuf,
 }
 
 pub fn run(cli: Cli) -> Result<()> {

@@ -7,6 +7,7 @@
 pub mod bench;
 pub mod bvh;
 pub mod camera;
+pub mod chart;
 pub mod cli;
 pub mod gpu;
 pub mod grid;
