@@ -126,9 +126,11 @@ pub const fn micro_table_offset(k: u32) -> u32 {
 }
 
 /// The static index list: for every leaf depth `k <= MAX_LEAF_DEPTH`, the `4^k` triangles of a
-/// sub-triangle subdivided `k` times, in recursion order, as local lattice corners `(a, b)`
-/// with `a + b <= 2^k` packed four bits each: corner `c` in bits `8c .. 8c + 8`, `a` low.
-/// The same list serves every grid, every leaf and every level of detail.
+/// sub-triangle subdivided `k` times, in recursion order, as the [`lattice_index`] of each
+/// corner in the sub-triangle's own lattice (`2^k` steps a side), eight bits each: corner `c`
+/// in bits `8c .. 8c + 8`. A leaf loads its vertices in that order once; the list then names
+/// each triangle's three. The same list serves every grid, every leaf and every level of
+/// detail.
 pub const MICRO_TRIANGLES: [u32; level_start(MAX_LEAF_DEPTH + 1) as usize] = build_micro_triangles();
 
 const fn build_micro_triangles() -> [u32; level_start(MAX_LEAF_DEPTH + 1) as usize] {
@@ -142,7 +144,7 @@ const fn build_micro_triangles() -> [u32; level_start(MAX_LEAF_DEPTH + 1) as usi
             let mut packed = 0;
             let mut v = 0;
             while v < 3 {
-                packed |= (c[v][0] | (c[v][1] << 4)) << (8 * v);
+                packed |= lattice_index(c[v][0], c[v][1], m) << (8 * v);
                 v += 1;
             }
             table[(micro_table_offset(k) + t) as usize] = packed;
@@ -166,9 +168,8 @@ pub fn leaf_triangle(leaf: [Lattice; 3], k: u32, t: u32) -> [Lattice; 3] {
     let mut out = [[0u32; 2]; 3];
     let mut v = 0;
     while v < 3 {
-        let byte = (packed >> (8 * v)) & 0xff;
-        let la = (byte & 0xf) as i32;
-        let lb = (byte >> 4) as i32;
+        let [la, lb] = lattice_from_index((packed >> (8 * v)) & 0xff, m as u32);
+        let (la, lb) = (la as i32, lb as i32);
         out[v] = [
             (a[0] as i32 + la * e1[0] + lb * e2[0]) as u32,
             (a[1] as i32 + la * e1[1] + lb * e2[1]) as u32,
@@ -178,8 +179,72 @@ pub fn leaf_triangle(leaf: [Lattice; 3], k: u32, t: u32) -> [Lattice; 3] {
     out
 }
 
-/// Where the vertex at lattice point `(i, j)` of a grid lives in the vertex buffer: its own
-/// inner area, the shared area of one of its base edges, or the shared corner area.
+/// A grid's header resolved, once per visit, into the arithmetic that finds its vertices.
+#[derive(Copy, Clone)]
+pub struct GridSlots {
+    n: u32,
+    inner_base: u32,
+    corners: [u32; 3],
+    /// Slot of step 0 along each edge, and the step between slots (+1 or -1 as a wrapping
+    /// `u32`), so a reversed edge needs no branch.
+    edge_start: [u32; 3],
+    edge_step: [u32; 3],
+}
+
+impl GridSlots {
+    #[inline]
+    pub fn new(header: &GridHeader, grid: u32, n: u32, inner_count: u32, edge_offset: u32, corner_offset: u32) -> Self {
+        let edge = |e: u32| {
+            let base = edge_offset + header.edge(e) * (n - 1);
+            if header.edge_reversed(e) {
+                // Step s is stored at n - s - 1.
+                (base + n - 1, u32::MAX)
+            } else {
+                (base.wrapping_sub(1), 1)
+            }
+        };
+        let (e0, e1, e2) = (edge(0), edge(1), edge(2));
+        GridSlots {
+            n,
+            inner_base: grid * inner_count,
+            corners: [
+                corner_offset + header.corner(0),
+                corner_offset + header.corner(1),
+                corner_offset + header.corner(2),
+            ],
+            edge_start: [e0.0, e1.0, e2.0],
+            edge_step: [e0.1, e1.1, e2.1],
+        }
+    }
+
+    /// Where the vertex at lattice point `(i, j)` lives in the vertex buffer: the grid's own
+    /// inner area, the shared area of one of its base edges, or the shared corner area.
+    #[inline]
+    pub fn slot(&self, p: Lattice) -> u32 {
+        let [i, j] = p;
+        let n = self.n;
+        let k = n - i - j;
+        let along = |e: usize, s: u32| self.edge_start[e].wrapping_add(s.wrapping_mul(self.edge_step[e]));
+        // Corners first, then the three edges, then the inside.
+        if i == 0 && j == 0 {
+            self.corners[0]
+        } else if i == n {
+            self.corners[1]
+        } else if j == n {
+            self.corners[2]
+        } else if j == 0 {
+            along(0, i)
+        } else if k == 0 {
+            along(1, j)
+        } else if i == 0 {
+            along(2, k)
+        } else {
+            self.inner_base + inner_index(i, j, n)
+        }
+    }
+}
+
+/// [`GridSlots::slot`] for a single look-up.
 #[inline]
 pub fn vertex_slot(
     p: Lattice,
@@ -190,32 +255,7 @@ pub fn vertex_slot(
     edge_offset: u32,
     corner_offset: u32,
 ) -> u32 {
-    let [i, j] = p;
-    let k = n - i - j;
-    // Corners first, then the three edges, then the inside.
-    if i == 0 && j == 0 {
-        corner_offset + header.corner(0)
-    } else if i == n {
-        corner_offset + header.corner(1)
-    } else if j == n {
-        corner_offset + header.corner(2)
-    } else if j == 0 {
-        edge_offset + edge_slot(header, 0, i, n)
-    } else if k == 0 {
-        edge_offset + edge_slot(header, 1, j, n)
-    } else if i == 0 {
-        edge_offset + edge_slot(header, 2, k, n)
-    } else {
-        grid * inner_count + inner_index(i, j, n)
-    }
-}
-
-/// Slot of the vertex `s` steps (1..n) along grid edge `e`, counted from the edge's first
-/// corner.
-#[inline]
-fn edge_slot(header: &GridHeader, e: u32, s: u32, n: u32) -> u32 {
-    let along = if header.edge_reversed(e) { n - s } else { s };
-    header.edge(e) * (n - 1) + along - 1
+    GridSlots::new(header, grid, n, inner_count, edge_offset, corner_offset).slot(p)
 }
 
 /// Index of inner vertex `(i, j)` (`i, j >= 1`, `i + j <= n - 1`) within its grid: rows of

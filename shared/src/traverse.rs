@@ -5,7 +5,7 @@
 use crate::aabb::intersect_aabb;
 use crate::glam::Vec3;
 use crate::grid_index::{
-    lattice_index, level_start, micro_table_offset, sub_triangle, triangle_count, vertex_count, vertex_slot, Lattice,
+    level_start, micro_table_offset, sub_triangle, triangle_count, vertex_count, GridSlots, Lattice,
     MAX_LEAF_DEPTH, MICRO_TRIANGLES,
 };
 use crate::layout::{BvhNode, GridHeader, GridParams, Hit};
@@ -142,9 +142,8 @@ fn midpoint(a: Lattice, b: Lattice) -> Lattice {
 
 /// Slot in a leaf's vertex list of corner `v` of a packed static-list entry.
 #[inline]
-fn corner_slot(packed: u32, v: u32, m: u32) -> usize {
-    let byte = (packed >> (8 * v)) & 0xff;
-    lattice_index(byte & 0xf, byte >> 4, m) as usize
+fn corner_slot(packed: u32, v: u32) -> usize {
+    ((packed >> (8 * v)) & 0xff) as usize
 }
 
 /// Mean of three corners, summed in corner order: the host computes the radii around exactly
@@ -156,18 +155,15 @@ pub fn sphere_center(a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
 
 impl GridScene<'_> {
     #[inline]
-    fn vertex(&self, grid: u32, header: &GridHeader, p: Lattice) -> Vec3 {
+    fn slots(&self, grid: u32) -> GridSlots {
         let g = &self.params;
-        let slot = vertex_slot(
-            p,
-            1 << g.levels,
-            grid,
-            header,
-            g.inner_count,
-            g.edge_offset,
-            g.corner_offset,
-        );
-        load_vec3(self.vertices, slot)
+        let header = self.headers[grid as usize];
+        GridSlots::new(&header, grid, 1 << g.levels, g.inner_count, g.edge_offset, g.corner_offset)
+    }
+
+    #[inline]
+    fn vertex(&self, slots: &GridSlots, p: Lattice) -> Vec3 {
+        load_vec3(self.vertices, slots.slot(p))
     }
 
     /// Radius of sphere `node` (breadth-first id) of `grid`.
@@ -183,8 +179,7 @@ impl GridScene<'_> {
     #[allow(clippy::too_many_arguments)]
     fn intersect_leaf_triangles(
         &self,
-        grid: u32,
-        header: &GridHeader,
+        slots: &GridSlots,
         leaf: [Lattice; 3],
         k: u32,
         first_id: u32,
@@ -207,7 +202,7 @@ impl GridScene<'_> {
                     (a[0] as i32 + la as i32 * e1[0] + lb as i32 * e2[0]) as u32,
                     (a[1] as i32 + la as i32 * e1[1] + lb as i32 * e2[1]) as u32,
                 ];
-                let v = self.vertex(grid, header, p);
+                let v = self.vertex(slots, p);
                 verts[slot] = v;
                 sheared[slot] = shear(v, ray);
                 slot += 1;
@@ -223,9 +218,9 @@ impl GridScene<'_> {
         let mut t = 0;
         while t < count {
             let packed = table[(offset + t) as usize];
-            let i0 = corner_slot(packed, 0, m);
-            let i1 = corner_slot(packed, 1, m);
-            let i2 = corner_slot(packed, 2, m);
+            let i0 = corner_slot(packed, 0);
+            let i1 = corner_slot(packed, 1);
+            let i2 = corner_slot(packed, 2);
             if let Some(found) = intersect_sheared(sheared[i0], sheared[i1], sheared[i2], hit.t) {
                 hit.t = found.0;
                 hit.u = found.1;
@@ -243,7 +238,7 @@ impl GridScene<'_> {
 
     /// The bottom level: depth-first, nearest sphere first, over the grid's 4-ary hierarchy.
     pub fn intersect_grid(&self, grid: u32, ray: &Ray, hit: &mut Hit) {
-        let header = self.headers[grid as usize];
+        let slots = self.slots(grid);
         let n = 1u32 << self.params.levels;
         let lod = self.params.lod;
         // At a coarse level of detail the hierarchy is cut where the rendered triangles are.
@@ -254,9 +249,9 @@ impl GridScene<'_> {
         };
         let root = [[0, 0], [n, 0], [0, n]];
         let center = sphere_center(
-            self.vertex(grid, &header, root[0]),
-            self.vertex(grid, &header, root[1]),
-            self.vertex(grid, &header, root[2]),
+            self.vertex(&slots, root[0]),
+            self.vertex(&slots, root[1]),
+            self.vertex(&slots, root[2]),
         );
         if intersect_sphere(center, self.radius(grid, 0), ray, hit.t) == T_FAR {
             return;
@@ -278,16 +273,16 @@ impl GridScene<'_> {
             if level == leaf_level {
                 let k = lod - level;
                 let first_id = grid * triangle_count(lod) + index * triangle_count(k);
-                self.intersect_leaf_triangles(grid, &header, corners, k, first_id, ray, hit);
+                self.intersect_leaf_triangles(&slots, corners, k, first_id, ray, hit);
                 continue;
             }
             // The four children share six vertices: three corners and three midpoints.
-            let pa = self.vertex(grid, &header, corners[0]);
-            let pb = self.vertex(grid, &header, corners[1]);
-            let pc = self.vertex(grid, &header, corners[2]);
-            let pab = self.vertex(grid, &header, midpoint(corners[0], corners[1]));
-            let pbc = self.vertex(grid, &header, midpoint(corners[1], corners[2]));
-            let pca = self.vertex(grid, &header, midpoint(corners[2], corners[0]));
+            let pa = self.vertex(&slots, corners[0]);
+            let pb = self.vertex(&slots, corners[1]);
+            let pc = self.vertex(&slots, corners[2]);
+            let pab = self.vertex(&slots, midpoint(corners[0], corners[1]));
+            let pbc = self.vertex(&slots, midpoint(corners[1], corners[2]));
+            let pca = self.vertex(&slots, midpoint(corners[2], corners[0]));
             // Children in `child_corners` order; their radii are adjacent in BFS order.
             let centers = [
                 sphere_center(pa, pab, pca),
