@@ -18,8 +18,12 @@ pub const MAX_BVH_DEPTH: usize = 64;
 
 /// What a BVH leaf refers to.
 pub trait LeafPrimitives {
+    /// Working memory of the leaf tests, made once per ray rather than once per leaf: on GPUs
+    /// every fresh local array costs a store per element.
+    type Scratch;
+    fn scratch(&self) -> Self::Scratch;
     /// Intersects primitives `first .. first + count`, shrinking `hit.t` on every closer hit.
-    fn intersect_leaf(&self, first: u32, count: u32, ray: &Ray, hit: &mut Hit);
+    fn intersect_leaf(&self, first: u32, count: u32, ray: &Ray, hit: &mut Hit, scratch: &mut Self::Scratch);
 }
 
 /// Closest hit along `ray` closer than `hit.t`. A near-first, stack-based loop: descend into
@@ -32,13 +36,14 @@ pub fn traverse_bvh<P: LeafPrimitives>(nodes: &[BvhNode], prims: &P, ray: &Ray, 
     let mut stack = [0u32; MAX_BVH_DEPTH];
     let mut stack_t = [0f32; MAX_BVH_DEPTH];
     let mut sp = 0usize;
+    let mut scratch = prims.scratch();
     let root = nodes[0];
     let mut node = 0u32;
     let mut live = intersect_aabb(Vec3::from(root.min), Vec3::from(root.max), ray, hit.t) < T_FAR;
     while live {
         let n = nodes[node as usize];
         if n.is_leaf() {
-            prims.intersect_leaf(n.first, n.count, ray, hit);
+            prims.intersect_leaf(n.first, n.count, ray, hit, &mut scratch);
         } else {
             let left = nodes[n.first as usize];
             let right = nodes[n.first as usize + 1];
@@ -96,7 +101,11 @@ pub struct TriangleMesh<'a> {
 }
 
 impl LeafPrimitives for TriangleMesh<'_> {
-    fn intersect_leaf(&self, first: u32, count: u32, ray: &Ray, hit: &mut Hit) {
+    type Scratch = ();
+
+    fn scratch(&self) {}
+
+    fn intersect_leaf(&self, first: u32, count: u32, ray: &Ray, hit: &mut Hit, _scratch: &mut ()) {
         let mut tri = first;
         while tri < first + count {
             let base = 3 * tri as usize;
@@ -130,6 +139,18 @@ pub struct GridScene<'a> {
     /// Half-float radii, two to a word, in breadth-first order per grid.
     pub radii: &'a [u32],
     pub params: GridParams,
+}
+
+/// Working memory of the grid traversal, one per ray.
+pub struct GridScratch {
+    stack: [u32; GRID_STACK],
+    stack_t: [f32; GRID_STACK],
+    /// A leaf's vertices: world positions for the normal of a hit, sheared ones for the tests.
+    verts: [Vec3; LEAF_VERTICES],
+    sheared: [Vec3; LEAF_VERTICES],
+    /// The static index list, copied out of the constant once (indexing a constant array
+    /// at run time makes rust-gpu copy it at every access).
+    table: [u32; MICRO_TRIANGLES.len()],
 }
 
 /// Most vertices a leaf can hold: a sub-triangle subdivided `MAX_LEAF_DEPTH` times.
@@ -185,14 +206,12 @@ impl GridScene<'_> {
         first_id: u32,
         ray: &Ray,
         hit: &mut Hit,
+        scratch: &mut GridScratch,
     ) {
         let m = 1u32 << k;
         let [a, b, c] = leaf;
         let e1 = [(b[0] as i32 - a[0] as i32) / m as i32, (b[1] as i32 - a[1] as i32) / m as i32];
         let e2 = [(c[0] as i32 - a[0] as i32) / m as i32, (c[1] as i32 - a[1] as i32) / m as i32];
-        // World positions for the normal of a hit, sheared ones for the tests.
-        let mut verts = [Vec3::ZERO; LEAF_VERTICES];
-        let mut sheared = [Vec3::ZERO; LEAF_VERTICES];
         let mut slot = 0usize;
         let mut lb = 0u32;
         while lb <= m {
@@ -203,8 +222,8 @@ impl GridScene<'_> {
                     (a[1] as i32 + la as i32 * e1[1] + lb as i32 * e2[1]) as u32,
                 ];
                 let v = self.vertex(slots, p);
-                verts[slot] = v;
-                sheared[slot] = shear(v, ray);
+                scratch.verts[slot] = v;
+                scratch.sheared[slot] = shear(v, ray);
                 slot += 1;
                 la += 1;
             }
@@ -212,16 +231,15 @@ impl GridScene<'_> {
         }
         let offset = micro_table_offset(k);
         let count = triangle_count(k);
-        let table = MICRO_TRIANGLES;
         // The closest triangle of this leaf, as its three vertex slots (none yet).
         let mut best = [LEAF_VERTICES as u32; 3];
         let mut t = 0;
         while t < count {
-            let packed = table[(offset + t) as usize];
+            let packed = scratch.table[(offset + t) as usize];
             let i0 = corner_slot(packed, 0);
             let i1 = corner_slot(packed, 1);
             let i2 = corner_slot(packed, 2);
-            if let Some(found) = intersect_sheared(sheared[i0], sheared[i1], sheared[i2], hit.t) {
+            if let Some(found) = intersect_sheared(scratch.sheared[i0], scratch.sheared[i1], scratch.sheared[i2], hit.t) {
                 hit.t = found.0;
                 hit.u = found.1;
                 hit.v = found.2;
@@ -231,13 +249,14 @@ impl GridScene<'_> {
             t += 1;
         }
         if best[0] != LEAF_VERTICES as u32 {
-            let n = triangle_normal(verts[best[0] as usize], verts[best[1] as usize], verts[best[2] as usize]);
+            let v = &scratch.verts;
+            let n = triangle_normal(v[best[0] as usize], v[best[1] as usize], v[best[2] as usize]);
             hit.normal = n.to_array();
         }
     }
 
     /// The bottom level: depth-first, nearest sphere first, over the grid's 4-ary hierarchy.
-    pub fn intersect_grid(&self, grid: u32, ray: &Ray, hit: &mut Hit) {
+    pub fn intersect_grid(&self, grid: u32, ray: &Ray, hit: &mut Hit, scratch: &mut GridScratch) {
         let slots = self.slots(grid);
         let n = 1u32 << self.params.levels;
         let lod = self.params.lod;
@@ -257,23 +276,21 @@ impl GridScene<'_> {
             return;
         }
         // Entries pack `index << 4 | level`, with the sphere's entry distance beside them.
-        let mut stack = [0u32; GRID_STACK];
-        let mut stack_t = [0f32; GRID_STACK];
         let mut sp = 1usize;
-        stack[0] = 0;
-        stack_t[0] = 0.0;
+        scratch.stack[0] = 0;
+        scratch.stack_t[0] = 0.0;
         while sp > 0 {
             sp -= 1;
-            if stack_t[sp] >= hit.t {
+            if scratch.stack_t[sp] >= hit.t {
                 continue;
             }
-            let level = stack[sp] & 0xf;
-            let index = stack[sp] >> 4;
+            let level = scratch.stack[sp] & 0xf;
+            let index = scratch.stack[sp] >> 4;
             let corners = sub_triangle(n, level, index);
             if level == leaf_level {
                 let k = lod - level;
                 let first_id = grid * triangle_count(lod) + index * triangle_count(k);
-                self.intersect_leaf_triangles(&slots, corners, k, first_id, ray, hit);
+                self.intersect_leaf_triangles(&slots, corners, k, first_id, ray, hit, scratch);
                 continue;
             }
             // The four children share six vertices: three corners and three midpoints.
@@ -306,23 +323,23 @@ impl GridScene<'_> {
             sort_descending(&mut b, &mut c);
             let node = |e: &Entry| ((4 * index + e.child) << 4) | (level + 1);
             if a.t < T_FAR {
-                stack[sp] = node(&a);
-                stack_t[sp] = a.t;
+                scratch.stack[sp] = node(&a);
+                scratch.stack_t[sp] = a.t;
                 sp += 1;
             }
             if b.t < T_FAR {
-                stack[sp] = node(&b);
-                stack_t[sp] = b.t;
+                scratch.stack[sp] = node(&b);
+                scratch.stack_t[sp] = b.t;
                 sp += 1;
             }
             if c.t < T_FAR {
-                stack[sp] = node(&c);
-                stack_t[sp] = c.t;
+                scratch.stack[sp] = node(&c);
+                scratch.stack_t[sp] = c.t;
                 sp += 1;
             }
             if d.t < T_FAR {
-                stack[sp] = node(&d);
-                stack_t[sp] = d.t;
+                scratch.stack[sp] = node(&d);
+                scratch.stack_t[sp] = d.t;
                 sp += 1;
             }
         }
@@ -346,10 +363,22 @@ fn sort_descending(x: &mut Entry, y: &mut Entry) {
 }
 
 impl LeafPrimitives for GridScene<'_> {
-    fn intersect_leaf(&self, first: u32, count: u32, ray: &Ray, hit: &mut Hit) {
+    type Scratch = GridScratch;
+
+    fn scratch(&self) -> GridScratch {
+        GridScratch {
+            stack: [0; GRID_STACK],
+            stack_t: [0.0; GRID_STACK],
+            verts: [Vec3::ZERO; LEAF_VERTICES],
+            sheared: [Vec3::ZERO; LEAF_VERTICES],
+            table: MICRO_TRIANGLES,
+        }
+    }
+
+    fn intersect_leaf(&self, first: u32, count: u32, ray: &Ray, hit: &mut Hit, scratch: &mut GridScratch) {
         let mut grid = first;
         while grid < first + count {
-            self.intersect_grid(grid, ray, hit);
+            self.intersect_grid(grid, ray, hit, scratch);
             grid += 1;
         }
     }
