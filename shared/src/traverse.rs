@@ -5,7 +5,7 @@
 use crate::aabb::intersect_aabb;
 use crate::glam::Vec3;
 use crate::grid_index::{
-    level_start, micro_table_offset, sub_triangle, triangle_count, vertex_count, GridSlots, Lattice,
+    level_start, micro_table_offset, triangle_count, vertex_count, GridSlots, Lattice,
     MAX_LEAF_DEPTH, MICRO_TRIANGLES,
 };
 use crate::layout::{BvhNode, GridHeader, GridParams, Hit};
@@ -143,7 +143,10 @@ pub struct GridScene<'a> {
 
 /// Working memory of the grid traversal, one per ray.
 pub struct GridScratch {
+    /// Pending sub-triangles: `index << 4 | level`, the corner `a` packed by [`pack_corner`],
+    /// and the sphere's entry distance.
     stack: [u32; GRID_STACK],
+    stack_corner: [u32; GRID_STACK],
     stack_t: [f32; GRID_STACK],
     /// A leaf's vertices: world positions for the normal of a hit, sheared ones for the tests.
     verts: [Vec3; LEAF_VERTICES],
@@ -155,11 +158,6 @@ pub struct GridScratch {
 
 /// Most vertices a leaf can hold: a sub-triangle subdivided `MAX_LEAF_DEPTH` times.
 const LEAF_VERTICES: usize = vertex_count(MAX_LEAF_DEPTH) as usize;
-
-#[inline]
-fn midpoint(a: Lattice, b: Lattice) -> Lattice {
-    [(a[0] + b[0]) / 2, (a[1] + b[1]) / 2]
-}
 
 /// Slot in a leaf's vertex list of corner `v` of a packed static-list entry.
 #[inline]
@@ -201,7 +199,8 @@ impl GridScene<'_> {
     fn intersect_leaf_triangles(
         &self,
         slots: &GridSlots,
-        leaf: [Lattice; 3],
+        corner: [i32; 2],
+        step: i32,
         k: u32,
         first_id: u32,
         ray: &Ray,
@@ -209,18 +208,12 @@ impl GridScene<'_> {
         scratch: &mut GridScratch,
     ) {
         let m = 1u32 << k;
-        let [a, b, c] = leaf;
-        let e1 = [(b[0] as i32 - a[0] as i32) / m as i32, (b[1] as i32 - a[1] as i32) / m as i32];
-        let e2 = [(c[0] as i32 - a[0] as i32) / m as i32, (c[1] as i32 - a[1] as i32) / m as i32];
         let mut slot = 0usize;
         let mut lb = 0u32;
         while lb <= m {
             let mut la = 0u32;
             while la <= m - lb {
-                let p = [
-                    (a[0] as i32 + la as i32 * e1[0] + lb as i32 * e2[0]) as u32,
-                    (a[1] as i32 + la as i32 * e1[1] + lb as i32 * e2[1]) as u32,
-                ];
+                let p = [(corner[0] + la as i32 * step) as u32, (corner[1] + lb as i32 * step) as u32];
                 let v = self.vertex(slots, p);
                 scratch.verts[slot] = v;
                 scratch.sheared[slot] = shear(v, ray);
@@ -266,18 +259,17 @@ impl GridScene<'_> {
         } else {
             lod
         };
-        let root = [[0, 0], [n, 0], [0, n]];
         let center = sphere_center(
-            self.vertex(&slots, root[0]),
-            self.vertex(&slots, root[1]),
-            self.vertex(&slots, root[2]),
+            self.vertex(&slots, [0, 0]),
+            self.vertex(&slots, [n, 0]),
+            self.vertex(&slots, [0, n]),
         );
         if intersect_sphere(center, self.radius(grid, 0), ray, hit.t) == T_FAR {
             return;
         }
-        // Entries pack `index << 4 | level`, with the sphere's entry distance beside them.
         let mut sp = 1usize;
         scratch.stack[0] = 0;
+        scratch.stack_corner[0] = pack_corner([0, 0], false);
         scratch.stack_t[0] = 0.0;
         while sp > 0 {
             sp -= 1;
@@ -286,64 +278,71 @@ impl GridScene<'_> {
             }
             let level = scratch.stack[sp] & 0xf;
             let index = scratch.stack[sp] >> 4;
-            let corners = sub_triangle(n, level, index);
+            // A sub-triangle is its first corner `a`, its edge length and its orientation:
+            // `b = a + d (s, 0)`, `c = a + d (0, s)`, `d = -1` for the inverted ones.
+            let packed = scratch.stack_corner[sp];
+            let a = [(packed & 0xff) as i32, ((packed >> 8) & 0xff) as i32];
+            let inverted = packed >> 16 != 0;
+            let d = if inverted { -1 } else { 1 };
+            let size = (n >> level) as i32;
             if level == leaf_level {
                 let k = lod - level;
                 let first_id = grid * triangle_count(lod) + index * triangle_count(k);
-                self.intersect_leaf_triangles(&slots, corners, k, first_id, ray, hit, scratch);
+                let step = d * (size >> k);
+                self.intersect_leaf_triangles(&slots, a, step, k, first_id, ray, hit, scratch);
                 continue;
             }
             // The four children share six vertices: three corners and three midpoints.
-            let pa = self.vertex(&slots, corners[0]);
-            let pb = self.vertex(&slots, corners[1]);
-            let pc = self.vertex(&slots, corners[2]);
-            let pab = self.vertex(&slots, midpoint(corners[0], corners[1]));
-            let pbc = self.vertex(&slots, midpoint(corners[1], corners[2]));
-            let pca = self.vertex(&slots, midpoint(corners[2], corners[0]));
+            let (s, h) = (d * size, d * size / 2);
+            let at = |x: i32, y: i32| [(a[0] + x) as u32, (a[1] + y) as u32];
+            let pa = self.vertex(&slots, at(0, 0));
+            let pb = self.vertex(&slots, at(s, 0));
+            let pc = self.vertex(&slots, at(0, s));
+            let pab = self.vertex(&slots, at(h, 0));
+            let pbc = self.vertex(&slots, at(h, h));
+            let pca = self.vertex(&slots, at(0, h));
             // Children in `child_corners` order; their radii are adjacent in BFS order.
-            let centers = [
-                sphere_center(pa, pab, pca),
-                sphere_center(pab, pb, pbc),
-                sphere_center(pca, pbc, pc),
-                sphere_center(pbc, pca, pab),
-            ];
             let first_child = level_start(level + 1) + 4 * index;
             // Test the four children, sort them by entry distance with a fixed network (no
             // dynamically indexed arrays: those are slow on GPUs), push the hit ones farthest
             // first so the nearest is popped next.
             let r = |c: u32| self.radius(grid, first_child + c);
-            let mut a = Entry { t: intersect_sphere(centers[0], r(0), ray, hit.t), child: 0 };
-            let mut b = Entry { t: intersect_sphere(centers[1], r(1), ray, hit.t), child: 1 };
-            let mut c = Entry { t: intersect_sphere(centers[2], r(2), ray, hit.t), child: 2 };
-            let mut d = Entry { t: intersect_sphere(centers[3], r(3), ray, hit.t), child: 3 };
-            sort_descending(&mut a, &mut b);
-            sort_descending(&mut c, &mut d);
-            sort_descending(&mut a, &mut c);
-            sort_descending(&mut b, &mut d);
-            sort_descending(&mut b, &mut c);
-            let node = |e: &Entry| ((4 * index + e.child) << 4) | (level + 1);
-            if a.t < T_FAR {
-                scratch.stack[sp] = node(&a);
-                scratch.stack_t[sp] = a.t;
-                sp += 1;
-            }
-            if b.t < T_FAR {
-                scratch.stack[sp] = node(&b);
-                scratch.stack_t[sp] = b.t;
-                sp += 1;
-            }
-            if c.t < T_FAR {
-                scratch.stack[sp] = node(&c);
-                scratch.stack_t[sp] = c.t;
-                sp += 1;
-            }
-            if d.t < T_FAR {
-                scratch.stack[sp] = node(&d);
-                scratch.stack_t[sp] = d.t;
-                sp += 1;
-            }
+            let mut e0 = Entry { t: intersect_sphere(sphere_center(pa, pab, pca), r(0), ray, hit.t), child: 0 };
+            let mut e1 = Entry { t: intersect_sphere(sphere_center(pab, pb, pbc), r(1), ray, hit.t), child: 1 };
+            let mut e2 = Entry { t: intersect_sphere(sphere_center(pca, pbc, pc), r(2), ray, hit.t), child: 2 };
+            let mut e3 = Entry { t: intersect_sphere(sphere_center(pbc, pca, pab), r(3), ray, hit.t), child: 3 };
+            sort_descending(&mut e0, &mut e1);
+            sort_descending(&mut e2, &mut e3);
+            sort_descending(&mut e0, &mut e2);
+            sort_descending(&mut e1, &mut e3);
+            sort_descending(&mut e1, &mut e2);
+            // Child corners `a`: a, ab, ca, and bc for the inverted middle child.
+            let child_corner = |c: u32| match c {
+                0 => pack_corner(a, inverted),
+                1 => pack_corner([a[0] + h, a[1]], inverted),
+                2 => pack_corner([a[0], a[1] + h], inverted),
+                _ => pack_corner([a[0] + h, a[1] + h], !inverted),
+            };
+            let mut push = |e: &Entry| {
+                if e.t < T_FAR {
+                    scratch.stack[sp] = ((4 * index + e.child) << 4) | (level + 1);
+                    scratch.stack_corner[sp] = child_corner(e.child);
+                    scratch.stack_t[sp] = e.t;
+                    sp += 1;
+                }
+            };
+            push(&e0);
+            push(&e1);
+            push(&e2);
+            push(&e3);
         }
     }
+}
+
+/// A sub-triangle's first corner and orientation as one word (coordinates below 256).
+#[inline]
+fn pack_corner(a: [i32; 2], inverted: bool) -> u32 {
+    a[0] as u32 | ((a[1] as u32) << 8) | ((inverted as u32) << 16)
 }
 
 /// A child sphere's entry distance and which child it is.
@@ -368,6 +367,7 @@ impl LeafPrimitives for GridScene<'_> {
     fn scratch(&self) -> GridScratch {
         GridScratch {
             stack: [0; GRID_STACK],
+            stack_corner: [0; GRID_STACK],
             stack_t: [0.0; GRID_STACK],
             verts: [Vec3::ZERO; LEAF_VERTICES],
             sheared: [Vec3::ZERO; LEAF_VERTICES],
