@@ -64,7 +64,13 @@ enum Device {
 
 impl Device {
     /// Hits of the last run and the seconds of each timed repetition (after the warm-up).
-    fn time(&self, scene: &Scene, rays: &[RayRecord], warmup: usize, repeats: usize) -> Result<(Vec<HitRecord>, Vec<f64>)> {
+    fn time(
+        &self,
+        scene: &Scene,
+        rays: &[RayRecord],
+        warmup: usize,
+        repeats: usize,
+    ) -> Result<(Vec<HitRecord>, Vec<f64>)> {
         match self {
             Device::Cpu => {
                 let mut hits = Vec::new();
@@ -93,7 +99,10 @@ fn agreement(a: &Scene, ha: &[HitRecord], b: &Scene, hb: &[HitRecord]) -> f64 {
         .iter()
         .zip(hb)
         .filter(|(x, y)| {
-            let (hx, hy) = (x.prim != gridrt_shared::layout::NO_HIT, y.prim != gridrt_shared::layout::NO_HIT);
+            let (hx, hy) = (
+                x.prim != gridrt_shared::layout::NO_HIT,
+                y.prim != gridrt_shared::layout::NO_HIT,
+            );
             hx == hy && (!hx || a.original_triangle(x.prim) == b.original_triangle(y.prim))
         })
         .count();
@@ -152,7 +161,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         let primary = primary_rays(&bounds, args.views, args.width, args.height);
         let Scene::Triangles(t) = &tris else { unreachable!() };
         let first_hits = trace_cpu(&tris, &primary);
-        let ao = ao_rays(&primary, &first_hits, args.ao_samples, &bounds, |p| triangle_normal(t, p));
+        let ao = ao_rays(&primary, &first_hits, args.ao_samples, &bounds, |p| {
+            triangle_normal(t, p)
+        });
         bar.inc(1);
         let mut mrays = PerRepresentation::default();
         let mut spread = PerRepresentation::default();

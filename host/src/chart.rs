@@ -43,7 +43,10 @@ pub fn write_chart(results: &[BenchResult], path: &Path, font: &Path) -> Result<
     ];
     let backend = BitMapBackend::new(path, (1500, 500)).into_drawing_area();
     backend.fill(&WHITE).map_err(|e| anyhow!("{}: {e}", path.display()))?;
-    let title = format!("gridrt vs triangle BVH, {} backend", results.first().map_or("", |r| r.backend.as_str()));
+    let title = format!(
+        "gridrt vs triangle BVH, {} backend",
+        results.first().map_or("", |r| r.backend.as_str())
+    );
     let backend = backend
         .titled(&title, ("sans-serif", 24))
         .map_err(|e| anyhow!("{}: {e}", path.display()))?;
@@ -77,15 +80,25 @@ pub fn write_chart(results: &[BenchResult], path: &Path, font: &Path) -> Result<
         chart
             .draw_series(bars.iter().enumerate().map(|(k, &(value, _))| {
                 let x = (k / per_mesh) as f64 - 0.35 + (k % per_mesh) as f64 * width;
-                Text::new(format!("{value:.1}"), (x + 0.03, value.max(0.0) + (top - bottom) * 0.04), ("sans-serif", 13))
+                Text::new(
+                    format!("{value:.1}"),
+                    (x + 0.03, value.max(0.0) + (top - bottom) * 0.04),
+                    ("sans-serif", 13),
+                )
             }))
             .map_err(|e| anyhow!("{e}"))?;
         chart
             .draw_series(names.iter().enumerate().map(|(i, name)| {
-                Text::new(name.clone(), (i as f64 - 0.3, bottom + (top - bottom) * 0.02), ("sans-serif", 15))
+                Text::new(
+                    name.clone(),
+                    (i as f64 - 0.3, bottom + (top - bottom) * 0.02),
+                    ("sans-serif", 15),
+                )
             }))
             .map_err(|e| anyhow!("{e}"))?;
     }
-    backend.present().map_err(|e| anyhow!("{}: cannot write the chart: {e}", path.display()))?;
+    backend
+        .present()
+        .map_err(|e| anyhow!("{}: cannot write the chart: {e}", path.display()))?;
     Ok(())
 }

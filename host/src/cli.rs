@@ -15,7 +15,11 @@ use crate::subdiv::{self, Scheme, Subdivided};
 use crate::{bench, camera, grid, image_io, stats, triangles};
 
 #[derive(Parser, Debug)]
-#[command(name = "gridrt", version, about = "Ray tracing of triangular grid primitives (micro-meshes) on the GPU and the CPU")]
+#[command(
+    name = "gridrt",
+    version,
+    about = "Ray tracing of triangular grid primitives (micro-meshes) on the GPU and the CPU"
+)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,

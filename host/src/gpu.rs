@@ -127,7 +127,10 @@ impl Gpu {
 
     /// One line naming the adapter, e.g. `llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan, Cpu)`.
     pub fn describe(&self) -> String {
-        format!("{} ({:?}, {:?})", self.adapter.name, self.adapter.backend, self.adapter.device_type)
+        format!(
+            "{} ({:?}, {:?})",
+            self.adapter.name, self.adapter.backend, self.adapter.device_type
+        )
     }
 
     /// How [`Gpu::time_trace`] measures on this adapter.
@@ -307,7 +310,12 @@ impl Gpu {
 
     /// Traces `rays` `repeats` times; returns the hits and the seconds of each repetition,
     /// measured as [`Gpu::timing`] says.
-    pub fn time_trace(&self, scene: &GpuScene, rays: &[RayRecord], repeats: usize) -> Result<(Vec<HitRecord>, Vec<f64>)> {
+    pub fn time_trace(
+        &self,
+        scene: &GpuScene,
+        rays: &[RayRecord],
+        repeats: usize,
+    ) -> Result<(Vec<HitRecord>, Vec<f64>)> {
         let count = u32::try_from(rays.len()).context("too many rays for one dispatch")?;
         let ((x, y), params) = self.trace_params(scene.scene, count);
         let params = self.storage("trace parameters", bytemuck::bytes_of(&params))?;

@@ -7,9 +7,8 @@ use std::collections::HashMap;
 use anyhow::{bail, Result};
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::grid_index::{
-    lattice_index, vertex_slot,
-    edge_vertex_count, grid_size, inner_index, inner_vertex_count, level_start, sphere_count, sub_triangle,
-    triangle_count, Lattice,
+    edge_vertex_count, grid_size, inner_index, inner_vertex_count, lattice_index, level_start, sphere_count,
+    sub_triangle, triangle_count, vertex_slot, Lattice,
 };
 use gridrt_shared::layout::{BvhNode, GridHeader, GridParams, MAX_HEADER_ID};
 use gridrt_shared::traverse::{sphere_center, MAX_SPHERE_LEVEL};
@@ -49,7 +48,10 @@ impl GridScene {
     /// Renders depth `lod` instead of the full depth (no rebuild).
     pub fn set_lod(&mut self, lod: u32) -> Result<()> {
         if lod > self.params.levels {
-            bail!("level of detail {lod} is deeper than the {} levels built", self.params.levels);
+            bail!(
+                "level of detail {lod} is deeper than the {} levels built",
+                self.params.levels
+            );
         }
         self.params.lod = lod;
         Ok(())
@@ -124,17 +126,31 @@ pub fn layout(base: &Mesh, sub: &Subdivided, excluded: u32) -> Result<GridLayout
     let levels = sub.levels;
     let leaf_level = levels.saturating_sub(excluded);
     if leaf_level > MAX_SPHERE_LEVEL {
-        bail!("a sphere hierarchy of {} levels is deeper than the traversal supports ({})", leaf_level + 1, MAX_SPHERE_LEVEL + 1);
+        bail!(
+            "a sphere hierarchy of {} levels is deeper than the traversal supports ({})",
+            leaf_level + 1,
+            MAX_SPHERE_LEVEL + 1
+        );
     }
     if levels - leaf_level > gridrt_shared::grid_index::MAX_LEAF_DEPTH {
-        bail!("leaves of {} micro-triangles are more than the static index list holds", triangle_count(levels - leaf_level));
+        bail!(
+            "leaves of {} micro-triangles are more than the static index list holds",
+            triangle_count(levels - leaf_level)
+        );
     }
     let grids = base.triangles.len();
     if (grids as u64) * (triangle_count(levels) as u64) >= u32::MAX as u64 {
-        bail!("{grids} grids of {} micro-triangles overflow 32-bit primitive ids", triangle_count(levels));
+        bail!(
+            "{grids} grids of {} micro-triangles overflow 32-bit primitive ids",
+            triangle_count(levels)
+        );
     }
     if base.positions.len() > MAX_HEADER_ID as usize + 1 {
-        bail!("{} base vertices are more than a grid header can address ({})", base.positions.len(), MAX_HEADER_ID + 1);
+        bail!(
+            "{} base vertices are more than a grid header can address ({})",
+            base.positions.len(),
+            MAX_HEADER_ID + 1
+        );
     }
     let n = grid_size(levels);
 
@@ -154,7 +170,11 @@ pub fn layout(base: &Mesh, sub: &Subdivided, excluded: u32) -> Result<GridLayout
         headers.push(GridHeader::new(edges, *t));
     }
     if edge_owner.len() > MAX_HEADER_ID as usize + 1 {
-        bail!("{} base edges are more than a grid header can address ({})", edge_owner.len(), MAX_HEADER_ID + 1);
+        bail!(
+            "{} base edges are more than a grid header can address ({})",
+            edge_owner.len(),
+            MAX_HEADER_ID + 1
+        );
     }
 
     let inner_count = inner_vertex_count(levels);
@@ -164,7 +184,10 @@ pub fn layout(base: &Mesh, sub: &Subdivided, excluded: u32) -> Result<GridLayout
     for g in 0..grids {
         for j in 1..n.saturating_sub(1) {
             for i in 1..n - j {
-                debug_assert_eq!(inner_index(i, j, n) as usize, vertices.len() % inner_count.max(1) as usize);
+                debug_assert_eq!(
+                    inner_index(i, j, n) as usize,
+                    vertices.len() % inner_count.max(1) as usize
+                );
                 vertices.push(sub.positions[sub.vertex(g, [i, j]) as usize]);
             }
         }
@@ -350,7 +373,11 @@ mod tests {
             g.edge_offset,
             g.corner_offset,
         ) as usize;
-        Vec3::new(scene.vertices[3 * s], scene.vertices[3 * s + 1], scene.vertices[3 * s + 2])
+        Vec3::new(
+            scene.vertices[3 * s],
+            scene.vertices[3 * s + 1],
+            scene.vertices[3 * s + 2],
+        )
     }
 
     /// Reading a grid back through its header gives exactly the subdivided vertices, shared
@@ -365,7 +392,11 @@ mod tests {
             for (slot, &base) in scene.base_triangle.iter().enumerate() {
                 for p in lattice_points(n) {
                     let expect = sub.positions[sub.vertex(base as usize, p) as usize];
-                    assert_eq!(lattice_vertex(&scene, slot, p), expect, "L={levels} grid {base} at {p:?}");
+                    assert_eq!(
+                        lattice_vertex(&scene, slot, p),
+                        expect,
+                        "L={levels} grid {base} at {p:?}"
+                    );
                 }
             }
             // Nothing stored twice: one slot per distinct subdivided vertex.
@@ -410,7 +441,10 @@ mod tests {
             let r = 3.7 * (k as f32 / 100_000.0).powi(3);
             let back = gridrt_shared::sphere::decode_radius(encode_radius(r, scale) as u32, scale);
             assert!(back >= r, "{r} encoded as {back}");
-            assert!(back <= r * (1.0 + 1.0 / 1024.0) + scale * 2f32.powi(-24), "{r} encoded as {back}");
+            assert!(
+                back <= r * (1.0 + 1.0 / 1024.0) + scale * 2f32.powi(-24),
+                "{r} encoded as {back}"
+            );
         }
     }
 

@@ -22,6 +22,10 @@ pub fn pixel_difference(a: u32, b: u32) -> u32 {
 /// Fraction of pixels whose every channel differs by at most `tolerance`.
 pub fn fraction_within(a: &[u32], b: &[u32], tolerance: u32) -> f64 {
     assert_eq!(a.len(), b.len(), "images of different sizes");
-    let close = a.iter().zip(b).filter(|(x, y)| pixel_difference(**x, **y) <= tolerance).count();
+    let close = a
+        .iter()
+        .zip(b)
+        .filter(|(x, y)| pixel_difference(**x, **y) <= tolerance)
+        .count();
     close as f64 / a.len().max(1) as f64
 }

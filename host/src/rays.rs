@@ -109,7 +109,10 @@ pub fn trace_cpu(scene: &Scene, rays: &[RayRecord]) -> Vec<HitRecord> {
         .map(|r| {
             let ray = gridrt_shared::ray::Ray::new(Vec3::from(r.origin), Vec3::from(r.dir));
             let hit = scene.trace(&ray, r.t_max);
-            HitRecord { t: hit.t, prim: hit.prim }
+            HitRecord {
+                t: hit.t,
+                prim: hit.prim,
+            }
         })
         .collect()
 }

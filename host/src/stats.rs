@@ -53,7 +53,10 @@ fn representation(parts: Vec<(&'static str, usize)>, micro: usize, seconds: f64)
         bytes,
         bytes_per_triangle: bytes as f64 / micro.max(1) as f64,
         build_seconds: seconds,
-        parts: parts.into_iter().map(|(k, v)| (k.to_string(), Value::from(v))).collect(),
+        parts: parts
+            .into_iter()
+            .map(|(k, v)| (k.to_string(), Value::from(v)))
+            .collect(),
     }
 }
 
@@ -90,7 +93,10 @@ pub fn run(args: &StatsArgs) -> Result<()> {
         println!("{}", serde_json::to_string(&s)?);
         return Ok(());
     }
-    println!("{}: L = {}, {} base triangles, {} micro-triangles", s.mesh, s.levels, s.base_triangles, s.micro_triangles);
+    println!(
+        "{}: L = {}, {} base triangles, {} micro-triangles",
+        s.mesh, s.levels, s.base_triangles, s.micro_triangles
+    );
     for (label, r) in [("grid", &s.grid), ("triangles", &s.triangles)] {
         println!(
             "  {label:<10} {:>12} bytes  {:>6.2} B/triangle  build {:>9.4} s",
@@ -100,6 +106,9 @@ pub fn run(args: &StatsArgs) -> Result<()> {
             println!("    {part:<16} {bytes:>12}");
         }
     }
-    println!("  compression gain {:.2}x, construction gain {:.1}x", s.compression_gain, s.construction_gain);
+    println!(
+        "  compression gain {:.2}x, construction gain {:.1}x",
+        s.compression_gain, s.construction_gain
+    );
     Ok(())
 }

@@ -298,7 +298,11 @@ mod tests {
 
     #[test]
     fn closed_meshes_stay_closed_with_the_same_euler_characteristic() {
-        for (name, mesh) in [("tetrahedron", tetrahedron()), ("cube", cube()), ("default scene", default_scene())] {
+        for (name, mesh) in [
+            ("tetrahedron", tetrahedron()),
+            ("cube", cube()),
+            ("default scene", default_scene()),
+        ] {
             let chi = euler(&mesh.triangles);
             for levels in 1..=3 {
                 for scheme in [Scheme::Loop, Scheme::Flat] {
@@ -306,7 +310,10 @@ mod tests {
                     let micro = sub.micro_triangles(levels);
                     assert_eq!(micro.len(), mesh.triangles.len() << (2 * levels));
                     assert_eq!(euler(&micro), chi, "{name} L={levels}");
-                    assert!(edge_use(&micro).values().all(|&c| c == 2), "{name} L={levels}: not closed");
+                    assert!(
+                        edge_use(&micro).values().all(|&c| c == 2),
+                        "{name} L={levels}: not closed"
+                    );
                 }
             }
         }
@@ -359,15 +366,18 @@ mod tests {
             }
             for levels in [1, 3, 5] {
                 let sub = subdivide(&mesh, levels, Scheme::Loop);
-                for v in 0..mesh.positions.len() {
-                    let n = ring[v].len() as f32;
-                    let beta = loop_beta(ring[v].len() as u32);
-                    let sum: Vec3 = ring[v].iter().map(|&u| mesh.positions[u]).sum();
+                for (v, neighbours) in ring.iter().enumerate() {
+                    let n = neighbours.len() as f32;
+                    let beta = loop_beta(neighbours.len() as u32);
+                    let sum: Vec3 = neighbours.iter().map(|&u| mesh.positions[u]).sum();
                     let limit = (mesh.positions[v] * 0.375 + sum * beta) / (0.375 + n * beta);
                     let shrink = (0.625 - n * beta).powi(levels as i32);
                     let expect = limit + (mesh.positions[v] - limit) * shrink;
                     let got = sub.positions[v];
-                    assert!(got.distance(expect) < 1e-5, "valence {n}, L={levels}: {got} vs {expect}");
+                    assert!(
+                        got.distance(expect) < 1e-5,
+                        "valence {n}, L={levels}: {got} vs {expect}"
+                    );
                     if levels == 5 {
                         assert!(got.distance(limit) < 2e-3, "valence {n}: not near the limit");
                     }

@@ -3,13 +3,13 @@
 
 use gridrt_shared::camera::primary_ray;
 use gridrt_shared::glam::UVec3;
-use gridrt_shared::ray::T_FAR;
+use gridrt_shared::glam::Vec3;
+use gridrt_shared::layout::Hit;
 use gridrt_shared::layout::{
     BvhNode, FrameParams, GridHeader, HitRecord, RayRecord, TraceParams, TRACE_WORKGROUP_SIZE, WORKGROUP_SIZE,
 };
-use gridrt_shared::layout::Hit;
-use gridrt_shared::glam::Vec3;
 use gridrt_shared::ray::Ray;
+use gridrt_shared::ray::T_FAR;
 use gridrt_shared::shade::{pack_rgba8, shade};
 use gridrt_shared::traverse::{trace_grids, trace_triangles, GridScene, TriangleMesh};
 use spirv_std::spirv;
@@ -77,7 +77,10 @@ fn ray_of(r: &RayRecord) -> Ray {
 }
 
 fn record(hit: &Hit) -> HitRecord {
-    HitRecord { t: hit.t, prim: hit.prim }
+    HitRecord {
+        t: hit.t,
+        prim: hit.prim,
+    }
 }
 
 /// A list of rays against the baseline (benchmarks, and anything that brings its own rays).
@@ -98,6 +101,7 @@ pub fn trace_triangles_rays(
 }
 
 /// A list of rays against grid primitives.
+#[allow(clippy::too_many_arguments)] // one per binding
 #[spirv(compute(threads(64, 1, 1)))]
 pub fn trace_grids_rays(
     #[spirv(global_invocation_id)] id: UVec3,

@@ -333,7 +333,12 @@ mod tests {
 
     #[test]
     fn header_ids_round_trip() {
-        let ids = [[0, 1, 2], [MAX_HEADER_ID, 0, MAX_HEADER_ID], [1 << 20, (1 << 11) + 5, 2047], [77, 3 << 19, 9]];
+        let ids = [
+            [0, 1, 2],
+            [MAX_HEADER_ID, 0, MAX_HEADER_ID],
+            [1 << 20, (1 << 11) + 5, 2047],
+            [77, 3 << 19, 9],
+        ];
         for e in ids {
             for c in ids {
                 let h = GridHeader::new(e, c);
@@ -395,7 +400,10 @@ mod tests {
                 for p in 0..triangle_count(leaf_level) {
                     let leaf = sub_triangle(n, leaf_level, p);
                     for t in 0..triangle_count(k) {
-                        assert_eq!(leaf_triangle(leaf, k, t), sub_triangle(n, levels, p * triangle_count(k) + t));
+                        assert_eq!(
+                            leaf_triangle(leaf, k, t),
+                            sub_triangle(n, levels, p * triangle_count(k) + t)
+                        );
                     }
                 }
             }

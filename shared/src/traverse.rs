@@ -5,8 +5,7 @@
 use crate::aabb::intersect_aabb;
 use crate::glam::Vec3;
 use crate::grid_index::{
-    level_start, micro_table_offset, triangle_count, vertex_count, GridSlots, Lattice,
-    MAX_LEAF_DEPTH, MICRO_TRIANGLES,
+    level_start, micro_table_offset, triangle_count, vertex_count, GridSlots, Lattice, MAX_LEAF_DEPTH, MICRO_TRIANGLES,
 };
 use crate::layout::{BvhNode, GridHeader, GridParams, Hit};
 use crate::ray::{Ray, T_FAR};
@@ -177,7 +176,14 @@ impl GridScene<'_> {
     fn slots(&self, grid: u32) -> GridSlots {
         let g = &self.params;
         let header = self.headers[grid as usize];
-        GridSlots::new(&header, grid, 1 << g.levels, g.inner_count, g.edge_offset, g.corner_offset)
+        GridSlots::new(
+            &header,
+            grid,
+            1 << g.levels,
+            g.inner_count,
+            g.edge_offset,
+            g.corner_offset,
+        )
     }
 
     #[inline]
@@ -213,7 +219,10 @@ impl GridScene<'_> {
         while lb <= m {
             let mut la = 0u32;
             while la <= m - lb {
-                let p = [(corner[0] + la as i32 * step) as u32, (corner[1] + lb as i32 * step) as u32];
+                let p = [
+                    (corner[0] + la as i32 * step) as u32,
+                    (corner[1] + lb as i32 * step) as u32,
+                ];
                 let v = self.vertex(slots, p);
                 scratch.verts[slot] = v;
                 scratch.sheared[slot] = shear(v, ray);
@@ -232,7 +241,8 @@ impl GridScene<'_> {
             let i0 = corner_slot(packed, 0);
             let i1 = corner_slot(packed, 1);
             let i2 = corner_slot(packed, 2);
-            if let Some(found) = intersect_sheared(scratch.sheared[i0], scratch.sheared[i1], scratch.sheared[i2], hit.t) {
+            if let Some(found) = intersect_sheared(scratch.sheared[i0], scratch.sheared[i1], scratch.sheared[i2], hit.t)
+            {
                 hit.t = found.0;
                 hit.u = found.1;
                 hit.v = found.2;
@@ -307,10 +317,22 @@ impl GridScene<'_> {
             // dynamically indexed arrays: those are slow on GPUs), push the hit ones farthest
             // first so the nearest is popped next.
             let r = |c: u32| self.radius(grid, first_child + c);
-            let mut e0 = Entry { t: intersect_sphere(sphere_center(pa, pab, pca), r(0), ray, hit.t), child: 0 };
-            let mut e1 = Entry { t: intersect_sphere(sphere_center(pab, pb, pbc), r(1), ray, hit.t), child: 1 };
-            let mut e2 = Entry { t: intersect_sphere(sphere_center(pca, pbc, pc), r(2), ray, hit.t), child: 2 };
-            let mut e3 = Entry { t: intersect_sphere(sphere_center(pbc, pca, pab), r(3), ray, hit.t), child: 3 };
+            let mut e0 = Entry {
+                t: intersect_sphere(sphere_center(pa, pab, pca), r(0), ray, hit.t),
+                child: 0,
+            };
+            let mut e1 = Entry {
+                t: intersect_sphere(sphere_center(pab, pb, pbc), r(1), ray, hit.t),
+                child: 1,
+            };
+            let mut e2 = Entry {
+                t: intersect_sphere(sphere_center(pca, pbc, pc), r(2), ray, hit.t),
+                child: 2,
+            };
+            let mut e3 = Entry {
+                t: intersect_sphere(sphere_center(pbc, pca, pab), r(3), ray, hit.t),
+                child: 3,
+            };
             sort_descending(&mut e0, &mut e1);
             sort_descending(&mut e2, &mut e3);
             sort_descending(&mut e0, &mut e2);

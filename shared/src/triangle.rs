@@ -105,7 +105,12 @@ mod tests {
     fn shared_edges_and_vertices_are_never_missed() {
         // Quad A B D C split along B-C; rays through points on the diagonal, on the outer
         // edges and at the vertices, from oblique directions.
-        let dirs = [[0.0, 0.0, -1.0], [0.3, -0.2, -1.0], [-0.7, 0.4, -0.5], [0.01, 0.02, -1.0]];
+        let dirs = [
+            [0.0, 0.0, -1.0],
+            [0.3, -0.2, -1.0],
+            [-0.7, 0.4, -0.5],
+            [0.01, 0.02, -1.0],
+        ];
         let mut targets = [[0.0f32; 3]; 13];
         for (k, t) in targets.iter_mut().enumerate().take(9) {
             let s = k as f32 / 8.0;
@@ -123,7 +128,10 @@ mod tests {
                 let second = intersect_triangle(B, D, C, &r, T_FAR);
                 let inside_quad = p[0] > 0.0 && p[1] > 0.0 && p[0] < 1.0 && p[1] < 1.0;
                 if inside_quad {
-                    assert!(first.is_some() || second.is_some(), "ray {d:?} through {p:?} slipped through");
+                    assert!(
+                        first.is_some() || second.is_some(),
+                        "ray {d:?} through {p:?} slipped through"
+                    );
                 }
                 for (t, _, _) in first.into_iter().chain(second) {
                     assert!((t - 3.0).abs() < 1e-5);

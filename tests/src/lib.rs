@@ -44,7 +44,12 @@ pub fn gridrt_exe() -> PathBuf {
         .ancestors()
         .map(|dir| dir.join("gridrt"))
         .find(|exe| exe.is_file())
-        .unwrap_or_else(|| panic!("no gridrt binary above {}: run `cargo test --workspace`", test_exe.display()))
+        .unwrap_or_else(|| {
+            panic!(
+                "no gridrt binary above {}: run `cargo test --workspace`",
+                test_exe.display()
+            )
+        })
 }
 
 /// Both representations of `mesh` subdivided `levels` times, rendered at depth `lod`.

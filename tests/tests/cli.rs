@@ -21,11 +21,17 @@ fn stderr(o: &Output) -> String {
 
 /// A PNG of the asked size that is not a single flat colour.
 fn check_png(path: &Path, width: u32, height: u32) {
-    let img = image::open(path).unwrap_or_else(|e| panic!("{}: not a PNG: {e}", path.display())).to_rgba8();
+    let img = image::open(path)
+        .unwrap_or_else(|e| panic!("{}: not a PNG: {e}", path.display()))
+        .to_rgba8();
     assert_eq!(img.dimensions(), (width, height));
     let first = img.get_pixel(0, 0);
     let different = img.pixels().filter(|p| *p != first).count();
-    assert!(different > (width * height / 20) as usize, "{}: almost blank", path.display());
+    assert!(
+        different > (width * height / 20) as usize,
+        "{}: almost blank",
+        path.display()
+    );
 }
 
 fn render_ok(args: &[&str], out: &Path, width: u32, height: u32) {
@@ -43,8 +49,18 @@ fn render_ok(args: &[&str], out: &Path, width: u32, height: u32) {
 fn renders_the_default_scene() {
     let dir = scratch("default");
     render_ok(&["--backend", "cpu"], &dir.join("grid.png"), 160, 120);
-    render_ok(&["--backend", "cpu", "--mode", "triangles", "--levels", "2"], &dir.join("tri.png"), 160, 120);
-    render_ok(&["--backend", "cpu", "--lod", "1", "--shading", "primitive"], &dir.join("lod.png"), 96, 64);
+    render_ok(
+        &["--backend", "cpu", "--mode", "triangles", "--levels", "2"],
+        &dir.join("tri.png"),
+        160,
+        120,
+    );
+    render_ok(
+        &["--backend", "cpu", "--lod", "1", "--shading", "primitive"],
+        &dir.join("lod.png"),
+        96,
+        64,
+    );
     if gpu_or_skip("renders_the_default_scene").is_some() {
         render_ok(&["--backend", "gpu"], &dir.join("gpu.png"), 160, 120);
     }
@@ -59,10 +75,25 @@ fn renders_a_mesh_file() {
     let dir = scratch("mesh");
     let teapot = meshes.join("teapot.obj");
     let dragon = meshes.join("dragon_res4.ply");
-    render_ok(&[teapot.to_str().unwrap(), "--backend", "cpu"], &dir.join("teapot.png"), 128, 96);
-    render_ok(&[dragon.to_str().unwrap(), "--backend", "cpu", "--levels", "1"], &dir.join("dragon.png"), 128, 96);
+    render_ok(
+        &[teapot.to_str().unwrap(), "--backend", "cpu"],
+        &dir.join("teapot.png"),
+        128,
+        96,
+    );
+    render_ok(
+        &[dragon.to_str().unwrap(), "--backend", "cpu", "--levels", "1"],
+        &dir.join("dragon.png"),
+        128,
+        96,
+    );
     if gpu_or_skip("renders_a_mesh_file").is_some() {
-        render_ok(&[dragon.to_str().unwrap(), "--backend", "gpu", "--levels", "2"], &dir.join("dragon_gpu.png"), 128, 96);
+        render_ok(
+            &[dragon.to_str().unwrap(), "--backend", "gpu", "--levels", "2"],
+            &dir.join("dragon_gpu.png"),
+            128,
+            96,
+        );
     }
 }
 
@@ -89,14 +120,27 @@ fn broken_inputs_give_one_line_errors() {
         (&empty, "no triangles"),
         (&missing, "cannot open"),
     ] {
-        let o = gridrt(&["render", path.to_str().unwrap(), "--backend", "cpu", "--output", "/dev/null"]);
+        let o = gridrt(&[
+            "render",
+            path.to_str().unwrap(),
+            "--backend",
+            "cpu",
+            "--output",
+            "/dev/null",
+        ]);
         let err = stderr(&o);
         assert!(!o.status.success(), "{}: accepted", path.display());
         assert!(!err.contains("panicked"), "{}: panicked: {err}", path.display());
         let lines: Vec<&str> = err.lines().filter(|l| l.starts_with("error")).collect();
         assert_eq!(lines.len(), 1, "{}: expected one error line, got {err}", path.display());
-        assert!(lines[0].contains(path.to_str().unwrap()), "error does not name the file: {err}");
-        assert!(lines[0].to_lowercase().contains(problem), "error does not say '{problem}': {err}");
+        assert!(
+            lines[0].contains(path.to_str().unwrap()),
+            "error does not name the file: {err}"
+        );
+        assert!(
+            lines[0].to_lowercase().contains(problem),
+            "error does not say '{problem}': {err}"
+        );
     }
 }
 
@@ -105,15 +149,31 @@ fn stats_prints_one_json_object() {
     let o = gridrt(&["stats", "--levels", "3", "--json"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("one JSON object on stdout");
-    for key in ["mesh", "levels", "base_triangles", "micro_triangles", "grid", "triangles"] {
+    for key in [
+        "mesh",
+        "levels",
+        "base_triangles",
+        "micro_triangles",
+        "grid",
+        "triangles",
+    ] {
         assert!(v.get(key).is_some(), "missing {key}");
     }
     let base = v["base_triangles"].as_u64().unwrap();
     assert_eq!(v["micro_triangles"].as_u64().unwrap(), base * 64);
     for rep in ["grid", "triangles"] {
         let r = &v[rep];
-        let parts: u64 = r["parts"].as_object().unwrap().values().map(|x| x.as_u64().unwrap()).sum();
-        assert_eq!(r["bytes"].as_u64().unwrap(), parts, "{rep}: bytes are the sum of the parts");
+        let parts: u64 = r["parts"]
+            .as_object()
+            .unwrap()
+            .values()
+            .map(|x| x.as_u64().unwrap())
+            .sum();
+        assert_eq!(
+            r["bytes"].as_u64().unwrap(),
+            parts,
+            "{rep}: bytes are the sum of the parts"
+        );
         assert!(r["build_seconds"].as_f64().unwrap() > 0.0);
     }
     let gain = v["compression_gain"].as_f64().unwrap();

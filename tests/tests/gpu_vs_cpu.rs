@@ -24,20 +24,54 @@ fn compare(gpu: &gridrt::gpu::Gpu, name: &str, scene: &Scene, bounds: &gridrt::b
     let gpu_image = gpu.render(scene, &frame).expect("GPU render");
     let within = fraction_within(&cpu_image, &gpu_image, TOLERANCE);
     let exact = fraction_within(&cpu_image, &gpu_image, 0);
-    let worst = cpu_image.iter().zip(&gpu_image).map(|(a, b)| pixel_difference(*a, *b)).max().unwrap();
-    eprintln!("{name}: {:.3}% identical, {:.3}% within {TOLERANCE}/255, worst {worst}/255", 100.0 * exact, 100.0 * within);
-    assert!(within >= MIN_FRACTION, "{name}: only {:.3}% of pixels agree", 100.0 * within);
+    let worst = cpu_image
+        .iter()
+        .zip(&gpu_image)
+        .map(|(a, b)| pixel_difference(*a, *b))
+        .max()
+        .unwrap();
+    eprintln!(
+        "{name}: {:.3}% identical, {:.3}% within {TOLERANCE}/255, worst {worst}/255",
+        100.0 * exact,
+        100.0 * within
+    );
+    assert!(
+        within >= MIN_FRACTION,
+        "{name}: only {:.3}% of pixels agree",
+        100.0 * within
+    );
     // Not a blank picture: the scene covers a good part of the frame.
     let background = cpu_image[0];
     let covered = cpu_image.iter().filter(|&&p| p != background).count();
-    assert!(covered > cpu_image.len() / 10, "{name}: the scene covers too little of the image");
+    assert!(
+        covered > cpu_image.len() / 10,
+        "{name}: the scene covers too little of the image"
+    );
 }
 
 fn both_modes(gpu: &gridrt::gpu::Gpu, name: &str, mesh: &Mesh, levels: u32) {
     let pair = build_pair(mesh, levels, levels, Scheme::Loop);
-    compare(gpu, &format!("{name} triangles"), &pair.triangles, &pair.bounds, SHADE_EYE_LIGHT);
-    compare(gpu, &format!("{name} grids"), &pair.grids, &pair.bounds, SHADE_EYE_LIGHT);
-    compare(gpu, &format!("{name} grids, normals"), &pair.grids, &pair.bounds, SHADE_NORMAL);
+    compare(
+        gpu,
+        &format!("{name} triangles"),
+        &pair.triangles,
+        &pair.bounds,
+        SHADE_EYE_LIGHT,
+    );
+    compare(
+        gpu,
+        &format!("{name} grids"),
+        &pair.grids,
+        &pair.bounds,
+        SHADE_EYE_LIGHT,
+    );
+    compare(
+        gpu,
+        &format!("{name} grids, normals"),
+        &pair.grids,
+        &pair.bounds,
+        SHADE_NORMAL,
+    );
 }
 
 #[test]
@@ -76,7 +110,9 @@ fn ray_lists_gpu_equal_cpu() {
     use gridrt::rays::{ao_rays, primary_rays, trace_cpu, triangle_normal};
     let pair = build_pair(&default_scene(), 3, 3, Scheme::Loop);
     let primary = primary_rays(&pair.bounds, 2, 96, 64);
-    let Scene::Triangles(t) = &pair.triangles else { unreachable!() };
+    let Scene::Triangles(t) = &pair.triangles else {
+        unreachable!()
+    };
     let first = trace_cpu(&pair.triangles, &primary);
     let ao = ao_rays(&primary, &first, 2, &pair.bounds, |p| triangle_normal(t, p));
     assert!(ao.len() > primary.len() / 4);
@@ -92,7 +128,11 @@ fn ray_lists_gpu_equal_cpu() {
                 .filter(|(a, b)| a.prim == b.prim && (a.t - b.t).abs() <= 1e-4 * a.t.abs().max(1e-6))
                 .count();
             let fraction = same as f64 / cpu.len() as f64;
-            eprintln!("{name} {kind}: {} rays, {:.4}% same hit on GPU and CPU", rays.len(), 100.0 * fraction);
+            eprintln!(
+                "{name} {kind}: {} rays, {:.4}% same hit on GPU and CPU",
+                rays.len(),
+                100.0 * fraction
+            );
             assert!(fraction >= 0.999, "{name} {kind}: only {:.4}% agree", 100.0 * fraction);
         }
     }

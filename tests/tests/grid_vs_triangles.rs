@@ -88,7 +88,10 @@ fn check(name: &str, a: Agreement) {
 
 #[test]
 fn default_scene_l3() {
-    check("default scene L=3", compare(&default_scene(), 3, 3, Scheme::Loop, 300_000, 1));
+    check(
+        "default scene L=3",
+        compare(&default_scene(), 3, 3, Scheme::Loop, 300_000, 1),
+    );
 }
 
 #[test]
@@ -101,9 +104,19 @@ fn default_scene_coarser_levels_of_detail() {
 
 #[test]
 fn default_scene_flat_and_other_depths() {
-    check("default scene flat L=3", compare(&default_scene(), 3, 3, Scheme::Flat, 40_000, 7));
+    check(
+        "default scene flat L=3",
+        compare(&default_scene(), 3, 3, Scheme::Flat, 40_000, 7),
+    );
     for levels in [1, 2, 4] {
-        let a = compare(&default_scene(), levels, levels, Scheme::Loop, 40_000, 10 + levels as u64);
+        let a = compare(
+            &default_scene(),
+            levels,
+            levels,
+            Scheme::Loop,
+            40_000,
+            10 + levels as u64,
+        );
         check(&format!("default scene L={levels}"), a);
     }
 }
@@ -129,6 +142,10 @@ fn grid_image_equals_triangle_image() {
     let b = render_cpu(&pair.triangles, &pair.triangles.frame(cam, SHADE_NORMAL));
     let exact = fraction_within(&a, &b, 0);
     let near = fraction_within(&a, &b, 2);
-    eprintln!("grid vs triangle image: {:.4}% identical, {:.4}% within 2/255", 100.0 * exact, 100.0 * near);
+    eprintln!(
+        "grid vs triangle image: {:.4}% identical, {:.4}% within 2/255",
+        100.0 * exact,
+        100.0 * near
+    );
     assert!(near >= 0.995);
 }
