@@ -7,7 +7,7 @@
 //! (bottom-up) + reinsertion + an SAH leaf collapse. The "leaf<=4, Ct=1" variants set the collapse to our exact
 //! leaf criterion (collapse when `A_parent * n <= A_parent * 1 + A_l * n_l + A_r * n_r`, at most 4 primitives), so
 //! they are the configurations most like ours; the unmodified presets (leaf <= 8, collapse cost 3) are shown too.
-//! obvhs is built without its `parallel` feature, so it runs on one thread: compare it with our 1-thread row.
+//! obvhs is built with its `parallel` feature; both builders run on one thread and on all of them.
 
 use std::path::Path;
 use std::time::Instant;
@@ -86,13 +86,17 @@ fn check(bvh: &Bvh, boxes: &[Aabb]) -> Result<(u32, usize), String> {
         return Err(format!("primitive {p} is in {} leaves", seen[p]));
     }
     if reached != bvh.nodes.len() {
-        return Err(format!("{} of {} nodes unreachable", bvh.nodes.len() - reached, bvh.nodes.len()));
+        return Err(format!(
+            "{} of {} nodes unreachable",
+            bvh.nodes.len() - reached,
+            bvh.nodes.len()
+        ));
     }
     Ok((max_leaf, depth))
 }
 
-fn row(builder: &str, threads: usize, boxes: &[Aabb], (ms, bvh, same): (f64, Bvh, bool)) -> Row {
-    let (max_leaf, depth, mut note) = match check(&bvh, boxes) {
+fn row(builder: &str, threads: usize, boxes: &[Aabb], (ms, bvh, same): (f64, &Bvh, bool)) -> Row {
+    let (max_leaf, depth, mut note) = match check(bvh, boxes) {
         Ok((l, d)) => (l, d, "covers all".to_string()),
         Err(e) => (0, 0, format!("INVALID: {e}")),
     };
@@ -137,7 +141,14 @@ fn matched(p: BvhBuildParams) -> BvhBuildParams {
     }
 }
 
-fn bench_mesh(path: &Path) -> anyhow::Result<(usize, Vec<Row>)> {
+/// Every filter must name (part of) the mesh or the builder.
+fn wanted(filters: &[String], mesh: &str, builder: &str) -> bool {
+    filters
+        .iter()
+        .all(|f| mesh.contains(f.as_str()) || builder.contains(f.as_str()))
+}
+
+fn bench_mesh(path: &Path, name: &str, filters: &[String]) -> anyhow::Result<(usize, Vec<Row>)> {
     let mesh = gridrt::mesh::load_mesh(path)?;
     let sub = gridrt::subdiv::subdivide(&mesh, 3, gridrt::subdiv::Scheme::Loop);
     let tris = sub.micro_triangles(3);
@@ -150,10 +161,20 @@ fn bench_mesh(path: &Path) -> anyhow::Result<(usize, Vec<Row>)> {
     let mut rows = Vec::new();
 
     let all = rayon::current_num_threads();
+    let mut one_thread: Option<Bvh> = None;
     for threads in if all > 1 { vec![1, all] } else { vec![1] } {
+        if !wanted(filters, name, "gridrt bvh::build") {
+            continue;
+        }
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
-        let timed = pool.install(|| time_builds(|| bvh::build(&boxes, &params)));
-        rows.push(row("gridrt bvh::build", threads, &boxes, timed));
+        let (ms, bvh, same) = pool.install(|| time_builds(|| bvh::build(&boxes, &params)));
+        let mut r = row("gridrt bvh::build", threads, &boxes, (ms, &bvh, same));
+        match &one_thread {
+            None => one_thread = Some(bvh),
+            Some(t) if t.nodes == bvh.nodes && t.order == bvh.order => r.note += ", same tree as 1 thread",
+            Some(_) => r.note += ", DIFFERENT tree than 1 thread",
+        }
+        rows.push(r);
     }
 
     let theirs: Vec<obvhs::aabb::Aabb> = boxes
@@ -162,33 +183,47 @@ fn bench_mesh(path: &Path) -> anyhow::Result<(usize, Vec<Row>)> {
         .collect();
     let configs = [
         ("obvhs fast_build, leaf<=4, Ct=1", matched(BvhBuildParams::fast_build())),
-        ("obvhs medium_build, leaf<=4, Ct=1", matched(BvhBuildParams::medium_build())),
+        (
+            "obvhs medium_build, leaf<=4, Ct=1",
+            matched(BvhBuildParams::medium_build()),
+        ),
         ("obvhs fast_build (preset)", BvhBuildParams::fast_build()),
         ("obvhs medium_build (preset)", BvhBuildParams::medium_build()),
     ];
-    for (name, config) in configs {
-        let timed = time_builds(|| {
-            from_obvhs(obvhs::bvh2::builder::build_bvh2(
-                &theirs,
-                config,
-                &mut Default::default(),
-            ))
-        });
-        rows.push(row(name, 1, &boxes, timed));
+    for (builder, config) in configs {
+        if !wanted(filters, name, builder) {
+            continue;
+        }
+        for threads in if all > 1 { vec![1, all] } else { vec![1] } {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
+            let (ms, bvh, same) = pool.install(|| {
+                time_builds(|| {
+                    from_obvhs(obvhs::bvh2::builder::build_bvh2(
+                        &theirs,
+                        config,
+                        &mut Default::default(),
+                    ))
+                })
+            });
+            rows.push(row(builder, threads, &boxes, (ms, &bvh, same)));
+        }
     }
     Ok((tris.len(), rows))
 }
 
 fn main() {
     let dir = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/meshes"));
-    // cargo passes `--bench`; anything else filters meshes by name.
+    // cargo passes `--bench`; other arguments filter meshes and builders by name (see `wanted`).
     let filters: Vec<String> = std::env::args().skip(1).filter(|a| !a.starts_with("--")).collect();
     println!("median of {RUNS} builds; SAH: bvh::sah_cost (Ct = Ci = 1, relative to root area)");
     println!("ratios are against \"obvhs medium_build, leaf<=4, Ct=1\"\n");
     println!("| mesh | triangles | builder | threads | build ms | nodes | max leaf | depth | SAH cost | time ratio | SAH ratio | check |");
     println!("|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---|");
     for name in MESHES {
-        if !filters.is_empty() && !filters.iter().any(|f| name.contains(f.as_str())) {
+        if filters
+            .iter()
+            .any(|f| MESHES.iter().any(|m| m.contains(f.as_str())) && !name.contains(f.as_str()))
+        {
             continue;
         }
         let path = dir.join(name);
@@ -196,17 +231,18 @@ fn main() {
             eprintln!("skipping {name}: {} not found", path.display());
             continue;
         }
-        let (count, rows) = match bench_mesh(&path) {
+        let (count, rows) = match bench_mesh(&path, name, &filters) {
             Ok(r) => r,
             Err(e) => {
                 eprintln!("skipping {name}: {e:#}");
                 continue;
             }
         };
-        let reference = rows.iter().find(|r| r.builder.starts_with("obvhs medium_build, leaf")).unwrap();
+        let reference = rows.iter().find(|r| r.builder.starts_with("obvhs medium_build, leaf"));
+        let ratio = |ours: f64, theirs: f64| reference.map_or("-".to_string(), |_| format!("{:.3}", ours / theirs));
         for r in &rows {
             println!(
-                "| {name} | {count} | {} | {} | {:.1} | {} | {} | {} | {:.2} | {:.2} | {:.3} | {} |",
+                "| {name} | {count} | {} | {} | {:.1} | {} | {} | {} | {:.2} | {} | {} | {} |",
                 r.builder,
                 r.threads,
                 r.ms,
@@ -214,8 +250,8 @@ fn main() {
                 r.max_leaf,
                 r.depth,
                 r.sah,
-                r.ms / reference.ms,
-                r.sah / reference.sah,
+                ratio(r.ms, reference.map_or(1.0, |t| t.ms)),
+                ratio(r.sah as f64, reference.map_or(1.0, |t| t.sah as f64)),
                 r.note
             );
         }

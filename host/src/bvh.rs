@@ -4,10 +4,15 @@
 //! The output is the flat node array the traversal in `gridrt_shared::traverse` walks: children
 //! of an interior node are adjacent, and each leaf covers a contiguous range of the primitive
 //! order, so the caller reorders its primitives once and needs no index indirection.
+//!
+//! The build runs on rayon (subtrees in parallel, the first levels' binning in parallel chunks), yet
+//! its output depends on the input alone: every node owns fixed slots, so no result depends on which
+//! thread finishes first (see `Task`).
 
-use gridrt_shared::glam::Vec3;
+use gridrt_shared::glam::{BVec3A, Vec3, Vec3A};
 use gridrt_shared::layout::BvhNode;
 use gridrt_shared::traverse::MAX_BVH_DEPTH;
+use rayon::prelude::*;
 
 /// An axis-aligned box; `EMPTY` is the identity of `union`.
 #[derive(Copy, Clone, Debug, PartialEq)]
@@ -87,145 +92,448 @@ pub struct Bvh {
 const BINS: usize = 16;
 /// Leaves are forced below this depth so traversal stacks never overflow.
 const DEPTH_LIMIT: usize = MAX_BVH_DEPTH - 2;
+/// Subtrees at least this large go to another rayon task; below it the task costs more than it saves.
+const PARALLEL_SUBTREE: usize = 4096;
+/// Nodes of at least two chunks bin and bound their primitives chunk by chunk in parallel, so the first levels,
+/// before there are subtrees enough for every thread, do not run on one.
+const CHUNK: usize = 1 << 15;
+/// Nodes up to this size (most of those that look for a split) sort their primitives by bin instead of clearing
+/// and sweeping every bin. At most `BINS`, which sizes the sweep's arrays.
+const SMALL: usize = 8;
+const _: () = assert!(SMALL <= BINS);
 
-fn to_node(b: &Aabb, first: u32, count: u32) -> BvhNode {
-    BvhNode {
-        min: b.min.to_array(),
-        first,
-        max: b.max.to_array(),
-        count,
+/// The builder's box, in SIMD lanes.
+#[derive(Copy, Clone)]
+struct Bounds {
+    min: Vec3A,
+    max: Vec3A,
+}
+
+impl Bounds {
+    const EMPTY: Bounds = Bounds::new(Vec3A::INFINITY, Vec3A::NEG_INFINITY);
+
+    const fn new(min: Vec3A, max: Vec3A) -> Bounds {
+        Bounds { min, max }
+    }
+
+    #[inline]
+    fn union(self, o: Bounds) -> Bounds {
+        Bounds::new(self.min.min(o.min), self.max.max(o.max))
+    }
+
+    #[inline]
+    fn grow(self, p: Vec3A) -> Bounds {
+        Bounds::new(self.min.min(p), self.max.max(p))
+    }
+
+    /// `grow` in the lanes of `m`: a select, where a branch would be mispredicted.
+    #[inline]
+    fn grow_where(self, m: BVec3A, p: Vec3A) -> Bounds {
+        Bounds::new(
+            Vec3A::select(m, self.min.min(p), self.min),
+            Vec3A::select(m, self.max.max(p), self.max),
+        )
+    }
+
+    /// Twice the centroid: binning only compares centroids, so the halving is left out.
+    #[inline]
+    fn centroid2(&self) -> Vec3A {
+        self.min + self.max
+    }
+
+    /// Half the surface area (the SAH only uses ratios); zero for an empty box.
+    #[inline]
+    fn half_area(&self) -> f32 {
+        let d = (self.max - self.min).max(Vec3A::ZERO);
+        d.x * d.y + d.y * d.z + d.z * d.x
+    }
+
+    fn to_node(self, first: u32, count: u32) -> BvhNode {
+        let (min, max) = (self.min.to_array(), self.max.to_array());
+        BvhNode { min, first, max, count }
     }
 }
 
-/// Builds a BVH over primitive boxes. Empty input gives an empty hierarchy.
-pub fn build(boxes: &[Aabb], params: &BuildParams) -> Bvh {
+/// Maps (doubled) centroids to bins. The partition goes through the same arithmetic, so every primitive lands on
+/// the side its bin was counted on, and the children's boxes and counts can be taken from the bins.
+struct Binning {
+    origin: Vec3A,
+    scale: Vec3A,
+}
+
+impl Binning {
+    fn new(centroids: &Bounds) -> Binning {
+        let extent = centroids.max - centroids.min;
+        let scale = Vec3A::select(extent.cmpgt(Vec3A::ZERO), BINS as f32 / extent, Vec3A::ZERO);
+        Binning {
+            origin: centroids.min,
+            scale,
+        }
+    }
+
+    /// The bins on the three axes. Clamping in float (which also sends NaN to bin 0) spares the conversions their
+    /// saturation checks, and the mask (a no-op) spares the bin arrays their bounds checks.
+    #[inline]
+    fn bins(&self, c: Vec3A) -> [usize; 3] {
+        let rel = ((c - self.origin) * self.scale).max(Vec3A::ZERO);
+        let rel = rel.min(Vec3A::splat((BINS - 1) as f32));
+        rel.to_array().map(|x| x as i32 as usize & (BINS - 1))
+    }
+
+    /// Whether `bins(c)[axis] <= bin`, for `bin < BINS - 1`, without the conversion (NaN is in bin 0).
+    #[inline]
+    fn goes_left(&self, c: Vec3A, axis: usize, bin: usize) -> bool {
+        let rel = (c[axis] - self.origin[axis]) * self.scale[axis];
+        rel < (bin + 1) as f32 || rel.is_nan()
+    }
+}
+
+/// Per axis and bin: the union of the boxes whose centroids fall in it, and their number.
+#[derive(Copy, Clone)]
+struct Bins {
+    boxes: [[Bounds; BINS]; 3],
+    counts: [[u32; BINS]; 3],
+}
+
+impl Bins {
+    const EMPTY: Bins = Bins {
+        boxes: [[Bounds::EMPTY; BINS]; 3],
+        counts: [[0; BINS]; 3],
+    };
+
+    fn add(&mut self, boxes: &[Bounds], binning: &Binning) {
+        for b in boxes {
+            for (axis, k) in binning.bins(b.centroid2()).into_iter().enumerate() {
+                self.boxes[axis][k] = self.boxes[axis][k].union(*b);
+                self.counts[axis][k] += 1;
+            }
+        }
+    }
+
+    fn merge(mut self, o: Bins) -> Bins {
+        for (x, y) in self.boxes.iter_mut().flatten().zip(o.boxes.iter().flatten()) {
+            *x = x.union(*y);
+        }
+        for (x, y) in self.counts.iter_mut().flatten().zip(o.counts.iter().flatten()) {
+            *x += y;
+        }
+        self
+    }
+
+    /// Unions and counts are exact, so the parallel result is the sequential one, whatever the chunking.
+    fn fill(&mut self, boxes: &[Bounds], binning: &Binning) {
+        if boxes.len() < 2 * CHUNK {
+            return self.add(boxes, binning);
+        }
+        let chunks = boxes.par_chunks(CHUNK).map(|chunk| {
+            let mut bins = Bins::EMPTY;
+            bins.add(chunk, binning);
+            bins
+        });
+        *self = self.merge(chunks.reduce(|| Bins::EMPTY, Bins::merge));
+    }
+}
+
+/// A split plane: primitives whose bin on `axis` is at most `bin` go left. `cost` is the SAH cost relative to the
+/// node's own area, `left` the left side's box and count, `right` the right side's box.
+#[derive(Copy, Clone)]
+struct Split {
+    cost: f32,
+    axis: usize,
+    bin: usize,
+    left: (Bounds, u32),
+    right: Bounds,
+}
+
+/// Offers the planes of one axis to `best`, given `len` groups of primitives (box, count, bin) in increasing bin
+/// order: occupied bins, or primitives sorted by bin. Planes between the same two occupied bins give the same
+/// partition and cost, so each gap is offered once, at its lowest plane: the one a sweep over all the bins keeps,
+/// as it keeps the first of equal costs. Only strictly cheaper splits replace the best, so ties go to the lower axis
+/// and plane. `costs`: traversal cost, intersection cost, 1 / the node's area.
+#[inline]
+fn sweep(
+    best: &mut Option<Split>,
+    costs: (f32, f32, f32),
+    axis: usize,
+    len: usize,
+    group: impl Fn(usize) -> (Bounds, u32, usize),
+) {
+    let (traversal, intersection, inv_area) = costs;
+    // Area times count of everything right of each gap. Only the best split needs the box itself.
+    let mut right = [0f32; BINS];
+    let (mut acc, mut count) = (Bounds::EMPTY, 0);
+    for j in (1..len).rev() {
+        let (b, c, _) = group(j);
+        (acc, count) = (acc.union(b), count + c);
+        right[j] = acc.half_area() * count as f32;
+    }
+    let (mut acc, mut count) = (Bounds::EMPTY, 0);
+    for j in 0..len.saturating_sub(1) {
+        let (b, c, bin) = group(j);
+        (acc, count) = (acc.union(b), count + c);
+        if bin == group(j + 1).2 {
+            continue;
+        }
+        let cost = traversal + intersection * (acc.half_area() * count as f32 + right[j + 1]) * inv_area;
+        if best.is_none_or(|s| cost < s.cost) {
+            let (left, right) = (
+                (acc, count),
+                (j + 1..len).fold(Bounds::EMPTY, |r, i| r.union(group(i).0)),
+            );
+            *best = Some(Split {
+                cost,
+                axis,
+                bin,
+                left,
+                right,
+            });
+        }
+    }
+}
+
+/// The best binned split over the three axes; `None` when every centroid is in the same place.
+fn find_split(boxes: &[Bounds], binning: &Binning, costs: (f32, f32, f32)) -> Option<Split> {
+    let mut best = None;
     let n = boxes.len();
-    if n == 0 {
-        return Bvh::default();
-    }
-    let centers: Vec<Vec3> = boxes.iter().map(Aabb::center).collect();
-    let mut order: Vec<u32> = (0..n as u32).collect();
-    let mut nodes = Vec::with_capacity(2 * n / params.max_leaf_size.max(1) as usize + 1);
-    nodes.push(BvhNode::default());
-    // (node, start, end, depth)
-    let mut tasks = vec![(0usize, 0usize, n, 0usize)];
-    while let Some((node, start, end, depth)) = tasks.pop() {
-        let prims = &mut order[start..end];
-        let bounds = prims.iter().fold(Aabb::EMPTY, |b, &p| b.union(boxes[p as usize]));
-        let count = prims.len();
-        let leaf = to_node(&bounds, start as u32, count as u32);
-        if count == 1 || depth >= DEPTH_LIMIT {
-            nodes[node] = leaf;
-            continue;
-        }
-        let split = find_split(prims, boxes, &centers, &bounds, params);
-        let mid = match split {
-            Some((axis, position, cost)) => {
-                let leaf_cost = count as f32 * params.intersection_cost;
-                if count <= params.max_leaf_size as usize && leaf_cost <= cost {
-                    nodes[node] = leaf;
-                    continue;
-                }
-                partition(prims, |p| centers[p as usize][axis] < position)
-            }
-            // All centroids coincide: no plane separates them.
-            None if count <= params.max_leaf_size as usize => {
-                nodes[node] = leaf;
-                continue;
-            }
-            None => count / 2,
+    let live = |axis: &usize| binning.scale[*axis] > 0.0;
+    if n == 2 {
+        // About 40% of the searches. The general search below finds the same split with the same arithmetic:
+        // the one plane (bin 0, as the two centroids bound the bins) on the first axis that separates the two.
+        let axis = (0..3).find(live)?;
+        let (a, b) = (boxes[0], boxes[1]);
+        let (l, r) = if binning.goes_left(a.centroid2(), axis, 0) {
+            (a, b)
+        } else {
+            (b, a)
         };
-        let left = nodes.len();
-        nodes.push(BvhNode::default());
-        nodes.push(BvhNode::default());
-        nodes[node] = to_node(&bounds, left as u32, 0);
-        tasks.push((left + 1, start + mid, end, depth + 1));
-        tasks.push((left, start, start + mid, depth + 1));
-    }
-    Bvh { nodes, order }
-}
-
-/// Best binned split plane over the three axes: `(axis, plane, SAH cost)`, the cost relative to
-/// the node's own area. `None` when every centroid is in the same place.
-fn find_split(
-    prims: &[u32],
-    boxes: &[Aabb],
-    centers: &[Vec3],
-    bounds: &Aabb,
-    params: &BuildParams,
-) -> Option<(usize, f32, f32)> {
-    let cb = prims
-        .iter()
-        .fold(Aabb::EMPTY, |b, &p| b.grow(centers[p as usize]));
-    let extent = cb.max - cb.min;
-    let mut bin_box = [[Aabb::EMPTY; BINS]; 3];
-    let mut bin_count = [[0u32; BINS]; 3];
-    let scale = Vec3::select(
-        extent.cmpgt(Vec3::ZERO),
-        Vec3::splat(BINS as f32) / extent,
-        Vec3::ZERO,
-    );
-    for &p in prims {
-        let rel = (centers[p as usize] - cb.min) * scale;
-        for axis in 0..3 {
-            let b = (rel[axis] as usize).min(BINS - 1);
-            bin_box[axis][b] = bin_box[axis][b].union(boxes[p as usize]);
-            bin_count[axis][b] += 1;
-        }
-    }
-    let inv_area = 1.0 / bounds.area().max(f32::MIN_POSITIVE);
-    let mut best: Option<(usize, f32, f32)> = None;
-    for axis in 0..3 {
-        if extent[axis] <= 0.0 {
-            continue;
-        }
-        // Sweep from the right to get the right-hand areas, then from the left.
-        let mut right_area = [0f32; BINS];
-        let mut right_count = [0u32; BINS];
-        let (mut acc, mut cnt) = (Aabb::EMPTY, 0);
-        for b in (1..BINS).rev() {
-            acc = acc.union(bin_box[axis][b]);
-            cnt += bin_count[axis][b];
-            right_area[b] = acc.area();
-            right_count[b] = cnt;
-        }
-        let (mut acc, mut cnt) = (Aabb::EMPTY, 0);
-        for b in 0..BINS - 1 {
-            acc = acc.union(bin_box[axis][b]);
-            cnt += bin_count[axis][b];
-            if cnt == 0 || right_count[b + 1] == 0 {
-                continue;
+        let cost = costs.0 + costs.1 * (l.half_area() + r.half_area()) * costs.2;
+        return Some(Split {
+            cost,
+            axis,
+            bin: 0,
+            left: (l, 1),
+            right: r,
+        });
+    } else if n <= SMALL {
+        // Bin in the high bits, primitive in the low ones, padding (MAX) last: sorting the keys sorts by bin.
+        let mut keys = [[u32::MAX; SMALL]; 3];
+        for (k, b) in boxes.iter().enumerate() {
+            let bins = binning.bins(b.centroid2());
+            for axis in 0..3 {
+                keys[axis][k] = (bins[axis] * SMALL + k) as u32;
             }
-            let cost = params.traversal_cost
-                + params.intersection_cost
-                    * (acc.area() * cnt as f32 + right_area[b + 1] * right_count[b + 1] as f32)
-                    * inv_area;
-            if best.is_none_or(|(_, _, c)| cost < c) {
-                let plane = cb.min[axis] + extent[axis] * (b + 1) as f32 / BINS as f32;
-                best = Some((axis, plane, cost));
+        }
+        for axis in (0..3).filter(live) {
+            let keys = &mut keys[axis];
+            sort_keys(keys, n);
+            let group = |j: usize| (boxes[keys[j] as usize % SMALL], 1, keys[j] as usize / SMALL);
+            sweep(&mut best, costs, axis, n, group);
+        }
+    } else {
+        let mut bins = Bins::EMPTY;
+        bins.fill(boxes, binning);
+        for axis in (0..3).filter(live) {
+            let (mut occupied, mut m) = ([0; BINS], 0);
+            for (k, &c) in bins.counts[axis].iter().enumerate() {
+                occupied[m] = k;
+                m += (c > 0) as usize;
             }
+            let (boxes, counts) = (&bins.boxes[axis], &bins.counts[axis]);
+            sweep(&mut best, costs, axis, m, |j| {
+                (boxes[occupied[j]], counts[occupied[j]], occupied[j])
+            });
         }
     }
     best
 }
 
-/// In-place partition; returns how many elements satisfy `left`. Never returns 0 or the full
-/// length for a split that `find_split` found, because that split had both sides populated
-/// under the same binning arithmetic... except for rounding at the plane, which the midpoint
-/// fallback below covers.
-fn partition(items: &mut [u32], left: impl Fn(u32) -> bool) -> usize {
-    let mut i = 0;
-    for k in 0..items.len() {
-        if left(items[k]) {
-            items.swap(i, k);
-            i += 1;
+/// Sorting networks: the order of a few keys is a coin toss, so branch-free compare-exchanges beat any sort that
+/// branches on it. Pairs of indices, for up to four keys and up to eight.
+fn sort_keys(keys: &mut [u32; SMALL], n: usize) {
+    const FOUR: [usize; 10] = [0, 1, 2, 3, 0, 2, 1, 3, 1, 2];
+    const EIGHT: [usize; 38] = [
+        0, 2, 1, 3, 4, 6, 5, 7, 0, 4, 1, 5, 2, 6, 3, 7, 0, 1, 2, 3, 4, 5, 6, 7, 2, 4, 3, 5, 1, 4, 3, 6, 1, 2, 3, 4, 5,
+        6,
+    ];
+    let network: &[usize] = if n <= 4 { &FOUR } else { &EIGHT };
+    for &[i, j] in network.as_chunks::<2>().0 {
+        (keys[i], keys[j]) = (keys[i].min(keys[j]), keys[i].max(keys[j]));
+    }
+}
+
+/// Bounds of the boxes and of their doubled centroids.
+fn bounds_of(boxes: &[Bounds]) -> (Bounds, Bounds) {
+    let one = |(b, c): (Bounds, Bounds), p: &Bounds| (b.union(*p), c.grow(p.centroid2()));
+    let empty = (Bounds::EMPTY, Bounds::EMPTY);
+    if boxes.len() < 2 * CHUNK {
+        return boxes.iter().fold(empty, one);
+    }
+    let chunks = boxes.par_chunks(CHUNK).map(|chunk| chunk.iter().fold(empty, one));
+    chunks.reduce(|| empty, |(b, c), (d, e)| (b.union(d), c.union(e)))
+}
+
+/// One subtree's share of the work: its primitives' boxes and original indices, which it reorders in place (`first`
+/// is where they start in the whole), its node and the slots below it.
+///
+/// A subtree over `m` primitives has at most `2m - 1` nodes, so `below` holds `2m - 2` slots, from slot `at`: the
+/// children pair, then the `2l - 2` below the left child, then the right child's. Parallel subtrees thus write
+/// disjoint slices, and the slots do not depend on which thread finishes first; they already form a valid
+/// hierarchy, which `compact` rids of the slots that leaves left unused.
+struct Task<'a> {
+    boxes: &'a mut [Bounds],
+    index: &'a mut [u32],
+    node: &'a mut BvhNode,
+    below: &'a mut [BvhNode],
+    first: u32,
+    at: u32,
+}
+
+impl<'a> Task<'a> {
+    fn split(self, mid: usize) -> (Task<'a>, Task<'a>) {
+        let (lb, rb) = self.boxes.split_at_mut(mid);
+        let (li, ri) = self.index.split_at_mut(mid);
+        let ([ln, rn], below) = self.below.split_first_chunk_mut::<2>().unwrap();
+        let (lw, rw) = below.split_at_mut(2 * mid - 2);
+        let (first, at) = (self.first + mid as u32, self.at + 2 * mid as u32);
+        let left = Task {
+            boxes: lb,
+            index: li,
+            node: ln,
+            below: lw,
+            first: self.first,
+            at: self.at + 2,
+        };
+        let right = Task {
+            boxes: rb,
+            index: ri,
+            node: rn,
+            below: rw,
+            first,
+            at,
+        };
+        (left, right)
+    }
+
+    /// Partition on `left(doubled centroid)`; returns the left count and both sides' centroid bounds, which cost
+    /// little here. Branch-free (Lomuto with an unconditional swap): the side of a primitive is a coin toss to the
+    /// branch predictor, and a mispredicted branch costs more than the swap.
+    fn partition(&mut self, left: impl Fn(Vec3A) -> bool) -> (usize, Bounds, Bounds) {
+        let (mut i, mut lc, mut rc) = (0, Bounds::EMPTY, Bounds::EMPTY);
+        for k in 0..self.boxes.len() {
+            let (b, c) = (self.boxes[k], self.boxes[k].centroid2());
+            let l = left(c);
+            let m = BVec3A::splat(l);
+            (lc, rc) = (lc.grow_where(m, c), rc.grow_where(!m, c));
+            // A swap through registers; `slice::swap` goes through the stack.
+            (self.boxes[k], self.boxes[i]) = (self.boxes[i], b);
+            self.index.swap(i, k);
+            i += l as usize;
         }
+        (i, lc, rc)
     }
-    if i == 0 || i == items.len() {
-        items.len() / 2
-    } else {
-        i
+}
+
+/// Builds the subtree of `task`, whose boxes and doubled centroids are bounded by `bounds`; returns its node
+/// count.
+fn subtree(params: &BuildParams, mut task: Task, bounds: (Bounds, Bounds), depth: usize) -> usize {
+    let (node, centroids) = bounds;
+    let count = task.boxes.len();
+    let leaf = node.to_node(task.first, count as u32);
+    if count == 1 || depth >= DEPTH_LIMIT {
+        *task.node = leaf;
+        return 1;
     }
+    let binning = Binning::new(&centroids);
+    let inv_area = 1.0 / node.half_area().max(f32::MIN_POSITIVE);
+    let costs = (params.traversal_cost, params.intersection_cost, inv_area);
+    let small_enough = count <= params.max_leaf_size as usize;
+    let (mid, left, right) = match find_split(task.boxes, &binning, costs) {
+        Some(s) if small_enough && count as f32 * params.intersection_cost <= s.cost => {
+            *task.node = leaf;
+            return 1;
+        }
+        Some(s) => {
+            let (n, lc, rc) = task.partition(|c| binning.goes_left(c, s.axis, s.bin));
+            if n == s.left.1 as usize {
+                (n, (s.left.0, lc), (s.right, rc))
+            } else {
+                // Unreachable while `goes_left` agrees with `bins`; there so that a disagreement would cost
+                // quality, not a panic.
+                let mid = if n == 0 || n == count { count / 2 } else { n };
+                (mid, bounds_of(&task.boxes[..mid]), bounds_of(&task.boxes[mid..]))
+            }
+        }
+        // All centroids coincide: no plane separates them.
+        None if small_enough => {
+            *task.node = leaf;
+            return 1;
+        }
+        None => {
+            let mid = count / 2;
+            (mid, bounds_of(&task.boxes[..mid]), bounds_of(&task.boxes[mid..]))
+        }
+    };
+    *task.node = node.to_node(task.at, 0);
+    let (l, r) = task.split(mid);
+    let child = |task, bounds| subtree(params, task, bounds, depth + 1);
+    let (l, r) = match count >= PARALLEL_SUBTREE {
+        true => rayon::join(|| child(l, left), || child(r, right)),
+        false => (child(l, left), child(r, right)),
+    };
+    1 + l + r
+}
+
+/// Copies the reachable slots, in the order a sequential depth-first build allocates nodes: each interior node's
+/// children pair when it is split, the left subtree before the right. That is the slots' own order, so the reads
+/// stream forward.
+fn compact(slots: &[BvhNode], count: usize) -> Vec<BvhNode> {
+    let mut nodes = Vec::with_capacity(count);
+    nodes.push(slots[0]);
+    let mut stack = vec![0];
+    while let Some(k) = stack.pop() {
+        let n = nodes[k];
+        if n.is_leaf() {
+            continue;
+        }
+        let c = nodes.len();
+        nodes.push(slots[n.first as usize]);
+        nodes.push(slots[n.first as usize + 1]);
+        nodes[k].first = c as u32;
+        stack.push(c + 1);
+        stack.push(c);
+    }
+    nodes
+}
+
+/// Builds a BVH over primitive boxes. Empty input gives an empty hierarchy. The result depends on the input
+/// alone, not on the number of threads.
+pub fn build(boxes: &[Aabb], params: &BuildParams) -> Bvh {
+    let n = boxes.len();
+    if n == 0 {
+        return Bvh::default();
+    }
+    let mut work: Vec<Bounds> = boxes
+        .par_iter()
+        .map(|b| Bounds::new(b.min.into(), b.max.into()))
+        .collect();
+    let mut order: Vec<u32> = (0..n as u32).collect();
+    let bounds = bounds_of(&work);
+    // Zeroed `u32`s come from the allocator already zeroed, so slots that stay unused are never touched.
+    let mut raw = vec![0u32; (2 * n - 1) * size_of::<BvhNode>() / size_of::<u32>()];
+    let (node, below) = bytemuck::cast_slice_mut(&mut raw).split_first_mut().unwrap();
+    let (boxes, index) = (&mut work[..], &mut order[..]);
+    let task = Task {
+        boxes,
+        index,
+        node,
+        below,
+        first: 0,
+        at: 1,
+    };
+    let count = subtree(params, task, bounds, 0);
+    drop(work);
+    let nodes = compact(bytemuck::cast_slice(&raw), count);
+    Bvh { nodes, order }
 }
 
 /// Standard SAH cost of a built hierarchy, relative to its root's area.
@@ -307,7 +615,13 @@ mod tests {
         for (k, t) in tris.iter().enumerate() {
             let [a, b, c] = t.map(|v| positions[v as usize]);
             if let Some((d, u, v)) = intersect_triangle(a, b, c, ray, hit.t) {
-                hit = Hit { t: d, u, v, prim: k as u32, ..hit };
+                hit = Hit {
+                    t: d,
+                    u,
+                    v,
+                    prim: k as u32,
+                    ..hit
+                };
             }
         }
         hit
@@ -317,11 +631,16 @@ mod tests {
     fn every_primitive_in_exactly_one_leaf_and_children_inside_parents() {
         for (seed, count) in [(1, 1), (2, 2), (3, 17), (4, 1000), (5, 5000)] {
             let (positions, tris) = random_mesh(seed, count);
-            let boxes: Vec<Aabb> =
-                tris.iter().map(|t| Aabb::from_points(t.iter().map(|&v| positions[v as usize]))).collect();
+            let boxes: Vec<Aabb> = tris
+                .iter()
+                .map(|t| Aabb::from_points(t.iter().map(|&v| positions[v as usize])))
+                .collect();
             let bvh = build(&boxes, &BuildParams::default());
             let mut seen = vec![0u32; count];
-            let node_box = |n: &BvhNode| Aabb { min: Vec3::from(n.min), max: Vec3::from(n.max) };
+            let node_box = |n: &BvhNode| Aabb {
+                min: Vec3::from(n.min),
+                max: Vec3::from(n.max),
+            };
             for n in &bvh.nodes {
                 if n.is_leaf() {
                     for k in n.first..n.first + n.count {
@@ -331,11 +650,17 @@ mod tests {
                     }
                 } else {
                     for c in [n.first, n.first + 1] {
-                        assert!(node_box(n).contains(&node_box(&bvh.nodes[c as usize])), "child outside parent");
+                        assert!(
+                            node_box(n).contains(&node_box(&bvh.nodes[c as usize])),
+                            "child outside parent"
+                        );
                     }
                 }
             }
-            assert!(seen.iter().all(|&s| s == 1), "seed {seed}: a primitive is not in exactly one leaf");
+            assert!(
+                seen.iter().all(|&s| s == 1),
+                "seed {seed}: a primitive is not in exactly one leaf"
+            );
             assert!(depth(&bvh.nodes) <= MAX_BVH_DEPTH);
             let mut sorted = bvh.order.clone();
             sorted.sort();
@@ -344,8 +669,27 @@ mod tests {
     }
 
     #[test]
+    fn same_tree_on_any_number_of_threads() {
+        // Large enough for parallel binning at the root and parallel subtrees below it.
+        let (positions, tris) = random_mesh(21, 3 * CHUNK);
+        let boxes: Vec<Aabb> = tris
+            .iter()
+            .map(|t| Aabb::from_points(t.iter().map(|&v| positions[v as usize])))
+            .collect();
+        let on = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| build(&boxes, &BuildParams::default()))
+        };
+        let (one, four) = (on(1), on(4));
+        assert!(one.nodes == four.nodes && one.order == four.order);
+    }
+
+    #[test]
     fn coincident_centroids_still_build() {
-        let b = Aabb { min: Vec3::ZERO, max: Vec3::ONE };
+        let b = Aabb {
+            min: Vec3::ZERO,
+            max: Vec3::ONE,
+        };
         let bvh = build(&vec![b; 100], &BuildParams::default());
         assert!(bvh.nodes.iter().filter(|n| n.is_leaf()).all(|n| n.count <= 4));
         assert_eq!(bvh.order.len(), 100);

@@ -235,17 +235,30 @@ pub fn build_from_layout(layout: &GridLayout) -> GridScene {
 
     // Store grids in leaf order, so leaves name contiguous ranges and need no indirection.
     let inner_count = inner_vertex_count(layout.levels) as usize;
-    let mut vertices = Vec::with_capacity(layout.vertices.len() * 3);
-    let mut radii = Vec::with_capacity(radii_by_base.len());
-    for &g in &top.order {
-        let g = g as usize;
-        let inner = &layout.vertices[g * inner_count..(g + 1) * inner_count];
-        vertices.extend(inner.iter().flat_map(|v| v.to_array()));
-        radii.extend_from_slice(&radii_by_base[g * spheres..(g + 1) * spheres]);
+    let mut vertices = vec![0f32; layout.vertices.len() * 3];
+    let (inner, shared) = vertices.split_at_mut(grids * inner_count * 3);
+    if inner_count > 0 {
+        inner
+            .par_chunks_mut(inner_count * 3)
+            .zip(&top.order)
+            .for_each(|(dst, &g)| {
+                let src = &layout.vertices[g as usize * inner_count..(g as usize + 1) * inner_count];
+                for (d, v) in dst.as_chunks_mut::<3>().0.iter_mut().zip(src) {
+                    d.copy_from_slice(&v.to_array());
+                }
+            });
     }
-    let shared = &layout.vertices[layout.edge_offset as usize..];
-    vertices.extend(shared.iter().flat_map(|v| v.to_array()));
+    shared
+        .par_chunks_mut(3)
+        .zip(&layout.vertices[layout.edge_offset as usize..])
+        .for_each(|(d, v)| d.copy_from_slice(&v.to_array()));
     let headers: Vec<GridHeader> = top.order.iter().map(|&g| layout.headers[g as usize]).collect();
+    let radii: Vec<f32> = top
+        .order
+        .iter()
+        .flat_map(|&g| &radii_by_base[g as usize * spheres..(g as usize + 1) * spheres])
+        .copied()
+        .collect();
 
     let radius_scale = radius_scale(radii.iter().fold(0f32, |m, &r| m.max(r)));
     let radii = radii
