@@ -1,0 +1,138 @@
+//! Binned SAH builder for binary BVHs, shared by the baseline (over triangles) and the top level
+//! of the grid scene (over grids).
+//!
+//! The output is the flat node array the traversal in `gridrt_shared::traverse` walks: children
+//! of an interior node are adjacent, and each leaf covers a contiguous range of the primitive
+//! order, so the caller reorders its primitives once and needs no index indirection.
+//!
+//! The build runs on rayon (subtrees in parallel, the first levels' binning in parallel chunks), yet
+//! its output depends on the input alone: every node owns fixed slots, so no result depends on which
+//! thread finishes first (see `Task`).
+
+mod builder;
+#[cfg(test)]
+mod tests;
+
+pub use builder::build;
+
+use gridrt_shared::glam::Vec3;
+use gridrt_shared::layout::BvhNode;
+
+/// An axis-aligned box; `EMPTY` is the identity of `union`.
+#[derive(Copy, Clone, Debug, PartialEq)]
+pub struct Aabb {
+    pub min: Vec3,
+    pub max: Vec3,
+}
+
+impl Aabb {
+    pub const EMPTY: Aabb = Aabb {
+        min: Vec3::splat(f32::INFINITY),
+        max: Vec3::splat(f32::NEG_INFINITY),
+    };
+
+    pub fn from_points(points: impl IntoIterator<Item = Vec3>) -> Aabb {
+        points.into_iter().fold(Aabb::EMPTY, |b, p| b.grow(p))
+    }
+
+    #[inline]
+    pub fn grow(self, p: Vec3) -> Aabb {
+        Aabb {
+            min: self.min.min(p),
+            max: self.max.max(p),
+        }
+    }
+
+    #[inline]
+    pub fn union(self, o: Aabb) -> Aabb {
+        Aabb {
+            min: self.min.min(o.min),
+            max: self.max.max(o.max),
+        }
+    }
+
+    #[inline]
+    pub fn center(&self) -> Vec3 {
+        (self.min + self.max) * 0.5
+    }
+
+    /// Surface area; zero for an empty box.
+    #[inline]
+    pub fn area(&self) -> f32 {
+        let d = (self.max - self.min).max(Vec3::ZERO);
+        2.0 * (d.x * d.y + d.y * d.z + d.z * d.x)
+    }
+
+    pub fn contains(&self, o: &Aabb) -> bool {
+        self.min.cmple(o.min).all() && self.max.cmpge(o.max).all()
+    }
+}
+
+/// Builder settings. The costs are the SAH's: one node visit against one primitive test.
+#[derive(Copy, Clone, Debug)]
+pub struct BuildParams {
+    pub max_leaf_size: u32,
+    pub traversal_cost: f32,
+    pub intersection_cost: f32,
+}
+
+impl Default for BuildParams {
+    fn default() -> Self {
+        BuildParams {
+            max_leaf_size: 4,
+            traversal_cost: 1.0,
+            intersection_cost: 1.0,
+        }
+    }
+}
+
+/// A built hierarchy: `order[k]` is the original index of the primitive at position `k`.
+#[derive(Clone, Debug, Default)]
+pub struct Bvh {
+    pub nodes: Vec<BvhNode>,
+    pub order: Vec<u32>,
+}
+
+/// Standard SAH cost of a built hierarchy, relative to its root's area.
+pub fn sah_cost(nodes: &[BvhNode], params: &BuildParams) -> f32 {
+    let Some(root) = nodes.first() else {
+        return 0.0;
+    };
+    let area = |n: &BvhNode| {
+        Aabb {
+            min: Vec3::from(n.min),
+            max: Vec3::from(n.max),
+        }
+        .area() as f64
+    };
+    // Summed in f64: millions of small f32 terms would lose the digits that compare builders.
+    let total: f64 = nodes
+        .iter()
+        .map(|n| {
+            if n.is_leaf() {
+                area(n) * n.count as f64 * params.intersection_cost as f64
+            } else {
+                area(n) * params.traversal_cost as f64
+            }
+        })
+        .sum();
+    (total / area(root).max(f32::MIN_POSITIVE as f64)) as f32
+}
+
+/// Depth of the deepest leaf (the root alone has depth 1).
+pub fn depth(nodes: &[BvhNode]) -> usize {
+    if nodes.is_empty() {
+        return 0;
+    }
+    let mut deepest = 0;
+    let mut stack = vec![(0usize, 1usize)];
+    while let Some((i, d)) = stack.pop() {
+        deepest = deepest.max(d);
+        let n = &nodes[i];
+        if !n.is_leaf() {
+            stack.push((n.first as usize, d + 1));
+            stack.push((n.first as usize + 1, d + 1));
+        }
+    }
+    deepest
+}
