@@ -181,3 +181,32 @@ fn stats_prints_one_json_object() {
     assert!((gain - expected).abs() < 1e-9);
     assert!(v["construction_gain"].as_f64().unwrap() > 0.0);
 }
+
+/// Without any Vulkan driver, `--backend gpu` fails with one line saying what to do and
+/// `--backend auto` falls back to the CPU.
+#[test]
+fn no_adapter_is_a_clear_error() {
+    let dir = scratch("no_adapter");
+    let out = dir.join("auto.png");
+    let run = |backend: &str| {
+        Command::new(gridrt_exe())
+            .args(["render", "--backend", backend, "--width", "64", "--height", "48", "--output"])
+            .arg(&out)
+            // Point the Vulkan loader at no driver at all.
+            .env("VK_ICD_FILENAMES", dir.join("none.json"))
+            .env("VK_DRIVER_FILES", dir.join("none.json"))
+            .env("WGPU_BACKEND", "vulkan")
+            .output()
+            .expect("run gridrt")
+    };
+    let gpu = run("gpu");
+    let err = stderr(&gpu);
+    assert!(!gpu.status.success(), "rendered without an adapter: {err}");
+    let lines: Vec<&str> = err.lines().filter(|l| l.starts_with("error")).collect();
+    assert_eq!(lines.len(), 1, "{err}");
+    assert!(lines[0].contains("no GPU adapter") && lines[0].contains("--backend cpu"), "{err}");
+    let auto = run("auto");
+    assert!(auto.status.success(), "{}", stderr(&auto));
+    assert!(stderr(&auto).contains("rendering on the CPU"));
+    check_png(&out, 64, 48);
+}
