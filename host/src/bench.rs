@@ -153,7 +153,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         bar.inc(1);
         bar.set_message(format!("{name}: building ({} times each)", args.build_repeats));
         let stats = stats::measure(&name, &mesh, &sub, &args.build, args.build_repeats)?;
-        let grids = Scene::Grids(grid::build(&mesh, &sub, args.build.excluded_levels)?);
+        let grids = Scene::Grids(grid::build(&mesh, &sub, &args.build.grid_options())?);
         let tris = Scene::Triangles(triangles::build(&sub.positions, &sub.micro_triangles(sub.levels)));
         bar.inc(1);
         bar.set_message(format!("{name}: generating rays"));

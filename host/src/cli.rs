@@ -78,6 +78,18 @@ pub struct BuildArgs {
     /// Levels at the bottom of each grid's sphere hierarchy that get no spheres.
     #[arg(long, default_value_t = grid::DEFAULT_EXCLUDED_LEVELS, value_parser = clap::value_parser!(u32).range(1..=3))]
     pub excluded_levels: u32,
+    /// Store sphere radii as half floats (rounded up) instead of 32-bit floats.
+    #[arg(long)]
+    pub half_radii: bool,
+}
+
+impl BuildArgs {
+    pub fn grid_options(&self) -> grid::GridOptions {
+        grid::GridOptions {
+            excluded_levels: self.excluded_levels,
+            half_radii: self.half_radii,
+        }
+    }
 }
 
 #[derive(clap::Args, Debug)]
@@ -193,7 +205,7 @@ fn render(args: &RenderArgs) -> Result<()> {
     let sub = subdivide(&mesh, &args.build);
     let scene = match args.mode {
         Mode::Grid => {
-            let mut g = grid::build(&mesh, &sub, args.build.excluded_levels)?;
+            let mut g = grid::build(&mesh, &sub, &args.build.grid_options())?;
             g.set_lod(lod)?;
             Scene::Grids(g)
         }

@@ -21,6 +21,24 @@ use crate::subdiv::Subdivided;
 /// Sphere levels left out at the bottom by default: leaves of 16 micro-triangles.
 pub const DEFAULT_EXCLUDED_LEVELS: u32 = 2;
 
+/// Choices of the grid representation.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub struct GridOptions {
+    /// Levels at the bottom of the sphere hierarchy that get no spheres.
+    pub excluded_levels: u32,
+    /// Store radii as half floats (rounded up, so spheres only grow) instead of `f32`.
+    pub half_radii: bool,
+}
+
+impl Default for GridOptions {
+    fn default() -> Self {
+        GridOptions {
+            excluded_levels: DEFAULT_EXCLUDED_LEVELS,
+            half_radii: false,
+        }
+    }
+}
+
 /// Everything the grid traversal reads, as uploaded.
 #[derive(Clone, Debug)]
 pub struct GridScene {
@@ -28,7 +46,7 @@ pub struct GridScene {
     pub headers: Vec<GridHeader>,
     /// Inner area, then edge area, then corner area; xyz per vertex.
     pub vertices: Vec<f32>,
-    /// Half-float radii, two per word (see `GridParams::radius_scale`).
+    /// Sphere radii: `f32` bits, or half floats two per word (see `GridParams::half_radii`).
     pub radii: Vec<u32>,
     pub params: GridParams,
     /// `base_triangle[slot]`: which base triangle the grid stored at `slot` is.
@@ -96,6 +114,7 @@ pub fn top_level_params() -> BuildParams {
 pub struct GridLayout {
     pub levels: u32,
     pub leaf_level: u32,
+    pub half_radii: bool,
     pub headers: Vec<GridHeader>,
     /// Inner area (grid after grid), edge area, corner area.
     pub vertices: Vec<Vec3>,
@@ -121,10 +140,10 @@ impl GridLayout {
 }
 
 /// Lays out the grids of `sub` (subdivided from `base`): shared edge and corner vertices
-/// stored once, the last `excluded` levels of the sphere hierarchy left out.
-pub fn layout(base: &Mesh, sub: &Subdivided, excluded: u32) -> Result<GridLayout> {
+/// stored once.
+pub fn layout(base: &Mesh, sub: &Subdivided, options: &GridOptions) -> Result<GridLayout> {
     let levels = sub.levels;
-    let leaf_level = levels.saturating_sub(excluded);
+    let leaf_level = levels.saturating_sub(options.excluded_levels);
     if leaf_level > MAX_SPHERE_LEVEL {
         bail!(
             "a sphere hierarchy of {} levels is deeper than the traversal supports ({})",
@@ -206,6 +225,7 @@ pub fn layout(base: &Mesh, sub: &Subdivided, excluded: u32) -> Result<GridLayout
     Ok(GridLayout {
         levels,
         leaf_level,
+        half_radii: options.half_radii,
         headers,
         vertices,
         edge_offset,
@@ -214,8 +234,8 @@ pub fn layout(base: &Mesh, sub: &Subdivided, excluded: u32) -> Result<GridLayout
 }
 
 /// Lays out and builds in one go.
-pub fn build(base: &Mesh, sub: &Subdivided, excluded: u32) -> Result<GridScene> {
-    Ok(build_from_layout(&layout(base, sub, excluded)?))
+pub fn build(base: &Mesh, sub: &Subdivided, options: &GridOptions) -> Result<GridScene> {
+    Ok(build_from_layout(&layout(base, sub, options)?))
 }
 
 /// The grid representation's build proper, what `stats` and `bench` time: grid bounds, the
@@ -261,14 +281,18 @@ pub fn build_from_layout(layout: &GridLayout) -> GridScene {
         .collect();
 
     let radius_scale = radius_scale(radii.iter().fold(0f32, |m, &r| m.max(r)));
-    let radii = radii
-        .chunks(2)
-        .map(|pair| {
-            let lo = encode_radius(pair[0], radius_scale) as u32;
-            let hi = pair.get(1).map_or(0, |&r| encode_radius(r, radius_scale) as u32);
-            lo | (hi << 16)
-        })
-        .collect();
+    let radii = if layout.half_radii {
+        radii
+            .chunks(2)
+            .map(|pair| {
+                let lo = encode_radius(pair[0], radius_scale) as u32;
+                let hi = pair.get(1).map_or(0, |&r| encode_radius(r, radius_scale) as u32);
+                lo | (hi << 16)
+            })
+            .collect()
+    } else {
+        radii.iter().map(|r| r.to_bits()).collect()
+    };
     GridScene {
         nodes: top.nodes,
         headers,
@@ -282,7 +306,9 @@ pub fn build_from_layout(layout: &GridLayout) -> GridScene {
             inner_count: inner_count as u32,
             edge_offset: layout.edge_offset,
             corner_offset: layout.corner_offset,
+            half_radii: layout.half_radii as u32,
             radius_scale,
+            _pad: [0; 2],
         },
         base_triangle: top.order,
     }
@@ -400,7 +426,7 @@ mod tests {
         for levels in 0..=4 {
             let mesh = default_scene();
             let sub = subdivide(&mesh, levels, Scheme::Loop);
-            let scene = build(&mesh, &sub, DEFAULT_EXCLUDED_LEVELS).unwrap();
+            let scene = build(&mesh, &sub, &GridOptions::default()).unwrap();
             let n = grid_size(levels);
             for (slot, &base) in scene.base_triangle.iter().enumerate() {
                 for p in lattice_points(n) {
@@ -421,9 +447,19 @@ mod tests {
     /// the centre computed as the traversal computes it.
     #[test]
     fn spheres_are_conservative() {
-        for (mesh, levels, excluded) in [(default_scene(), 3, 2), (cube(), 5, 2), (cube(), 4, 1), (cube(), 4, 3)] {
+        for (mesh, levels, excluded, half_radii) in [
+            (default_scene(), 3, 2, false),
+            (default_scene(), 3, 2, true),
+            (cube(), 5, 2, true),
+            (cube(), 4, 1, false),
+            (cube(), 4, 3, true),
+        ] {
             let sub = subdivide(&mesh, levels, Scheme::Loop);
-            let scene = build(&mesh, &sub, excluded).unwrap();
+            let options = GridOptions {
+                excluded_levels: excluded,
+                half_radii,
+            };
+            let scene = build(&mesh, &sub, &options).unwrap();
             let n = grid_size(levels);
             let g = &scene.params;
             for slot in 0..scene.headers.len() {
@@ -465,8 +501,18 @@ mod tests {
     fn sizes_follow_the_layout() {
         let mesh = cube();
         let sub = subdivide(&mesh, 3, Scheme::Loop);
-        let scene = build(&mesh, &sub, 2).unwrap();
-        assert_eq!(scene.radii.len(), 12 * 5 / 2);
+        let scene = build(&mesh, &sub, &GridOptions::default()).unwrap();
+        assert_eq!(scene.radii.len(), 12 * 5);
+        let half = build(
+            &mesh,
+            &sub,
+            &GridOptions {
+                half_radii: true,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        assert_eq!(half.radii.len(), 12 * 5 / 2);
         assert_eq!(scene.params.inner_count, 21);
         // 18 edges of 7 vertices, 8 corners.
         assert_eq!(scene.vertices.len() / 3, 12 * 21 + 18 * 7 + 8);

@@ -67,7 +67,7 @@ fn representation(parts: Vec<(&'static str, usize)>, micro: usize, seconds: f64)
 /// which both representations start from.
 pub fn measure(name: &str, mesh: &Mesh, sub: &Subdivided, build: &BuildArgs, repeats: usize) -> Result<Stats> {
     let micro_list = sub.micro_triangles(sub.levels);
-    let layout = grid::layout(mesh, sub, build.excluded_levels)?;
+    let layout = grid::layout(mesh, sub, &build.grid_options())?;
     let (grid_s, grids) = median_time(repeats, || grid::build_from_layout(&layout));
     let (tri_s, tris) = median_time(repeats, || triangles::build(&sub.positions, &micro_list));
     let micro = micro_list.len();

@@ -133,8 +133,11 @@ pub struct GridParams {
     pub edge_offset: u32,
     /// First vertex of the corner area.
     pub corner_offset: u32,
-    /// Unit of the stored half-float radii (a power of two).
+    /// Radii as half floats, two to a word, in units of `radius_scale` (a power of two);
+    /// otherwise one `f32` per word.
+    pub half_radii: u32,
     pub radius_scale: f32,
+    pub _pad: [u32; 2],
 }
 
 /// Everything one dispatch needs besides geometry.

@@ -135,7 +135,8 @@ const GRID_STACK: usize = 3 * MAX_SPHERE_LEVEL as usize + 4;
 pub struct GridScene<'a> {
     pub headers: &'a [GridHeader],
     pub vertices: &'a [f32],
-    /// Half-float radii, two to a word, in breadth-first order per grid.
+    /// Sphere radii in breadth-first order per grid: `f32` bits, or half floats two to a
+    /// word (see `GridParams::half_radii`).
     pub radii: &'a [u32],
     pub params: GridParams,
 }
@@ -195,6 +196,9 @@ impl GridScene<'_> {
     #[inline]
     pub fn radius(&self, grid: u32, node: u32) -> f32 {
         let k = grid * self.params.sphere_count + node;
+        if self.params.half_radii == 0 {
+            return f32::from_bits(self.radii[k as usize]);
+        }
         let half = (self.radii[(k / 2) as usize] >> (16 * (k & 1))) & 0xffff;
         decode_radius(half, self.params.radius_scale)
     }

@@ -61,8 +61,12 @@ pub struct Pair {
 }
 
 pub fn build_pair(mesh: &Mesh, levels: u32, lod: u32, scheme: Scheme) -> Pair {
+    build_pair_with(mesh, levels, lod, scheme, &grid::GridOptions::default())
+}
+
+pub fn build_pair_with(mesh: &Mesh, levels: u32, lod: u32, scheme: Scheme, options: &grid::GridOptions) -> Pair {
     let sub = subdivide(mesh, levels, scheme);
-    let mut g = grid::build(mesh, &sub, grid::DEFAULT_EXCLUDED_LEVELS).expect("grid build");
+    let mut g = grid::build(mesh, &sub, options).expect("grid build");
     g.set_lod(lod).unwrap();
     let t = triangles::build(&sub.positions, &sub.micro_triangles(lod));
     let bounds = Aabb::from_points(sub.positions.iter().copied());

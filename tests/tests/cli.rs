@@ -190,7 +190,16 @@ fn no_adapter_is_a_clear_error() {
     let out = dir.join("auto.png");
     let run = |backend: &str| {
         Command::new(gridrt_exe())
-            .args(["render", "--backend", backend, "--width", "64", "--height", "48", "--output"])
+            .args([
+                "render",
+                "--backend",
+                backend,
+                "--width",
+                "64",
+                "--height",
+                "48",
+                "--output",
+            ])
             .arg(&out)
             // Point the Vulkan loader at no driver at all.
             .env("VK_ICD_FILENAMES", dir.join("none.json"))
@@ -204,7 +213,10 @@ fn no_adapter_is_a_clear_error() {
     assert!(!gpu.status.success(), "rendered without an adapter: {err}");
     let lines: Vec<&str> = err.lines().filter(|l| l.starts_with("error")).collect();
     assert_eq!(lines.len(), 1, "{err}");
-    assert!(lines[0].contains("no GPU adapter") && lines[0].contains("--backend cpu"), "{err}");
+    assert!(
+        lines[0].contains("no GPU adapter") && lines[0].contains("--backend cpu"),
+        "{err}"
+    );
     let auto = run("auto");
     assert!(auto.status.success(), "{}", stderr(&auto));
     assert!(stderr(&auto).contains("rendering on the CPU"));

@@ -87,6 +87,18 @@ fn default_scene_gpu_equals_cpu() {
         g.set_lod(1).unwrap();
     }
     compare(&gpu, "default scene L=3 lod 1", &pair.grids, &pair.bounds, SHADE_NORMAL);
+    let options = gridrt::grid::GridOptions {
+        excluded_levels: 1,
+        half_radii: true,
+    };
+    let pair = gridrt_tests::build_pair_with(&default_scene(), 3, 3, Scheme::Loop, &options);
+    compare(
+        &gpu,
+        "default scene L=3 half radii, 1 level out",
+        &pair.grids,
+        &pair.bounds,
+        SHADE_NORMAL,
+    );
 }
 
 #[test]
