@@ -8,7 +8,7 @@ use anyhow::{bail, Result};
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::grid_index::{
     edge_vertex_count, grid_size, inner_index, inner_vertex_count, lattice_index, level_start, sphere_count,
-    sub_triangle, triangle_count, vertex_slot, Lattice,
+    sub_triangle, triangle_count, GridSlots, Lattice,
 };
 use gridrt_shared::layout::{BvhNode, GridHeader, GridParams, MAX_HEADER_ID};
 use gridrt_shared::traverse::{sphere_center, MAX_SPHERE_LEVEL};
@@ -123,19 +123,17 @@ pub struct GridLayout {
 }
 
 impl GridLayout {
-    /// Position of lattice point `p` of grid `g`, read through the header as the GPU reads it.
+    /// Where grid `g` finds its vertices, resolved from its header as the GPU resolves it.
     #[inline]
-    fn vertex(&self, g: usize, p: Lattice) -> Vec3 {
-        let slot = vertex_slot(
-            p,
-            grid_size(self.levels),
-            g as u32,
+    fn slots(&self, g: usize) -> GridSlots {
+        GridSlots::new(
             &self.headers[g],
+            g as u32,
+            grid_size(self.levels),
             inner_vertex_count(self.levels),
             self.edge_offset,
             self.corner_offset,
-        );
-        self.vertices[slot as usize]
+        )
     }
 }
 
@@ -250,7 +248,9 @@ pub fn build_from_layout(layout: &GridLayout) -> GridScene {
         .par_iter_mut()
         .zip(radii_by_base.par_chunks_mut(spheres))
         .enumerate()
-        .for_each(|(g, (bounds, radii))| *bounds = grid_bounds_and_radii(layout, g, radii));
+        .for_each_init(Vec::new, |points, (g, (bounds, radii))| {
+            *bounds = grid_bounds_and_radii(layout, g, radii, points)
+        });
     let top = bvh::build(&boxes, &top_level_params());
 
     // Store grids in leaf order, so leaves name contiguous ranges and need no indirection.
@@ -359,10 +359,12 @@ fn edge_point(e: usize, step: u32, n: u32) -> Lattice {
 /// sub-triangle down to the leaf level, the largest distance from the mean of its corners
 /// (computed exactly as the traversal does) to any micro-vertex inside it, padded for the
 /// rounding of the GPU's own centre computation.
-fn grid_bounds_and_radii(layout: &GridLayout, g: usize, radii: &mut [f32]) -> Aabb {
+fn grid_bounds_and_radii(layout: &GridLayout, g: usize, radii: &mut [f32], points: &mut Vec<Vec3>) -> Aabb {
     let n = grid_size(layout.levels);
-    // Gather the grid once; everything below reads this copy.
-    let points: Vec<Vec3> = lattice_points(n).map(|p| layout.vertex(g, p)).collect();
+    // Gather the grid once (into a buffer reused across grids); everything below reads it.
+    let slots = layout.slots(g);
+    points.clear();
+    points.extend(lattice_points(n).map(|p| layout.vertices[slots.slot(p) as usize]));
     let pos = |p: Lattice| points[lattice_index(p[0], p[1], n) as usize];
     let mut slot = 0;
     for level in 0..=layout.leaf_level {
@@ -370,11 +372,19 @@ fn grid_bounds_and_radii(layout: &GridLayout, g: usize, radii: &mut [f32]) -> Aa
             debug_assert_eq!(slot as u32, level_start(level) + index);
             let [a, b, c] = sub_triangle(n, level, index);
             let center = sphere_center(pos(a), pos(b), pos(c));
-            let m = n >> level;
+            // Every lattice point of the sub-triangle: a + la e1 + lb e2, with its edges
+            // spanning m steps.
+            let m = (n >> level) as i64;
+            let e1 = [(b[0] as i64 - a[0] as i64) / m, (b[1] as i64 - a[1] as i64) / m];
+            let e2 = [(c[0] as i64 - a[0] as i64) / m, (c[1] as i64 - a[1] as i64) / m];
             let mut r2 = 0f32;
             for lb in 0..=m {
                 for la in 0..=m - lb {
-                    r2 = r2.max(pos(lattice_in(a, b, c, m, la, lb)).distance_squared(center));
+                    let p = [
+                        (a[0] as i64 + la * e1[0] + lb * e2[0]) as u32,
+                        (a[1] as i64 + la * e1[1] + lb * e2[1]) as u32,
+                    ];
+                    r2 = r2.max(pos(p).distance_squared(center));
                 }
             }
             let r = r2.sqrt();
@@ -382,17 +392,9 @@ fn grid_bounds_and_radii(layout: &GridLayout, g: usize, radii: &mut [f32]) -> Aa
             slot += 1;
         }
     }
-    Aabb::from_points(points)
+    Aabb::from_points(points.iter().copied())
 }
 
-/// Lattice point `(la, lb)` of the sub-triangle `(a, b, c)` whose edges span `m` lattice steps.
-fn lattice_in(a: Lattice, b: Lattice, c: Lattice, m: u32, la: u32, lb: u32) -> Lattice {
-    let step = |from: u32, to: u32, k: u32| (to as i64 - from as i64) / m as i64 * k as i64;
-    [
-        (a[0] as i64 + step(a[0], b[0], la) + step(a[0], c[0], lb)) as u32,
-        (a[1] as i64 + step(a[1], b[1], la) + step(a[1], c[1], lb)) as u32,
-    ]
-}
 
 #[cfg(test)]
 mod tests {
