@@ -395,7 +395,6 @@ fn grid_bounds_and_radii(layout: &GridLayout, g: usize, radii: &mut [f32], point
     Aabb::from_points(points.iter().copied())
 }
 
-
 #[cfg(test)]
 mod tests {
     use super::*;

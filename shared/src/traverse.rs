@@ -321,22 +321,14 @@ impl GridScene<'_> {
             // dynamically indexed arrays: those are slow on GPUs), push the hit ones farthest
             // first so the nearest is popped next.
             let r = |c: u32| self.radius(grid, first_child + c);
-            let mut e0 = Entry {
-                t: intersect_sphere(sphere_center(pa, pab, pca), r(0), ray, hit.t),
-                child: 0,
+            let entry = |center: Vec3, child: u32| Entry {
+                t: intersect_sphere(center, r(child), ray, hit.t),
+                child,
             };
-            let mut e1 = Entry {
-                t: intersect_sphere(sphere_center(pab, pb, pbc), r(1), ray, hit.t),
-                child: 1,
-            };
-            let mut e2 = Entry {
-                t: intersect_sphere(sphere_center(pca, pbc, pc), r(2), ray, hit.t),
-                child: 2,
-            };
-            let mut e3 = Entry {
-                t: intersect_sphere(sphere_center(pbc, pca, pab), r(3), ray, hit.t),
-                child: 3,
-            };
+            let mut e0 = entry(sphere_center(pa, pab, pca), 0);
+            let mut e1 = entry(sphere_center(pab, pb, pbc), 1);
+            let mut e2 = entry(sphere_center(pca, pbc, pc), 2);
+            let mut e3 = entry(sphere_center(pbc, pca, pab), 3);
             sort_descending(&mut e0, &mut e1);
             sort_descending(&mut e2, &mut e3);
             sort_descending(&mut e0, &mut e2);

@@ -153,6 +153,20 @@ pub(crate) mod test_util {
         msg
     }
 
+    /// Overwrites `flips` bytes of `bytes` at pseudo-random places with pseudo-random values,
+    /// then loads the result as file `name`: any error is fine, a panic is not.
+    pub fn load_scrambled(name: &str, mut bytes: Vec<u8>, seed: &mut u64, flips: usize) {
+        for _ in 0..flips {
+            *seed ^= *seed << 13;
+            *seed ^= *seed >> 7;
+            *seed ^= *seed << 17;
+            let at = (*seed % bytes.len() as u64) as usize;
+            bytes[at] = (*seed >> 40) as u8;
+        }
+        let path = write_temp(name, &bytes);
+        let _ = std::panic::catch_unwind(|| load_mesh_quiet(&path)).expect("loader panicked");
+    }
+
     /// Loads `bytes` as file `name`, expecting success.
     pub fn load_ok(name: &str, bytes: &[u8]) -> (Mesh, usize) {
         let path = write_temp(name, bytes);

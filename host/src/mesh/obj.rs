@@ -237,16 +237,7 @@ mod tests {
     fn garbage_never_panics() {
         let mut seed = 0x2545_f491_4f6c_dd1du64;
         for round in 0..40 {
-            let mut bytes = obj("f 1 2 3 4\n");
-            for _ in 0..1 + round % 5 {
-                seed ^= seed << 13;
-                seed ^= seed >> 7;
-                seed ^= seed << 17;
-                let at = (seed % bytes.len() as u64) as usize;
-                bytes[at] = (seed >> 32) as u8;
-            }
-            let path = write_temp("fuzz.obj", &bytes);
-            let _ = std::panic::catch_unwind(|| super::super::load_mesh_quiet(&path)).expect("loader panicked");
+            load_scrambled("fuzz.obj", obj("f 1 2 3 4\n"), &mut seed, 1 + round % 5);
         }
     }
 }
