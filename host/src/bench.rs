@@ -11,10 +11,9 @@ use serde::Serialize;
 use crate::bvh::Aabb;
 use crate::cli::{self, Backend, BenchArgs};
 use crate::gpu::{Gpu, NoAdapter, Timing};
-use crate::rays::{ao_rays, primary_rays, trace_cpu, triangle_normal};
+use crate::rays::{ao_rays, primary_rays, trace_cpu};
 use crate::scene::Scene;
 use crate::stats::{self, Stats};
-use crate::{grid, triangles};
 use gridrt_shared::layout::{HitRecord, RayRecord};
 
 #[derive(Serialize, Debug, Clone, Copy, Default)]
@@ -152,18 +151,16 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         let sub = cli::subdivide(&mesh, &args.build);
         bar.inc(1);
         bar.set_message(format!("{name}: building ({} times each)", args.build_repeats));
-        let stats = stats::measure(&name, &mesh, &sub, &args.build, args.build_repeats)?;
-        let grids = Scene::Grids(grid::build(&mesh, &sub, &args.build.grid_options())?);
-        let tris = Scene::Triangles(triangles::build(&sub.positions, &sub.micro_triangles(sub.levels)));
+        let (stats, grids, tris) = stats::measure(&name, &mesh, &sub, &args.build, args.build_repeats)?;
         bar.inc(1);
         bar.set_message(format!("{name}: generating rays"));
         let bounds = Aabb::from_points(sub.positions.iter().copied());
         let primary = primary_rays(&bounds, args.views, args.width, args.height);
-        let Scene::Triangles(t) = &tris else { unreachable!() };
+        // AO rays start from the baseline's hits (the same as the grids' up to ties).
+        let tris = Scene::Triangles(tris);
+        let grids = Scene::Grids(grids);
         let first_hits = trace_cpu(&tris, &primary);
-        let ao = ao_rays(&primary, &first_hits, args.ao_samples, &bounds, |p| {
-            triangle_normal(t, p)
-        });
+        let ao = ao_rays(&primary, &first_hits, args.ao_samples, &bounds, |p| tris.normal(p));
         bar.inc(1);
         let mut mrays = PerRepresentation::default();
         let mut spread = PerRepresentation::default();

@@ -9,7 +9,6 @@ use gridrt_shared::ray::T_FAR;
 use crate::bvh::Aabb;
 use crate::camera;
 use crate::scene::Scene;
-use crate::triangles::TriangleScene;
 
 /// AO rays look this far, as a fraction of the scene's bounding-box diagonal.
 pub const AO_RADIUS: f32 = 0.1;
@@ -90,15 +89,6 @@ pub fn ao_rays(
         }
     }
     rays
-}
-
-/// Geometric normal of triangle `prim` (as hits number it) of the baseline.
-pub fn triangle_normal(s: &TriangleScene, prim: u32) -> Vec3 {
-    let v = |k: usize| {
-        let i = s.indices[3 * prim as usize + k] as usize;
-        Vec3::new(s.positions[3 * i], s.positions[3 * i + 1], s.positions[3 * i + 2])
-    };
-    (v(1) - v(0)).cross(v(2) - v(0))
 }
 
 /// Traces a ray list on the CPU, in parallel: the closest hit of each.

@@ -1,6 +1,8 @@
 //! A scene ready to trace, in either representation, and how to trace it on the CPU.
 
 use gridrt_shared::camera::primary_ray;
+use gridrt_shared::glam::Vec3;
+use gridrt_shared::grid_index::{sub_triangle, triangle_count, GridSlots};
 use gridrt_shared::layout::{Camera, FrameParams, GridParams, Hit};
 use gridrt_shared::ray::{Ray, T_FAR};
 use gridrt_shared::shade::{pack_rgba8, shade};
@@ -44,6 +46,44 @@ impl Scene {
             Scene::Triangles(s) => s.original[prim as usize],
             Scene::Grids(s) => s.micro_triangle_id(prim),
         }
+    }
+
+    /// Corners of a hit's triangle, by its primitive id.
+    pub fn triangle(&self, prim: u32) -> [Vec3; 3] {
+        match self {
+            Scene::Triangles(s) => {
+                let v = |k: usize| {
+                    let i = s.indices[3 * prim as usize + k] as usize;
+                    Vec3::new(s.positions[3 * i], s.positions[3 * i + 1], s.positions[3 * i + 2])
+                };
+                [v(0), v(1), v(2)]
+            }
+            Scene::Grids(s) => {
+                let g = &s.params;
+                let per_grid = triangle_count(g.lod);
+                let grid = prim / per_grid;
+                let n = 1 << g.levels;
+                let corners = sub_triangle(n, g.lod, prim % per_grid);
+                let slots = GridSlots::new(
+                    &s.headers[grid as usize],
+                    grid,
+                    n,
+                    g.inner_count,
+                    g.edge_offset,
+                    g.corner_offset,
+                );
+                corners.map(|p| {
+                    let i = 3 * slots.slot(p) as usize;
+                    Vec3::new(s.vertices[i], s.vertices[i + 1], s.vertices[i + 2])
+                })
+            }
+        }
+    }
+
+    /// Unnormalised geometric normal of a hit's triangle, by its primitive id.
+    pub fn normal(&self, prim: u32) -> Vec3 {
+        let [a, b, c] = self.triangle(prim);
+        gridrt_shared::triangle::triangle_normal(a, b, c)
     }
 
     pub fn memory(&self) -> Vec<(&'static str, usize)> {

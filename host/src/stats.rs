@@ -7,9 +7,10 @@ use serde::Serialize;
 use serde_json::{Map, Value};
 
 use crate::cli::{self, BuildArgs, StatsArgs};
+use crate::grid::{self, GridScene};
 use crate::mesh::Mesh;
 use crate::subdiv::Subdivided;
-use crate::{grid, triangles};
+use crate::triangles::{self, TriangleScene};
 
 /// Builds timed per representation; the median is reported.
 pub const BUILD_REPEATS: usize = 3;
@@ -65,7 +66,14 @@ fn representation(parts: Vec<(&'static str, usize)>, micro: usize, seconds: f64)
 /// triangles, their bounds, the SAH BVH and the reordering of the index list. Not timed: the
 /// subdivision and the laying out of its result (the grid vertex areas, the triangle list),
 /// which both representations start from.
-pub fn measure(name: &str, mesh: &Mesh, sub: &Subdivided, build: &BuildArgs, repeats: usize) -> Result<Stats> {
+/// Returns the built representations too, for whoever traces them next.
+pub fn measure(
+    name: &str,
+    mesh: &Mesh,
+    sub: &Subdivided,
+    build: &BuildArgs,
+    repeats: usize,
+) -> Result<(Stats, GridScene, TriangleScene)> {
     let micro_list = sub.micro_triangles(sub.levels);
     let layout = grid::layout(mesh, sub, &build.grid_options())?;
     let (grid_s, grids) = median_time(repeats, || grid::build_from_layout(&layout));
@@ -73,7 +81,7 @@ pub fn measure(name: &str, mesh: &Mesh, sub: &Subdivided, build: &BuildArgs, rep
     let micro = micro_list.len();
     let grid = representation(grids.memory(), micro, grid_s);
     let triangles = representation(tris.memory(), micro, tri_s);
-    Ok(Stats {
+    let stats = Stats {
         mesh: name.to_string(),
         levels: sub.levels,
         base_triangles: mesh.triangles.len(),
@@ -82,13 +90,14 @@ pub fn measure(name: &str, mesh: &Mesh, sub: &Subdivided, build: &BuildArgs, rep
         construction_gain: triangles.build_seconds / grid.build_seconds.max(1e-12),
         grid,
         triangles,
-    })
+    };
+    Ok((stats, grids, tris))
 }
 
 pub fn run(args: &StatsArgs) -> Result<()> {
     let (name, mesh) = cli::load(args.mesh.as_deref())?;
     let sub = cli::subdivide(&mesh, &args.build);
-    let s = measure(&name, &mesh, &sub, &args.build, BUILD_REPEATS)?;
+    let (s, _, _) = measure(&name, &mesh, &sub, &args.build, BUILD_REPEATS)?;
     if args.json {
         println!("{}", serde_json::to_string(&s)?);
         return Ok(());

@@ -119,14 +119,11 @@ fn ray_lists_gpu_equal_cpu() {
     let Some(gpu) = gpu_or_skip("ray_lists_gpu_equal_cpu") else {
         return;
     };
-    use gridrt::rays::{ao_rays, primary_rays, trace_cpu, triangle_normal};
+    use gridrt::rays::{ao_rays, primary_rays, trace_cpu};
     let pair = build_pair(&default_scene(), 3, 3, Scheme::Loop);
     let primary = primary_rays(&pair.bounds, 2, 96, 64);
-    let Scene::Triangles(t) = &pair.triangles else {
-        unreachable!()
-    };
     let first = trace_cpu(&pair.triangles, &primary);
-    let ao = ao_rays(&primary, &first, 2, &pair.bounds, |p| triangle_normal(t, p));
+    let ao = ao_rays(&primary, &first, 2, &pair.bounds, |p| pair.triangles.normal(p));
     assert!(ao.len() > primary.len() / 4);
     for (name, scene) in [("grids", &pair.grids), ("triangles", &pair.triangles)] {
         let uploaded = gpu.upload(scene).unwrap();

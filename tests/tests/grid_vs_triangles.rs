@@ -183,3 +183,22 @@ fn grid_image_equals_triangle_image() {
     );
     assert!(near >= 0.995);
 }
+
+/// A hit's triangle read back from either representation is the same micro-triangle.
+#[test]
+fn hit_triangles_read_back_alike() {
+    let pair = build_pair(&default_scene(), 3, 2, Scheme::Loop);
+    let mut rng = Rng::new(5);
+    let mut checked = 0;
+    for _ in 0..2000 {
+        let origin = rng.point_in(&pair.bounds) * 1.5;
+        let ray = Ray::new(origin, rng.direction());
+        let (g, t) = (pair.grids.trace(&ray, T_FAR), pair.triangles.trace(&ray, T_FAR));
+        if g.is_hit() && t.is_hit() && g.t == t.t {
+            assert_eq!(pair.grids.triangle(g.prim), pair.triangles.triangle(t.prim));
+            assert_eq!(pair.grids.normal(g.prim).to_array(), g.normal);
+            checked += 1;
+        }
+    }
+    assert!(checked > 200, "only {checked} hits compared");
+}
