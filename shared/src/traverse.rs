@@ -203,8 +203,10 @@ impl GridScene<'_> {
         decode_radius(half, self.params.radius_scale)
     }
 
-    /// Tests the `4^k` micro-triangles of a leaf sub-triangle with corners `leaf`: its
-    /// vertices are loaded once, then the static index list names the triangles among them.
+    /// Tests the `4^k` micro-triangles of a leaf sub-triangle: its first corner is `corner`,
+    /// and one step of its own lattice (`2^k` a side) is `step` grid-lattice units along both
+    /// axes (negative for an inverted sub-triangle). Its vertices are loaded once; the static
+    /// index list then names each triangle's three among them.
     #[allow(clippy::too_many_arguments)]
     fn intersect_leaf_triangles(
         &self,
