@@ -9,8 +9,8 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
 use crate::bvh::Aabb;
-use crate::cli::{self, Backend, BenchArgs};
-use crate::gpu::{Gpu, NoAdapter, Timing};
+use crate::cli::{self, BenchArgs};
+use crate::gpu::{Gpu, Timing};
 use crate::rays::{ao_rays, primary_rays, trace_cpu};
 use crate::scene::Scene;
 use crate::stats::{self, Stats};
@@ -112,17 +112,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     if args.meshes.is_empty() {
         bail!("name at least one mesh to benchmark");
     }
-    let device = match args.backend {
-        Backend::Cpu => Device::Cpu,
-        Backend::Gpu => Device::Gpu(Box::new(Gpu::new()?)),
-        Backend::Auto => match Gpu::new() {
-            Ok(g) => Device::Gpu(Box::new(g)),
-            Err(e) if e.is::<NoAdapter>() => {
-                eprintln!("note: {e}; benchmarking the CPU");
-                Device::Cpu
-            }
-            Err(e) => return Err(e),
-        },
+    let device = match cli::open_gpu(args.backend, "benchmarking")? {
+        Some(gpu) => Device::Gpu(Box::new(gpu)),
+        None => Device::Cpu,
     };
     let (backend, device_name, timing) = match &device {
         Device::Cpu => (

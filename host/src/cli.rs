@@ -184,6 +184,23 @@ pub fn load(path: Option<&Path>) -> Result<(String, Mesh)> {
     }
 }
 
+/// The GPU the backend choice asks for: none for `cpu`; for `auto`, none (with a note saying
+/// the CPU does the `work`) when wgpu finds no adapter at all. Any other GPU failure is an error.
+pub fn open_gpu(backend: Backend, work: &str) -> Result<Option<Gpu>> {
+    match backend {
+        Backend::Cpu => Ok(None),
+        Backend::Gpu => Gpu::new().map(Some),
+        Backend::Auto => match Gpu::new() {
+            Ok(gpu) => Ok(Some(gpu)),
+            Err(e) if e.is::<NoAdapter>() => {
+                eprintln!("note: {e}; {work} on the CPU");
+                Ok(None)
+            }
+            Err(e) => Err(e),
+        },
+    }
+}
+
 pub fn subdivide(mesh: &Mesh, build: &BuildArgs) -> Subdivided {
     let scheme = match build.subdivision {
         SubdivisionArg::Loop => Scheme::Loop,
@@ -225,20 +242,9 @@ fn render(args: &RenderArgs) -> Result<()> {
     };
     let frame = scene.frame(camera::frame(&bounds, args.width, args.height), shading);
     let started = Instant::now();
-    let (pixels, device) = match args.backend {
-        Backend::Cpu => (render_cpu(&scene, &frame), "CPU".to_string()),
-        Backend::Gpu => {
-            let gpu = Gpu::new()?;
-            (gpu.render(&scene, &frame)?, gpu.describe())
-        }
-        Backend::Auto => match Gpu::new() {
-            Ok(gpu) => (gpu.render(&scene, &frame)?, gpu.describe()),
-            Err(e) if e.is::<NoAdapter>() => {
-                eprintln!("note: {e}; rendering on the CPU");
-                (render_cpu(&scene, &frame), "CPU".to_string())
-            }
-            Err(e) => return Err(e),
-        },
+    let (pixels, device) = match open_gpu(args.backend, "rendering")? {
+        Some(gpu) => (gpu.render(&scene, &frame)?, gpu.describe()),
+        None => (render_cpu(&scene, &frame), "CPU".to_string()),
     };
     image_io::write_png(&args.output, &pixels, args.width, args.height)?;
     eprintln!(

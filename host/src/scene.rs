@@ -2,11 +2,11 @@
 
 use gridrt_shared::camera::primary_ray;
 use gridrt_shared::glam::Vec3;
-use gridrt_shared::grid_index::{sub_triangle, triangle_count, GridSlots};
+use gridrt_shared::grid_index::{sub_triangle, triangle_count};
 use gridrt_shared::layout::{Camera, FrameParams, GridParams, Hit};
 use gridrt_shared::ray::{Ray, T_FAR};
 use gridrt_shared::shade::{pack_rgba8, shade};
-use gridrt_shared::traverse::{trace_grids, trace_triangles};
+use gridrt_shared::traverse::{load_vec3, trace_grids, trace_triangles};
 use rayon::prelude::*;
 
 use crate::grid::GridScene;
@@ -52,30 +52,13 @@ impl Scene {
     pub fn triangle(&self, prim: u32) -> [Vec3; 3] {
         match self {
             Scene::Triangles(s) => {
-                let v = |k: usize| {
-                    let i = s.indices[3 * prim as usize + k] as usize;
-                    Vec3::new(s.positions[3 * i], s.positions[3 * i + 1], s.positions[3 * i + 2])
-                };
+                let v = |k: usize| load_vec3(&s.positions, s.indices[3 * prim as usize + k]);
                 [v(0), v(1), v(2)]
             }
             Scene::Grids(s) => {
-                let g = &s.params;
-                let per_grid = triangle_count(g.lod);
-                let grid = prim / per_grid;
-                let n = 1 << g.levels;
-                let corners = sub_triangle(n, g.lod, prim % per_grid);
-                let slots = GridSlots::new(
-                    &s.headers[grid as usize],
-                    grid,
-                    n,
-                    g.inner_count,
-                    g.edge_offset,
-                    g.corner_offset,
-                );
-                corners.map(|p| {
-                    let i = 3 * slots.slot(p) as usize;
-                    Vec3::new(s.vertices[i], s.vertices[i + 1], s.vertices[i + 2])
-                })
+                let (view, per_grid) = (s.view(), triangle_count(s.params.lod));
+                let slots = view.slots(prim / per_grid);
+                sub_triangle(1 << s.params.levels, s.params.lod, prim % per_grid).map(|p| view.vertex(&slots, p))
             }
         }
     }

@@ -77,8 +77,9 @@ pub fn traverse_bvh<P: LeafPrimitives>(nodes: &[BvhNode], prims: &P, ray: &Ray, 
     }
 }
 
+/// Vertex `index` of a flat xyz array.
 #[inline]
-fn load_vec3(data: &[f32], index: u32) -> Vec3 {
+pub fn load_vec3(data: &[f32], index: u32) -> Vec3 {
     let i = 3 * index as usize;
     Vec3::new(data[i], data[i + 1], data[i + 2])
 }
@@ -173,8 +174,9 @@ pub fn sphere_center(a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
 }
 
 impl GridScene<'_> {
+    /// Where `grid` finds its vertices, resolved once from its header.
     #[inline]
-    fn slots(&self, grid: u32) -> GridSlots {
+    pub fn slots(&self, grid: u32) -> GridSlots {
         let g = &self.params;
         let header = self.headers[grid as usize];
         GridSlots::new(
@@ -187,8 +189,9 @@ impl GridScene<'_> {
         )
     }
 
+    /// Position of lattice point `p` of the grid `slots` belongs to.
     #[inline]
-    fn vertex(&self, slots: &GridSlots, p: Lattice) -> Vec3 {
+    pub fn vertex(&self, slots: &GridSlots, p: Lattice) -> Vec3 {
         load_vec3(self.vertices, slots.slot(p))
     }
 
