@@ -68,13 +68,6 @@ impl Scene {
         let [a, b, c] = self.triangle(prim);
         gridrt_shared::triangle::triangle_normal(a, b, c)
     }
-
-    pub fn memory(&self) -> Vec<(&'static str, usize)> {
-        match self {
-            Scene::Triangles(s) => s.memory(),
-            Scene::Grids(s) => s.memory(),
-        }
-    }
 }
 
 /// Renders on the CPU, rows in parallel: packed RGBA8, row-major, top row first.
