@@ -7,8 +7,8 @@ use std::collections::HashMap;
 use anyhow::{bail, Result};
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::grid_index::{
-    edge_vertex_count, grid_size, inner_index, inner_vertex_count, lattice_index, level_start, sphere_count,
-    sub_triangle, triangle_count, GridSlots, Lattice,
+    edge_vertex_count, grid_size, inner_index, inner_vertex_count, lattice_index, lattice_points, level_start,
+    sphere_count, sub_triangle, triangle_count, GridSlots, Lattice,
 };
 use gridrt_shared::layout::{BvhNode, GridHeader, GridParams, MAX_HEADER_ID};
 use gridrt_shared::traverse::{sphere_center, MAX_SPHERE_LEVEL};
@@ -339,11 +339,6 @@ pub fn encode_radius(r: f32, scale: f32) -> u16 {
         (((exponent + 15) as u32) << 10 | mantissa) + (rest != 0) as u32
     };
     h.min(0x7bff) as u16
-}
-
-/// All lattice points of a grid of size `n`.
-fn lattice_points(n: u32) -> impl Iterator<Item = Lattice> {
-    (0..=n).flat_map(move |j| (0..=n - j).map(move |i| [i, j]))
 }
 
 /// The point `step` steps along grid edge `e` (from corner `e` towards corner `e + 1`).

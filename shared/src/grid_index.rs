@@ -73,6 +73,11 @@ pub const fn lattice_index(i: u32, j: u32, n: u32) -> u32 {
     j * (n + 1) - (j * j - j) / 2 + i
 }
 
+/// All lattice points of a grid of size `n`, in [`lattice_index`] order.
+pub fn lattice_points(n: u32) -> impl Iterator<Item = Lattice> {
+    (0..=n).flat_map(move |j| (0..=n - j).map(move |i| [i, j]))
+}
+
 /// The inverse of [`lattice_index`].
 pub const fn lattice_from_index(index: u32, n: u32) -> Lattice {
     let mut j = 0;
@@ -274,7 +279,7 @@ mod tests {
     use std::vec::Vec;
 
     fn lattice(n: u32) -> Vec<Lattice> {
-        (0..=n).flat_map(|j| (0..=n - j).map(move |i| [i, j])).collect()
+        lattice_points(n).collect()
     }
 
     #[test]
