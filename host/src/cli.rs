@@ -81,6 +81,17 @@ pub struct BuildArgs {
     /// Store sphere radii as half floats (rounded up) instead of 32-bit floats.
     #[arg(long)]
     pub half_radii: bool,
+    /// How each grid stores its inner vertices: 16-bit codes around the grid's centre (a
+    /// vertex moves by at most 2^-15 of the grid's radius; edges and corners stay exact), or
+    /// 32-bit floats. Both representations get the same positions.
+    #[arg(long, value_enum, default_value_t = InnerVertices::Quantized)]
+    pub inner_vertices: InnerVertices,
+}
+
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum InnerVertices {
+    Quantized,
+    F32,
 }
 
 impl BuildArgs {
@@ -206,7 +217,11 @@ pub fn subdivide(mesh: &Mesh, build: &BuildArgs) -> Subdivided {
         SubdivisionArg::Loop => Scheme::Loop,
         SubdivisionArg::Flat => Scheme::Flat,
     };
-    subdiv::subdivide(mesh, build.levels, scheme)
+    let mut sub = subdiv::subdivide(mesh, build.levels, scheme);
+    if build.inner_vertices == InnerVertices::Quantized {
+        sub.quantize_inner();
+    }
+    sub
 }
 
 fn render(args: &RenderArgs) -> Result<()> {

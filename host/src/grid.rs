@@ -11,6 +11,7 @@ use gridrt_shared::grid_index::{
     sphere_count, sub_triangle, triangle_count, GridSlots, Lattice,
 };
 use gridrt_shared::layout::{BvhNode, GridHeader, GridParams, MAX_HEADER_ID};
+use gridrt_shared::quantize;
 use gridrt_shared::traverse::{sphere_center, MAX_SPHERE_LEVEL};
 use rayon::prelude::*;
 
@@ -44,8 +45,9 @@ impl Default for GridOptions {
 pub struct GridScene {
     pub nodes: Vec<BvhNode>,
     pub headers: Vec<GridHeader>,
-    /// Inner area, then edge area, then corner area; xyz per vertex.
-    pub vertices: Vec<f32>,
+    /// Words: each grid's inner area (`f32` triples or 16-bit codes), then the edge and corner
+    /// areas as `f32` triples (see `gridrt_shared::traverse::GridScene`).
+    pub vertices: Vec<u32>,
     /// Sphere radii: `f32` bits, or half floats two per word (see `GridParams::half_radii`).
     pub radii: Vec<u32>,
     pub params: GridParams,
@@ -84,7 +86,7 @@ impl GridScene {
 
     /// Bytes of each uploaded part.
     pub fn memory(&self) -> Vec<(&'static str, usize)> {
-        let inner = (self.params.edge_offset * 3) as usize;
+        let inner = self.params.edge_word as usize;
         let edge = ((self.params.corner_offset - self.params.edge_offset) * 3) as usize;
         let corner = self.vertices.len() - inner - edge;
         vec![
@@ -116,8 +118,11 @@ pub struct GridLayout {
     pub leaf_level: u32,
     pub half_radii: bool,
     pub headers: Vec<GridHeader>,
-    /// Inner area (grid after grid), edge area, corner area.
+    /// Inner area (grid after grid), edge area, corner area: every position, decoded.
     pub vertices: Vec<Vec3>,
+    /// The inner areas as 16-bit codes, grid after grid, when the subdivided mesh was
+    /// quantized (`gridrt_shared::quantize`).
+    pub inner_codes: Option<Vec<u32>>,
     pub edge_offset: u32,
     pub corner_offset: u32,
 }
@@ -195,6 +200,17 @@ pub fn layout(base: &Mesh, sub: &Subdivided, options: &GridOptions) -> Result<Gr
     }
 
     let inner_count = inner_vertex_count(levels);
+    // The traversal addresses 16-bit codes in halves below a flag bit (2^31).
+    let inner_words = match sub.inner_codes {
+        Some(_) => quantize::inner_words(inner_count),
+        None => 3 * inner_count,
+    };
+    if (grids as u64) * (inner_words as u64) + 3 * (sub.positions.len() as u64) >= 1 << 30 {
+        bail!(
+            "{grids} grids of {} micro-triangles need more than 4 GiB of vertices",
+            triangle_count(levels)
+        );
+    }
     let edge_offset = grids as u32 * inner_count;
     let corner_offset = edge_offset + edge_owner.len() as u32 * edge_vertex_count(levels);
     let mut vertices: Vec<Vec3> = Vec::with_capacity(corner_offset as usize + base.positions.len());
@@ -228,6 +244,7 @@ pub fn layout(base: &Mesh, sub: &Subdivided, options: &GridOptions) -> Result<Gr
         vertices,
         edge_offset,
         corner_offset,
+        inner_codes: sub.inner_codes.clone(),
     })
 }
 
@@ -255,23 +272,31 @@ pub fn build_from_layout(layout: &GridLayout) -> GridScene {
 
     // Store grids in leaf order, so leaves name contiguous ranges and need no indirection.
     let inner_count = inner_vertex_count(layout.levels) as usize;
-    let mut vertices = vec![0f32; layout.vertices.len() * 3];
-    let (inner, shared) = vertices.split_at_mut(grids * inner_count * 3);
-    if inner_count > 0 {
-        inner
-            .par_chunks_mut(inner_count * 3)
-            .zip(&top.order)
-            .for_each(|(dst, &g)| {
+    let inner_words = match &layout.inner_codes {
+        Some(_) => quantize::inner_words(inner_count as u32) as usize,
+        None => 3 * inner_count,
+    };
+    let shared_count = layout.vertices.len() - layout.edge_offset as usize;
+    let mut vertices = vec![0u32; grids * inner_words + 3 * shared_count];
+    let (inner, shared) = vertices.split_at_mut(grids * inner_words);
+    if inner_words > 0 {
+        let grid_words = inner.par_chunks_mut(inner_words).zip(&top.order);
+        match &layout.inner_codes {
+            Some(codes) => grid_words.for_each(|(dst, &g)| {
+                dst.copy_from_slice(&codes[g as usize * inner_words..(g as usize + 1) * inner_words])
+            }),
+            None => grid_words.for_each(|(dst, &g)| {
                 let src = &layout.vertices[g as usize * inner_count..(g as usize + 1) * inner_count];
                 for (d, v) in dst.as_chunks_mut::<3>().0.iter_mut().zip(src) {
-                    d.copy_from_slice(&v.to_array());
+                    *d = v.to_array().map(f32::to_bits);
                 }
-            });
+            }),
+        }
     }
     shared
         .par_chunks_mut(3)
         .zip(&layout.vertices[layout.edge_offset as usize..])
-        .for_each(|(d, v)| d.copy_from_slice(&v.to_array()));
+        .for_each(|(d, v)| d.copy_from_slice(&v.to_array().map(f32::to_bits)));
     let headers: Vec<GridHeader> = top.order.iter().map(|&g| layout.headers[g as usize]).collect();
     let radii: Vec<f32> = top
         .order
@@ -306,9 +331,12 @@ pub fn build_from_layout(layout: &GridLayout) -> GridScene {
             inner_count: inner_count as u32,
             edge_offset: layout.edge_offset,
             corner_offset: layout.corner_offset,
+            quantized_inner: layout.inner_codes.is_some() as u32,
+            inner_words: inner_words as u32,
+            edge_word: (grids * inner_words) as u32,
             half_radii: layout.half_radii as u32,
             radius_scale,
-            _pad: [0; 2],
+            _pad: [0; 4],
         },
         base_triangle: top.order,
     }
@@ -395,33 +423,22 @@ mod tests {
     use super::*;
     use crate::mesh::scene::{cube, default_scene};
     use crate::subdiv::{subdivide, Scheme};
-    use gridrt_shared::grid_index::vertex_slot;
 
     fn lattice_vertex(scene: &GridScene, slot: usize, p: Lattice) -> Vec3 {
-        let g = &scene.params;
-        let s = vertex_slot(
-            p,
-            grid_size(g.levels),
-            slot as u32,
-            &scene.headers[slot],
-            g.inner_count,
-            g.edge_offset,
-            g.corner_offset,
-        ) as usize;
-        Vec3::new(
-            scene.vertices[3 * s],
-            scene.vertices[3 * s + 1],
-            scene.vertices[3 * s + 2],
-        )
+        let view = scene.view();
+        view.vertex(&view.open(slot as u32), p)
     }
 
     /// Reading a grid back through its header gives exactly the subdivided vertices, shared
     /// edges and corners included, whichever way a grid walks its edges.
     #[test]
     fn every_grid_reads_back_its_vertices() {
-        for levels in 0..=4 {
+        for (levels, quantized) in (0..=4).flat_map(|l| [(l, false), (l, true)]) {
             let mesh = default_scene();
-            let sub = subdivide(&mesh, levels, Scheme::Loop);
+            let mut sub = subdivide(&mesh, levels, Scheme::Loop);
+            if quantized {
+                sub.quantize_inner();
+            }
             let scene = build(&mesh, &sub, &GridOptions::default()).unwrap();
             let n = grid_size(levels);
             for (slot, &base) in scene.base_triangle.iter().enumerate() {
@@ -435,7 +452,15 @@ mod tests {
                 }
             }
             // Nothing stored twice: one slot per distinct subdivided vertex.
-            assert_eq!(scene.vertices.len() / 3, sub.positions.len(), "L={levels}");
+            let g = &scene.params;
+            assert_eq!(g.corner_offset as usize + mesh.positions.len(), sub.positions.len());
+            let per_grid = match quantized {
+                true => quantize::inner_words(g.inner_count),
+                false => 3 * g.inner_count,
+            };
+            assert_eq!(g.edge_word, scene.headers.len() as u32 * per_grid);
+            let shared = sub.positions.len() - g.edge_offset as usize;
+            assert_eq!(scene.vertices.len(), g.edge_word as usize + 3 * shared, "L={levels}");
         }
     }
 
@@ -512,6 +537,12 @@ mod tests {
         assert_eq!(scene.params.inner_count, 21);
         // 18 edges of 7 vertices, 8 corners.
         assert_eq!(scene.vertices.len() / 3, 12 * 21 + 18 * 7 + 8);
+        // Quantized: an exponent and 21 x 3 codes in 32 words per grid.
+        let mut quantized = sub.clone();
+        quantized.quantize_inner();
+        let q = build(&mesh, &quantized, &GridOptions::default()).unwrap();
+        assert_eq!(q.params.inner_words, 32);
+        assert_eq!(q.vertices.len(), 12 * 32 + 3 * (18 * 7 + 8));
         assert!(scene.set_lod_checked(4).is_err());
     }
 

@@ -1,6 +1,7 @@
 //! gridrt: a ray tracer for triangular grid primitives (micro-meshes) on ordinary GPUs.
 //!
-//! Data flows one way: [`mesh`] loads a base mesh, [`subdiv`] subdivides it, [`grid`] and
+//! Data flows one way: [`mesh`] loads a base mesh, [`subdiv`] subdivides it (and
+//! [`quantize`] may snap its inner vertices to 16 bits), [`grid`] and
 //! [`triangles`] build the two representations (each over [`bvh`]), and [`scene`] (CPU) or
 //! [`gpu`] traces them with the one implementation in `gridrt_shared`.
 
@@ -13,6 +14,7 @@ pub mod gpu;
 pub mod grid;
 pub mod image_io;
 pub mod mesh;
+pub mod quantize;
 pub mod rays;
 pub mod scene;
 pub mod stats;

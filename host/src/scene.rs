@@ -57,8 +57,8 @@ impl Scene {
             }
             Scene::Grids(s) => {
                 let (view, per_grid) = (s.view(), triangle_count(s.params.lod));
-                let slots = view.slots(prim / per_grid);
-                sub_triangle(1 << s.params.levels, s.params.lod, prim % per_grid).map(|p| view.vertex(&slots, p))
+                let grid = view.open(prim / per_grid);
+                sub_triangle(1 << s.params.levels, s.params.lod, prim % per_grid).map(|p| view.vertex(&grid, p))
             }
         }
     }

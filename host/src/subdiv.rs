@@ -29,6 +29,10 @@ pub struct Subdivided {
     /// For each base triangle, its `vertex_count(levels)` lattice vertices in
     /// [`lattice_index`] order, as ids into `positions`.
     pub grids: Vec<u32>,
+    /// Once [`Subdivided::quantize_inner`] has run: each grid's inner vertices as 16-bit codes
+    /// (`quantize::inner_words` words per grid, base-triangle order), which `positions` then
+    /// hold decoded.
+    pub inner_codes: Option<Vec<u32>>,
 }
 
 impl Subdivided {
@@ -123,6 +127,7 @@ pub fn subdivide(mesh: &Mesh, levels: u32, scheme: Scheme) -> Subdivided {
         levels,
         positions,
         grids,
+        inner_codes: None,
     }
 }
 

@@ -41,7 +41,7 @@ pub fn render_grids(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &FrameParams,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] nodes: &[BvhNode],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] headers: &[GridHeader],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] vertices: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] vertices: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] radii: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] image: &mut [u32],
 ) {
@@ -108,7 +108,7 @@ pub fn trace_grids_rays(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] nodes: &[BvhNode],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] headers: &[GridHeader],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] vertices: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] vertices: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] radii: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] rays: &[RayRecord],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] hits: &mut [HitRecord],

@@ -185,41 +185,68 @@ pub fn leaf_triangle(leaf: [Lattice; 3], k: u32, t: u32) -> [Lattice; 3] {
 }
 
 /// A grid's header resolved, once per visit, into the arithmetic that finds its vertices.
+/// Addresses count in any unit: vertex slots (one per vertex), or buffer words or halves
+/// (`stride` per vertex), so the traversal gets buffer positions without converting.
 #[derive(Copy, Clone)]
 pub struct GridSlots {
     n: u32,
-    inner_base: u32,
+    inner_first: u32,
+    stride: u32,
     corners: [u32; 3],
-    /// Slot of step 0 along each edge, and the step between slots (+1 or -1 as a wrapping
-    /// `u32`), so a reversed edge needs no branch.
+    /// Address of step 0 along each edge, and the step between addresses (`+stride` or
+    /// `-stride` as a wrapping `u32`), so a reversed edge needs no branch.
     edge_start: [u32; 3],
     edge_step: [u32; 3],
 }
 
 impl GridSlots {
+    /// Vertex slots: the inner area of `grid` at `grid * inner_count`, then the edge area at
+    /// `edge_offset`, then the corner area at `corner_offset`.
     #[inline]
     pub fn new(header: &GridHeader, grid: u32, n: u32, inner_count: u32, edge_offset: u32, corner_offset: u32) -> Self {
+        Self::addressed(header, n, grid * inner_count, edge_offset, corner_offset, 1)
+    }
+
+    /// Addresses of `stride` units per vertex: the grid's first inner vertex at
+    /// `inner_first`, the first vertex of the edge area at `edge_first`, the first of the
+    /// corner area at `corner_first`.
+    #[inline]
+    pub fn addressed(
+        header: &GridHeader,
+        n: u32,
+        inner_first: u32,
+        edge_first: u32,
+        corner_first: u32,
+        stride: u32,
+    ) -> Self {
         let edge = |e: u32| {
-            let base = edge_offset + header.edge(e) * (n - 1);
+            let base = edge_first + header.edge(e) * (n - 1) * stride;
             if header.edge_reversed(e) {
                 // Step s is stored at n - s - 1.
-                (base + n - 1, u32::MAX)
+                (base + (n - 1) * stride, stride.wrapping_neg())
             } else {
-                (base.wrapping_sub(1), 1)
+                (base.wrapping_sub(stride), stride)
             }
         };
         let (e0, e1, e2) = (edge(0), edge(1), edge(2));
         GridSlots {
             n,
-            inner_base: grid * inner_count,
+            inner_first,
+            stride,
             corners: [
-                corner_offset + header.corner(0),
-                corner_offset + header.corner(1),
-                corner_offset + header.corner(2),
+                corner_first + header.corner(0) * stride,
+                corner_first + header.corner(1) * stride,
+                corner_first + header.corner(2) * stride,
             ],
             edge_start: [e0.0, e1.0, e2.0],
             edge_step: [e0.1, e1.1, e2.1],
         }
+    }
+
+    /// Whether lattice point `p` is one of the grid's own inner vertices.
+    #[inline]
+    pub fn is_inner(&self, p: Lattice) -> bool {
+        p[0] > 0 && p[1] > 0 && p[0] + p[1] < self.n
     }
 
     /// Where the vertex at lattice point `(i, j)` lives in the vertex buffer: the grid's own
@@ -244,7 +271,7 @@ impl GridSlots {
         } else if i == 0 {
             along(2, k)
         } else {
-            self.inner_base + inner_index(i, j, n)
+            self.inner_first + inner_index(i, j, n) * self.stride
         }
     }
 }

@@ -129,15 +129,21 @@ pub struct GridParams {
     pub sphere_count: u32,
     /// Inner vertices per grid, `(2^L - 1)(2^L - 2) / 2`.
     pub inner_count: u32,
-    /// First vertex of the edge area (the inner area starts at 0).
+    /// First vertex slot of the edge area (inner slots start at 0).
     pub edge_offset: u32,
-    /// First vertex of the corner area.
+    /// First vertex slot of the corner area.
     pub corner_offset: u32,
+    /// Inner vertices as 16-bit codes (see [`crate::quantize`]) rather than `f32` triples.
+    pub quantized_inner: u32,
+    /// Words of each grid's inner area in the vertex buffer.
+    pub inner_words: u32,
+    /// Word where the edge area (then the corner area, `f32` triples) begins.
+    pub edge_word: u32,
     /// Radii as half floats, two to a word, in units of `radius_scale` (a power of two);
     /// otherwise one `f32` per word.
     pub half_radii: u32,
     pub radius_scale: f32,
-    pub _pad: [u32; 2],
+    pub _pad: [u32; 4],
 }
 
 /// Everything one dispatch needs besides geometry.

@@ -11,6 +11,7 @@ pub mod aabb;
 pub mod camera;
 pub mod grid_index;
 pub mod layout;
+pub mod quantize;
 pub mod ray;
 pub mod shade;
 pub mod sphere;

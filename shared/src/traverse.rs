@@ -8,6 +8,7 @@ use crate::grid_index::{
     level_start, micro_table_offset, triangle_count, vertex_count, GridSlots, Lattice, MAX_LEAF_DEPTH, MICRO_TRIANGLES,
 };
 use crate::layout::{BvhNode, GridHeader, GridParams, Hit};
+use crate::quantize::{dequantize, read_half, unit_from_exponent};
 use crate::ray::{Ray, T_FAR};
 use crate::sphere::{decode_radius, intersect_sphere};
 use crate::triangle::{intersect_sheared, intersect_triangle, shear, triangle_normal};
@@ -84,6 +85,17 @@ pub fn load_vec3(data: &[f32], index: u32) -> Vec3 {
     Vec3::new(data[i], data[i + 1], data[i + 2])
 }
 
+/// The `f32` triple stored as bits at `words[word ..]`.
+#[inline]
+fn load_vec3_bits(words: &[u32], word: u32) -> Vec3 {
+    let i = word as usize;
+    Vec3::new(
+        f32::from_bits(words[i]),
+        f32::from_bits(words[i + 1]),
+        f32::from_bits(words[i + 2]),
+    )
+}
+
 #[inline]
 fn record_hit(hit: &mut Hit, found: (f32, f32, f32), prim: u32, normal: Vec3) {
     hit.t = found.0;
@@ -135,12 +147,28 @@ const GRID_STACK: usize = 3 * MAX_SPHERE_LEVEL as usize + 4;
 /// Grid primitives: headers, the three vertex areas in one buffer, and the sphere radii.
 pub struct GridScene<'a> {
     pub headers: &'a [GridHeader],
-    pub vertices: &'a [f32],
+    /// Each grid's inner area (`GridParams::inner_words` words: `f32` triples or 16-bit
+    /// codes), then the edge and corner areas as `f32` triples.
+    pub vertices: &'a [u32],
     /// Sphere radii in breadth-first order per grid: `f32` bits, or half floats two to a
     /// word (see `GridParams::half_radii`).
     pub radii: &'a [u32],
     pub params: GridParams,
 }
+
+/// A grid resolved for reading by [`GridScene::open`].
+#[derive(Copy, Clone)]
+pub struct OpenGrid {
+    slots: GridSlots,
+    /// Mean of the corners: the root sphere's centre and the origin of the inner codes.
+    pub origin: Vec3,
+    /// Length of one code step (zero for `f32` inner vertices).
+    unit: f32,
+}
+
+/// Flag bit of an address in 16-bit halves of the inner codes (buffers stay far below 2^31
+/// words).
+const INNER_CODES: u32 = 1 << 31;
 
 /// Working memory of the grid traversal, one per ray.
 pub struct GridScratch {
@@ -174,25 +202,58 @@ pub fn sphere_center(a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
 }
 
 impl GridScene<'_> {
-    /// Where `grid` finds its vertices, resolved once from its header.
+    /// Grid `grid` resolved for reading, once per visit: where its vertices live, and the
+    /// frame its inner vertices are decoded in.
     #[inline]
-    pub fn slots(&self, grid: u32) -> GridSlots {
+    pub fn open(&self, grid: u32) -> OpenGrid {
         let g = &self.params;
-        let header = self.headers[grid as usize];
-        GridSlots::new(
-            &header,
-            grid,
-            1 << g.levels,
-            g.inner_count,
-            g.edge_offset,
-            g.corner_offset,
-        )
+        let n = 1u32 << g.levels;
+        let quantized = g.quantized_inner != 0;
+        // Addresses are buffer words, or halves for 16-bit inner codes (marked by a flag bit);
+        // either way three units per vertex.
+        let inner_word = grid * g.inner_words;
+        let inner_first = if quantized {
+            (2 * inner_word + 1) | INNER_CODES
+        } else {
+            inner_word
+        };
+        let corner_word = g.edge_word + 3 * (g.corner_offset - g.edge_offset);
+        let slots = GridSlots::addressed(
+            &self.headers[grid as usize],
+            n,
+            inner_first,
+            g.edge_word,
+            corner_word,
+            3,
+        );
+        let origin = sphere_center(
+            load_vec3_bits(self.vertices, slots.slot([0, 0])),
+            load_vec3_bits(self.vertices, slots.slot([n, 0])),
+            load_vec3_bits(self.vertices, slots.slot([0, n])),
+        );
+        let unit = if quantized && g.inner_count > 0 {
+            unit_from_exponent(read_half(self.vertices, 2 * inner_word) as u32)
+        } else {
+            0.0
+        };
+        OpenGrid { slots, origin, unit }
     }
 
-    /// Position of lattice point `p` of the grid `slots` belongs to.
-    #[inline]
-    pub fn vertex(&self, slots: &GridSlots, p: Lattice) -> Vec3 {
-        load_vec3(self.vertices, slots.slot(p))
+    /// Position of lattice point `p` of an opened grid. (Always inlined: a call per vertex
+    /// costs the CPU backend about 8%.)
+    #[inline(always)]
+    pub fn vertex(&self, grid: &OpenGrid, p: Lattice) -> Vec3 {
+        let at = grid.slots.slot(p);
+        if at & INNER_CODES == 0 {
+            return load_vec3_bits(self.vertices, at);
+        }
+        let h = at & !INNER_CODES;
+        let code = [
+            read_half(self.vertices, h),
+            read_half(self.vertices, h + 1),
+            read_half(self.vertices, h + 2),
+        ];
+        dequantize(grid.origin, code, grid.unit)
     }
 
     /// Radius of sphere `node` (breadth-first id) of `grid`.
@@ -213,7 +274,7 @@ impl GridScene<'_> {
     #[allow(clippy::too_many_arguments)]
     fn intersect_leaf_triangles(
         &self,
-        slots: &GridSlots,
+        open: &OpenGrid,
         corner: [i32; 2],
         step: i32,
         k: u32,
@@ -232,7 +293,7 @@ impl GridScene<'_> {
                     (corner[0] + la as i32 * step) as u32,
                     (corner[1] + lb as i32 * step) as u32,
                 ];
-                let v = self.vertex(slots, p);
+                let v = self.vertex(open, p);
                 scratch.verts[slot] = v;
                 scratch.sheared[slot] = shear(v, ray);
                 slot += 1;
@@ -269,7 +330,7 @@ impl GridScene<'_> {
 
     /// The bottom level: depth-first, nearest sphere first, over the grid's 4-ary hierarchy.
     pub fn intersect_grid(&self, grid: u32, ray: &Ray, hit: &mut Hit, scratch: &mut GridScratch) {
-        let slots = self.slots(grid);
+        let open = self.open(grid);
         let n = 1u32 << self.params.levels;
         let lod = self.params.lod;
         // At a coarse level of detail the hierarchy is cut where the rendered triangles are.
@@ -278,12 +339,7 @@ impl GridScene<'_> {
         } else {
             lod
         };
-        let center = sphere_center(
-            self.vertex(&slots, [0, 0]),
-            self.vertex(&slots, [n, 0]),
-            self.vertex(&slots, [0, n]),
-        );
-        if intersect_sphere(center, self.radius(grid, 0), ray, hit.t) == T_FAR {
+        if intersect_sphere(open.origin, self.radius(grid, 0), ray, hit.t) == T_FAR {
             return;
         }
         let mut sp = 1usize;
@@ -308,18 +364,18 @@ impl GridScene<'_> {
                 let k = lod - level;
                 let first_id = grid * triangle_count(lod) + index * triangle_count(k);
                 let step = d * (size >> k);
-                self.intersect_leaf_triangles(&slots, a, step, k, first_id, ray, hit, scratch);
+                self.intersect_leaf_triangles(&open, a, step, k, first_id, ray, hit, scratch);
                 continue;
             }
             // The four children share six vertices: three corners and three midpoints.
             let (s, h) = (d * size, d * size / 2);
             let at = |x: i32, y: i32| [(a[0] + x) as u32, (a[1] + y) as u32];
-            let pa = self.vertex(&slots, at(0, 0));
-            let pb = self.vertex(&slots, at(s, 0));
-            let pc = self.vertex(&slots, at(0, s));
-            let pab = self.vertex(&slots, at(h, 0));
-            let pbc = self.vertex(&slots, at(h, h));
-            let pca = self.vertex(&slots, at(0, h));
+            let pa = self.vertex(&open, at(0, 0));
+            let pb = self.vertex(&open, at(s, 0));
+            let pc = self.vertex(&open, at(0, s));
+            let pab = self.vertex(&open, at(h, 0));
+            let pbc = self.vertex(&open, at(h, h));
+            let pca = self.vertex(&open, at(0, h));
             // Children in `child_corners` order; their radii are adjacent in BFS order.
             let first_child = level_start(level + 1) + 4 * index;
             // Test the four children, sort them by entry distance with a fixed network (no

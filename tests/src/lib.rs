@@ -64,8 +64,23 @@ pub fn build_pair(mesh: &Mesh, levels: u32, lod: u32, scheme: Scheme) -> Pair {
     build_pair_with(mesh, levels, lod, scheme, &grid::GridOptions::default())
 }
 
+/// Inner vertices quantized, as the CLI builds by default.
 pub fn build_pair_with(mesh: &Mesh, levels: u32, lod: u32, scheme: Scheme, options: &grid::GridOptions) -> Pair {
-    let sub = subdivide(mesh, levels, scheme);
+    build_pair_from(mesh, levels, lod, scheme, options, true)
+}
+
+pub fn build_pair_from(
+    mesh: &Mesh,
+    levels: u32,
+    lod: u32,
+    scheme: Scheme,
+    options: &grid::GridOptions,
+    quantized: bool,
+) -> Pair {
+    let mut sub = subdivide(mesh, levels, scheme);
+    if quantized {
+        sub.quantize_inner();
+    }
     let mut g = grid::build(mesh, &sub, options).expect("grid build");
     g.set_lod(lod).unwrap();
     let t = triangles::build(&sub.positions, &sub.micro_triangles(lod));

@@ -91,10 +91,10 @@ fn default_scene_gpu_equals_cpu() {
         excluded_levels: 1,
         half_radii: true,
     };
-    let pair = gridrt_tests::build_pair_with(&default_scene(), 3, 3, Scheme::Loop, &options);
+    let pair = gridrt_tests::build_pair_from(&default_scene(), 3, 3, Scheme::Loop, &options, false);
     compare(
         &gpu,
-        "default scene L=3 half radii, 1 level out",
+        "default scene L=3 half radii, 1 level out, f32 inner vertices",
         &pair.grids,
         &pair.bounds,
         SHADE_NORMAL,

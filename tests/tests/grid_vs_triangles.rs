@@ -10,7 +10,7 @@ use gridrt::scene::render_cpu;
 use gridrt::subdiv::Scheme;
 use gridrt_shared::layout::SHADE_NORMAL;
 use gridrt_shared::ray::{Ray, T_FAR};
-use gridrt_tests::{build_pair, build_pair_with, meshes_dir, Rng};
+use gridrt_tests::{build_pair, build_pair_from, meshes_dir, Rng};
 
 struct Agreement {
     rays: usize,
@@ -24,19 +24,21 @@ struct Agreement {
 /// Random rays from around the scene towards random points in it; the comparison the issue
 /// asks for: same micro-triangle and `t` within 1e-4 relative.
 fn compare(mesh: &Mesh, levels: u32, lod: u32, scheme: Scheme, rays: usize, seed: u64) -> Agreement {
-    compare_with(mesh, levels, lod, scheme, &GridOptions::default(), rays, seed)
+    compare_with(mesh, levels, lod, scheme, &GridOptions::default(), true, rays, seed)
 }
 
+#[allow(clippy::too_many_arguments)]
 fn compare_with(
     mesh: &Mesh,
     levels: u32,
     lod: u32,
     scheme: Scheme,
     options: &GridOptions,
+    quantized: bool,
     rays: usize,
     seed: u64,
 ) -> Agreement {
-    let pair = build_pair_with(mesh, levels, lod, scheme, options);
+    let pair = build_pair_from(mesh, levels, lod, scheme, options, quantized);
     let b = pair.bounds;
     let margin = (b.max - b.min) * 0.25;
     let outer = Aabb {
@@ -134,10 +136,13 @@ fn default_scene_flat_and_other_depths() {
     }
 }
 
-/// The other grid variants: half-float radii, and one or three sphere levels left out.
+/// The other grid variants: half-float radii, one or three sphere levels left out, and
+/// 32-bit inner vertices.
 #[test]
 fn default_scene_grid_variants() {
-    for (excluded_levels, half_radii) in [(2, true), (1, false), (3, true)] {
+    for (excluded_levels, half_radii, quantized) in
+        [(2, true, true), (1, false, true), (3, true, true), (2, false, false)]
+    {
         let options = GridOptions {
             excluded_levels,
             half_radii,
@@ -148,10 +153,11 @@ fn default_scene_grid_variants() {
             3,
             Scheme::Loop,
             &options,
+            quantized,
             40_000,
             20 + excluded_levels as u64,
         );
-        check(&format!("default scene L=3 {options:?}"), a);
+        check(&format!("default scene L=3 {options:?} quantized {quantized}"), a);
     }
 }
 
