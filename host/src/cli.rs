@@ -163,7 +163,7 @@ pub struct BenchArgs {
     #[arg(long, default_value_t = 5)]
     pub repeats: usize,
     /// Builds per representation; the median is reported.
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 11)]
     pub build_repeats: usize,
     /// Also write the results as JSON (one object per mesh, in an array).
     #[arg(long)]

@@ -13,7 +13,7 @@ use crate::subdiv::Subdivided;
 use crate::triangles::{self, TriangleScene};
 
 /// Builds timed per representation; the median is reported.
-pub const BUILD_REPEATS: usize = 3;
+pub const BUILD_REPEATS: usize = 7;
 
 #[derive(Serialize, Debug, Clone)]
 pub struct Representation {
@@ -37,11 +37,17 @@ pub struct Stats {
 
 /// Median wall time of `repeats` runs of `f`, and the last result.
 pub fn median_time<T>(repeats: usize, mut f: impl FnMut() -> T) -> (f64, T) {
+    median_time_of(repeats, || (), |()| f())
+}
+
+/// [`median_time`] of `f` on a fresh input from `input` each time (made outside the timer).
+pub fn median_time_of<I, T>(repeats: usize, mut input: impl FnMut() -> I, mut f: impl FnMut(I) -> T) -> (f64, T) {
     let mut times = Vec::with_capacity(repeats);
     let mut last = None;
     for _ in 0..repeats.max(1) {
+        let x = input();
         let start = Instant::now();
-        last = Some(f());
+        last = Some(f(x));
         times.push(start.elapsed().as_secs_f64());
     }
     times.sort_by(f64::total_cmp);
@@ -76,7 +82,7 @@ pub fn measure(
 ) -> Result<(Stats, GridScene, TriangleScene)> {
     let micro_list = sub.micro_triangles(sub.levels);
     let layout = grid::layout(mesh, sub, &build.grid_options())?;
-    let (grid_s, grids) = median_time(repeats, || grid::build_from_layout(&layout));
+    let (grid_s, grids) = median_time_of(repeats, || layout.clone(), grid::build_from_layout);
     let (tri_s, tris) = median_time(repeats, || triangles::build(&sub.positions, &micro_list));
     let micro = micro_list.len();
     let grid = representation(grids.memory(), micro, grid_s);

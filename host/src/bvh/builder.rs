@@ -11,7 +11,7 @@ const BINS: usize = 16;
 /// Leaves are forced below this depth so traversal stacks never overflow.
 const DEPTH_LIMIT: usize = MAX_BVH_DEPTH - 2;
 /// Subtrees at least this large go to another rayon task; below it the task costs more than it saves.
-const PARALLEL_SUBTREE: usize = 4096;
+const PARALLEL_SUBTREE: usize = 256;
 /// Nodes of at least two chunks bin and bound their primitives chunk by chunk in parallel, so the first levels,
 /// before there are subtrees enough for every thread, do not run on one.
 pub(super) const CHUNK: usize = 1 << 15;

@@ -7,17 +7,20 @@ use std::collections::HashMap;
 use anyhow::{bail, Result};
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::grid_index::{
-    edge_vertex_count, grid_size, inner_index, inner_vertex_count, lattice_index, lattice_points, level_start,
-    sphere_count, sub_triangle, triangle_count, GridSlots, Lattice,
+    edge_vertex_count, grid_size, inner_index, inner_vertex_count, sphere_count, triangle_count, GridSlots, Lattice,
 };
 use gridrt_shared::layout::{BvhNode, GridHeader, GridParams, MAX_HEADER_ID};
 use gridrt_shared::quantize;
-use gridrt_shared::traverse::{sphere_center, MAX_SPHERE_LEVEL};
+use gridrt_shared::traverse::MAX_SPHERE_LEVEL;
 use rayon::prelude::*;
 
 use crate::bvh::{self, Aabb, BuildParams};
+
+mod spheres;
 use crate::mesh::Mesh;
 use crate::subdiv::Subdivided;
+pub use spheres::encode_radius;
+use spheres::{grid_bounds_and_radii, radius_scale, SphereTable};
 
 /// Sphere levels left out at the bottom by default: leaves of 16 micro-triangles.
 pub const DEFAULT_EXCLUDED_LEVELS: u32 = 2;
@@ -120,11 +123,17 @@ pub struct GridLayout {
     pub headers: Vec<GridHeader>,
     /// Inner area (grid after grid), edge area, corner area: every position, decoded.
     pub vertices: Vec<Vec3>,
-    /// The inner areas as 16-bit codes, grid after grid, when the subdivided mesh was
-    /// quantized (`gridrt_shared::quantize`).
-    pub inner_codes: Option<Vec<u32>>,
     pub edge_offset: u32,
     pub corner_offset: u32,
+    /// Inner vertices as 16-bit codes (`gridrt_shared::quantize`) rather than `f32` triples.
+    pub quantized_inner: bool,
+    /// Words of one grid's inner area.
+    pub inner_words: u32,
+    /// Each grid's inner area as stored, grid after grid in base-triangle order.
+    pub inner_by_grid: Vec<u32>,
+    /// The vertex buffer as uploaded: room for the inner areas (filled in leaf order by the
+    /// build), then the edge and corner areas, which never move.
+    pub buffer: Vec<u32>,
 }
 
 impl GridLayout {
@@ -200,11 +209,11 @@ pub fn layout(base: &Mesh, sub: &Subdivided, options: &GridOptions) -> Result<Gr
     }
 
     let inner_count = inner_vertex_count(levels);
-    // The traversal addresses 16-bit codes in halves below a flag bit (2^31).
     let inner_words = match sub.inner_codes {
         Some(_) => quantize::inner_words(inner_count),
         None => 3 * inner_count,
     };
+    // The traversal addresses 16-bit codes in halves below a flag bit (2^31).
     if (grids as u64) * (inner_words as u64) + 3 * (sub.positions.len() as u64) >= 1 << 30 {
         bail!(
             "{grids} grids of {} micro-triangles need more than 4 GiB of vertices",
@@ -236,6 +245,18 @@ pub fn layout(base: &Mesh, sub: &Subdivided, options: &GridOptions) -> Result<Gr
     }
     // Base vertex v stays vertex v through subdivision (at its moved position).
     vertices.extend_from_slice(&sub.positions[..base.positions.len()]);
+    let inner_by_grid = match &sub.inner_codes {
+        Some(codes) => codes.clone(),
+        None => vertices[..edge_offset as usize]
+            .iter()
+            .flat_map(|v| v.to_array().map(f32::to_bits))
+            .collect(),
+    };
+    let inner_end = grids * inner_words as usize;
+    let mut buffer = vec![0u32; inner_end + 3 * (vertices.len() - edge_offset as usize)];
+    for (d, v) in buffer[inner_end..].chunks_mut(3).zip(&vertices[edge_offset as usize..]) {
+        d.copy_from_slice(&v.to_array().map(f32::to_bits));
+    }
     Ok(GridLayout {
         levels,
         leaf_level,
@@ -244,66 +265,64 @@ pub fn layout(base: &Mesh, sub: &Subdivided, options: &GridOptions) -> Result<Gr
         vertices,
         edge_offset,
         corner_offset,
-        inner_codes: sub.inner_codes.clone(),
+        quantized_inner: sub.inner_codes.is_some(),
+        inner_words,
+        inner_by_grid,
+        buffer,
     })
 }
 
 /// Lays out and builds in one go.
 pub fn build(base: &Mesh, sub: &Subdivided, options: &GridOptions) -> Result<GridScene> {
-    Ok(build_from_layout(&layout(base, sub, options)?))
+    Ok(build_from_layout(layout(base, sub, options)?))
 }
 
-/// The grid representation's build proper, what `stats` and `bench` time: grid bounds, the
-/// top-level BVH, grids reordered into its leaf order, and the sphere radii.
-pub fn build_from_layout(layout: &GridLayout) -> GridScene {
+/// Grids one parallel task handles at least: below that, handing work to another thread
+/// costs more than it saves.
+const GRIDS_PER_TASK: usize = 128;
+
+/// The grid representation's build proper, what `stats` and `bench` time: grid bounds and
+/// sphere radii, the top-level BVH, and the grids' inner areas, headers and radii in its leaf
+/// order. The edge and corner areas stay where the layout put them.
+pub fn build_from_layout(layout: GridLayout) -> GridScene {
     let grids = layout.headers.len();
     let spheres = sphere_count(layout.leaf_level) as usize;
     // One pass over each grid's vertices gives its box and its radii.
+    let table = SphereTable::new(layout.levels, layout.leaf_level);
     let mut boxes = vec![Aabb::EMPTY; grids];
     let mut radii_by_base = vec![0f32; grids * spheres];
     boxes
         .par_iter_mut()
         .zip(radii_by_base.par_chunks_mut(spheres))
         .enumerate()
+        .with_min_len(GRIDS_PER_TASK)
         .for_each_init(Vec::new, |points, (g, (bounds, radii))| {
-            *bounds = grid_bounds_and_radii(layout, g, radii, points)
+            *bounds = grid_bounds_and_radii(&layout, &table, g, radii, points)
         });
     let top = bvh::build(&boxes, &top_level_params());
 
     // Store grids in leaf order, so leaves name contiguous ranges and need no indirection.
-    let inner_count = inner_vertex_count(layout.levels) as usize;
-    let inner_words = match &layout.inner_codes {
-        Some(_) => quantize::inner_words(inner_count as u32) as usize,
-        None => 3 * inner_count,
-    };
-    let shared_count = layout.vertices.len() - layout.edge_offset as usize;
-    let mut vertices = vec![0u32; grids * inner_words + 3 * shared_count];
-    let (inner, shared) = vertices.split_at_mut(grids * inner_words);
-    if inner_words > 0 {
-        let grid_words = inner.par_chunks_mut(inner_words).zip(&top.order);
-        match &layout.inner_codes {
-            Some(codes) => grid_words.for_each(|(dst, &g)| {
-                dst.copy_from_slice(&codes[g as usize * inner_words..(g as usize + 1) * inner_words])
-            }),
-            None => grid_words.for_each(|(dst, &g)| {
-                let src = &layout.vertices[g as usize * inner_count..(g as usize + 1) * inner_count];
-                for (d, v) in dst.as_chunks_mut::<3>().0.iter_mut().zip(src) {
-                    *d = v.to_array().map(f32::to_bits);
-                }
-            }),
-        }
+    let words = layout.inner_words as usize;
+    let mut vertices = layout.buffer;
+    if words > 0 {
+        vertices[..grids * words]
+            .par_chunks_mut(words)
+            .zip(&top.order)
+            .with_min_len(GRIDS_PER_TASK)
+            .for_each(|(dst, &g)| dst.copy_from_slice(&layout.inner_by_grid[g as usize * words..][..words]));
     }
-    shared
-        .par_chunks_mut(3)
-        .zip(&layout.vertices[layout.edge_offset as usize..])
-        .for_each(|(d, v)| d.copy_from_slice(&v.to_array().map(f32::to_bits)));
-    let headers: Vec<GridHeader> = top.order.iter().map(|&g| layout.headers[g as usize]).collect();
-    let radii: Vec<f32> = top
-        .order
-        .iter()
-        .flat_map(|&g| &radii_by_base[g as usize * spheres..(g as usize + 1) * spheres])
-        .copied()
-        .collect();
+    let mut headers = vec![GridHeader::default(); grids];
+    headers
+        .par_iter_mut()
+        .zip(&top.order)
+        .with_min_len(GRIDS_PER_TASK)
+        .for_each(|(h, &g)| *h = layout.headers[g as usize]);
+    let mut radii = vec![0f32; grids * spheres];
+    radii
+        .par_chunks_mut(spheres)
+        .zip(&top.order)
+        .with_min_len(GRIDS_PER_TASK)
+        .for_each(|(r, &g)| r.copy_from_slice(&radii_by_base[g as usize * spheres..][..spheres]));
 
     let radius_scale = radius_scale(radii.iter().fold(0f32, |m, &r| m.max(r)));
     let radii = if layout.half_radii {
@@ -328,45 +347,18 @@ pub fn build_from_layout(layout: &GridLayout) -> GridScene {
             lod: layout.levels,
             leaf_level: layout.leaf_level,
             sphere_count: spheres as u32,
-            inner_count: inner_count as u32,
+            inner_count: inner_vertex_count(layout.levels),
             edge_offset: layout.edge_offset,
             corner_offset: layout.corner_offset,
-            quantized_inner: layout.inner_codes.is_some() as u32,
-            inner_words: inner_words as u32,
-            edge_word: (grids * inner_words) as u32,
+            quantized_inner: layout.quantized_inner as u32,
+            inner_words: layout.inner_words,
+            edge_word: (grids * words) as u32,
             half_radii: layout.half_radii as u32,
             radius_scale,
             _pad: [0; 4],
         },
         base_triangle: top.order,
     }
-}
-
-/// The power of two that brings the largest radius to about 2^14 in half-float units: far
-/// from overflow (65504) and with the smallest radii still well above the subnormal range.
-fn radius_scale(max_radius: f32) -> f32 {
-    if max_radius <= 0.0 || !max_radius.is_finite() {
-        return 1.0;
-    }
-    2f32.powi(max_radius.log2().ceil() as i32 - 14)
-}
-
-/// The smallest half float, in units of `scale`, that is not below `r`.
-pub fn encode_radius(r: f32, scale: f32) -> u16 {
-    let v = r / scale;
-    let bits = v.to_bits();
-    let exponent = ((bits >> 23) & 0xff) as i32 - 127;
-    let h = if v <= 0.0 {
-        0
-    } else if exponent < -14 {
-        // Subnormal half: units of 2^-24, rounded up.
-        (v * 16_777_216.0).ceil() as u32
-    } else {
-        let mantissa = (bits & 0x7f_ffff) >> 13;
-        let rest = bits & 0x1fff;
-        (((exponent + 15) as u32) << 10 | mantissa) + (rest != 0) as u32
-    };
-    h.min(0x7bff) as u16
 }
 
 /// The point `step` steps along grid edge `e` (from corner `e` towards corner `e + 1`).
@@ -378,51 +370,13 @@ fn edge_point(e: usize, step: u32, n: u32) -> Lattice {
     }
 }
 
-/// The bounds of grid `g`, and its spheres' radii in breadth-first order: for each
-/// sub-triangle down to the leaf level, the largest distance from the mean of its corners
-/// (computed exactly as the traversal does) to any micro-vertex inside it, padded for the
-/// rounding of the GPU's own centre computation.
-fn grid_bounds_and_radii(layout: &GridLayout, g: usize, radii: &mut [f32], points: &mut Vec<Vec3>) -> Aabb {
-    let n = grid_size(layout.levels);
-    // Gather the grid once (into a buffer reused across grids); everything below reads it.
-    let slots = layout.slots(g);
-    points.clear();
-    points.extend(lattice_points(n).map(|p| layout.vertices[slots.slot(p) as usize]));
-    let pos = |p: Lattice| points[lattice_index(p[0], p[1], n) as usize];
-    let mut slot = 0;
-    for level in 0..=layout.leaf_level {
-        for index in 0..triangle_count(level) {
-            debug_assert_eq!(slot as u32, level_start(level) + index);
-            let [a, b, c] = sub_triangle(n, level, index);
-            let center = sphere_center(pos(a), pos(b), pos(c));
-            // Every lattice point of the sub-triangle: a + la e1 + lb e2, with its edges
-            // spanning m steps.
-            let m = (n >> level) as i64;
-            let e1 = [(b[0] as i64 - a[0] as i64) / m, (b[1] as i64 - a[1] as i64) / m];
-            let e2 = [(c[0] as i64 - a[0] as i64) / m, (c[1] as i64 - a[1] as i64) / m];
-            let mut r2 = 0f32;
-            for lb in 0..=m {
-                for la in 0..=m - lb {
-                    let p = [
-                        (a[0] as i64 + la * e1[0] + lb * e2[0]) as u32,
-                        (a[1] as i64 + la * e1[1] + lb * e2[1]) as u32,
-                    ];
-                    r2 = r2.max(pos(p).distance_squared(center));
-                }
-            }
-            let r = r2.sqrt();
-            radii[slot] = r + (r + center.abs().max_element()) * 1e-5;
-            slot += 1;
-        }
-    }
-    Aabb::from_points(points.iter().copied())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::mesh::scene::{cube, default_scene};
     use crate::subdiv::{subdivide, Scheme};
+    use gridrt_shared::grid_index::{lattice_points, level_start, sub_triangle};
+    use gridrt_shared::traverse::sphere_center;
 
     fn lattice_vertex(scene: &GridScene, slot: usize, p: Lattice) -> Vec3 {
         let view = scene.view();
@@ -501,20 +455,6 @@ mod tests {
                     }
                 }
             }
-        }
-    }
-
-    #[test]
-    fn half_radii_round_up() {
-        let scale = radius_scale(3.7);
-        for k in 0..100_000 {
-            let r = 3.7 * (k as f32 / 100_000.0).powi(3);
-            let back = gridrt_shared::sphere::decode_radius(encode_radius(r, scale) as u32, scale);
-            assert!(back >= r, "{r} encoded as {back}");
-            assert!(
-                back <= r * (1.0 + 1.0 / 1024.0) + scale * 2f32.powi(-24),
-                "{r} encoded as {back}"
-            );
         }
     }
 

@@ -1,0 +1,157 @@
+//! The bottom level's sphere radii: for each sub-triangle down to the leaf level, the largest
+//! distance from the mean of its corners (computed exactly as the traversal does) to any
+//! micro-vertex inside it. Also the half-float encoding of radii.
+
+use gridrt_shared::glam::{Vec3, Vec3A};
+use gridrt_shared::grid_index::{
+    grid_size, inner_index, inner_vertex_count, lattice_index, lattice_points, sub_triangle, triangle_count, Lattice,
+};
+use gridrt_shared::traverse::sphere_center;
+
+use super::GridLayout;
+use crate::bvh::Aabb;
+
+/// Which lattice points every sphere of a grid covers: the same for all grids of a build, so
+/// worked out once, and each grid's radii are then a plain loop over its gathered points.
+pub(super) struct SphereTable {
+    /// Lattice index of each inner vertex (in the order the inner area stores them), and the
+    /// lattice points on the grid's boundary (corners and edges) with their lattice indices.
+    inner: Vec<u16>,
+    boundary: Vec<(Lattice, u16)>,
+    /// Each sphere's corners (breadth-first order), as lattice indices.
+    corners: Vec<[u16; 3]>,
+    /// The lattice points under sphere `s` are `points[start[s] .. start[s + 1]]`.
+    start: Vec<u32>,
+    points: Vec<u16>,
+}
+
+impl SphereTable {
+    pub(super) fn new(levels: u32, leaf_level: u32) -> SphereTable {
+        let n = grid_size(levels);
+        let index = |p: [i64; 2]| lattice_index(p[0] as u32, p[1] as u32, n) as u16;
+        let mut table = SphereTable {
+            inner: vec![0; inner_vertex_count(levels) as usize],
+            boundary: Vec::new(),
+            corners: Vec::new(),
+            start: vec![0],
+            points: Vec::new(),
+        };
+        for p in lattice_points(n) {
+            let at = lattice_index(p[0], p[1], n) as u16;
+            if p[0] > 0 && p[1] > 0 && p[0] + p[1] < n {
+                table.inner[inner_index(p[0], p[1], n) as usize] = at;
+            } else {
+                table.boundary.push((p, at));
+            }
+        }
+        for level in 0..=leaf_level {
+            for t in 0..triangle_count(level) {
+                let c = sub_triangle(n, level, t).map(|p| [p[0] as i64, p[1] as i64]);
+                table.corners.push(c.map(index));
+                // Every lattice point of the sub-triangle: a + la e1 + lb e2, with its edges
+                // spanning m steps.
+                let m = (n >> level) as i64;
+                let e1 = [(c[1][0] - c[0][0]) / m, (c[1][1] - c[0][1]) / m];
+                let e2 = [(c[2][0] - c[0][0]) / m, (c[2][1] - c[0][1]) / m];
+                for lb in 0..=m {
+                    for la in 0..=m - lb {
+                        let p = [c[0][0] + la * e1[0] + lb * e2[0], c[0][1] + la * e1[1] + lb * e2[1]];
+                        table.points.push(index(p));
+                    }
+                }
+                table.start.push(table.points.len() as u32);
+            }
+        }
+        table
+    }
+}
+
+/// The bounds of grid `g`, and its spheres' radii in breadth-first order, each padded for the
+/// rounding of the GPU's own centre computation. `points` is scratch space.
+pub(super) fn grid_bounds_and_radii(
+    layout: &GridLayout,
+    table: &SphereTable,
+    g: usize,
+    radii: &mut [f32],
+    points: &mut Vec<Vec3A>,
+) -> Aabb {
+    // Gather the grid in lattice order: its own inner area is contiguous, the boundary is
+    // found through the header.
+    let slots = layout.slots(g);
+    points.resize(table.inner.len() + table.boundary.len(), Vec3A::ZERO);
+    let inner = &layout.vertices[g * table.inner.len()..(g + 1) * table.inner.len()];
+    for (&at, &v) in table.inner.iter().zip(inner) {
+        points[at as usize] = v.into();
+    }
+    for &(p, at) in &table.boundary {
+        points[at as usize] = layout.vertices[slots.slot(p) as usize].into();
+    }
+    let mut bounds = (points[0], points[0]);
+    for &p in points.iter() {
+        bounds = (bounds.0.min(p), bounds.1.max(p));
+    }
+    for (s, (corners, radius)) in table.corners.iter().zip(radii).enumerate() {
+        let [a, b, c] = corners.map(|k| Vec3::from(points[k as usize]));
+        // The centre exactly as the traversal computes it, then SIMD lanes for the scan.
+        let center = sphere_center(a, b, c);
+        let c = Vec3A::from(center);
+        let mut r2 = 0f32;
+        for &k in &table.points[table.start[s] as usize..table.start[s + 1] as usize] {
+            let d = points[k as usize] - c;
+            let d2 = d.dot(d);
+            r2 = if d2 > r2 { d2 } else { r2 };
+        }
+        let r = r2.sqrt();
+        *radius = r + (r + center.abs().max_element()) * 1e-5;
+    }
+    Aabb {
+        min: bounds.0.into(),
+        max: bounds.1.into(),
+    }
+}
+
+/// The power of two that brings the largest radius to about 2^14 in half-float units: far
+/// from overflow (65504) and with the smallest radii still well above the subnormal range.
+pub(super) fn radius_scale(max_radius: f32) -> f32 {
+    if max_radius <= 0.0 || !max_radius.is_finite() {
+        return 1.0;
+    }
+    2f32.powi(max_radius.log2().ceil() as i32 - 14)
+}
+
+/// The smallest half float, in units of `scale`, that is not below `r`.
+pub fn encode_radius(r: f32, scale: f32) -> u16 {
+    let v = r / scale;
+    let bits = v.to_bits();
+    let exponent = ((bits >> 23) & 0xff) as i32 - 127;
+    let h = if v <= 0.0 {
+        0
+    } else if exponent < -14 {
+        // Subnormal half: units of 2^-24, rounded up.
+        (v * 16_777_216.0).ceil() as u32
+    } else {
+        let mantissa = (bits & 0x7f_ffff) >> 13;
+        let rest = bits & 0x1fff;
+        (((exponent + 15) as u32) << 10 | mantissa) + (rest != 0) as u32
+    };
+    h.min(0x7bff) as u16
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn half_radii_round_up() {
+        let scale = radius_scale(3.7);
+        for k in 0..100_000 {
+            let r = 3.7 * (k as f32 / 100_000.0).powi(3);
+            let back = gridrt_shared::sphere::decode_radius(encode_radius(r, scale) as u32, scale);
+            assert!(back >= r, "{r} encoded as {back}");
+            assert!(
+                back <= r * (1.0 + 1.0 / 1024.0) + scale * 2f32.powi(-24),
+                "{r} encoded as {back}"
+            );
+        }
+    }
+}
