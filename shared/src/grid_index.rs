@@ -243,12 +243,6 @@ impl GridSlots {
         }
     }
 
-    /// Whether lattice point `p` is one of the grid's own inner vertices.
-    #[inline]
-    pub fn is_inner(&self, p: Lattice) -> bool {
-        p[0] > 0 && p[1] > 0 && p[0] + p[1] < self.n
-    }
-
     /// Where the vertex at lattice point `(i, j)` lives in the vertex buffer: the grid's own
     /// inner area, the shared area of one of its base edges, or the shared corner area.
     #[inline]
