@@ -8,7 +8,7 @@
 //! not move.
 
 use gridrt_shared::glam::Vec3;
-use gridrt_shared::grid_index::{grid_size, inner_index, inner_vertex_count};
+use gridrt_shared::grid_index::{grid_size, inner_points, inner_vertex_count};
 use gridrt_shared::quantize::{dequantize, inner_words, unit_from_exponent, CODE_MAX};
 use gridrt_shared::traverse::sphere_center;
 use rayon::prelude::*;
@@ -38,24 +38,15 @@ impl Subdivided {
                     let corner = |p| this.positions[this.vertex(g, p) as usize];
                     let origin = sphere_center(corner([0, 0]), corner([n, 0]), corner([0, n]));
                     inner.clear();
-                    for j in 1..n - 1 {
-                        for i in 1..n - j {
-                            debug_assert_eq!(inner_index(i, j, n) as usize, inner.len());
-                            inner.push(this.positions[this.vertex(g, [i, j]) as usize]);
-                        }
-                    }
+                    inner.extend(inner_points(n).map(|p| this.positions[this.vertex(g, p) as usize]));
                     quantize_grid(origin, inner, codes, snapped);
                 });
         }
         // Each inner vertex belongs to one grid, so these writes never collide.
         for g in 0..grids {
-            let mut k = 0;
-            for j in 1..n.saturating_sub(1) {
-                for i in 1..n - j {
-                    let id = self.vertex(g, [i, j]) as usize;
-                    self.positions[id] = snapped[g * inner_count + k];
-                    k += 1;
-                }
+            for (p, &v) in inner_points(n).zip(&snapped[g * inner_count..]) {
+                let id = self.vertex(g, p) as usize;
+                self.positions[id] = v;
             }
         }
         self.inner_codes = Some(codes);
@@ -152,9 +143,7 @@ mod tests {
             for g in 0..exact.grid_count() {
                 let corner = |p| exact.positions[exact.vertex(g, p) as usize];
                 let origin = sphere_center(corner([0, 0]), corner([n, 0]), corner([0, n]));
-                let reach = (0..=n)
-                    .flat_map(|j| (0..=n - j).map(move |i| [i, j]))
-                    .filter(|&[i, j]| i > 0 && j > 0 && i + j < n)
+                let reach = inner_points(n)
                     .map(|p| {
                         (exact.positions[exact.vertex(g, p) as usize] - origin)
                             .abs()

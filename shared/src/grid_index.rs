@@ -78,6 +78,11 @@ pub fn lattice_points(n: u32) -> impl Iterator<Item = Lattice> {
     (0..=n).flat_map(move |j| (0..=n - j).map(move |i| [i, j]))
 }
 
+/// The lattice points strictly inside a grid of size `n`, in [`inner_index`] order.
+pub fn inner_points(n: u32) -> impl Iterator<Item = Lattice> {
+    (1..n.saturating_sub(1)).flat_map(move |j| (1..n - j).map(move |i| [i, j]))
+}
+
 /// The inverse of [`lattice_index`].
 pub const fn lattice_from_index(index: u32, n: u32) -> Lattice {
     let mut j = 0;
@@ -438,16 +443,24 @@ mod tests {
 
     #[test]
     fn inner_index_is_dense() {
-        for levels in 2..=5 {
+        for levels in 0..=5 {
             let n = grid_size(levels);
             let mut k = 0;
-            for j in 1..n - 1 {
+            for j in 1..n.saturating_sub(1) {
                 for i in 1..n - j {
                     assert_eq!(inner_index(i, j, n), k);
                     k += 1;
                 }
             }
             assert_eq!(k, inner_vertex_count(levels));
+            // The iterator walks them in the same order, and they are the points off every edge.
+            let walked: Vec<Lattice> = inner_points(n).collect();
+            assert_eq!(walked.len() as u32, k);
+            for (k, &[i, j]) in walked.iter().enumerate() {
+                assert_eq!(inner_index(i, j, n), k as u32);
+            }
+            let off_edges = lattice_points(n).filter(|&[i, j]| i > 0 && j > 0 && i + j < n).count();
+            assert_eq!(off_edges as u32, k);
         }
     }
 }

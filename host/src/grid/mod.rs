@@ -7,7 +7,7 @@ use std::collections::HashMap;
 use anyhow::{bail, Result};
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::grid_index::{
-    edge_vertex_count, grid_size, inner_index, inner_vertex_count, sphere_count, triangle_count, GridSlots, Lattice,
+    edge_vertex_count, grid_size, inner_points, inner_vertex_count, sphere_count, triangle_count, GridSlots, Lattice,
 };
 use gridrt_shared::layout::{BvhNode, GridHeader, GridParams, MAX_HEADER_ID};
 use gridrt_shared::quantize;
@@ -224,15 +224,7 @@ pub fn layout(base: &Mesh, sub: &Subdivided, options: &GridOptions) -> Result<Gr
     let corner_offset = edge_offset + edge_owner.len() as u32 * edge_vertex_count(levels);
     let mut vertices: Vec<Vec3> = Vec::with_capacity(corner_offset as usize + base.positions.len());
     for g in 0..grids {
-        for j in 1..n.saturating_sub(1) {
-            for i in 1..n - j {
-                debug_assert_eq!(
-                    inner_index(i, j, n) as usize,
-                    vertices.len() % inner_count.max(1) as usize
-                );
-                vertices.push(sub.positions[sub.vertex(g, [i, j]) as usize]);
-            }
-        }
+        vertices.extend(inner_points(n).map(|p| sub.positions[sub.vertex(g, p) as usize]));
     }
     for &(g, e) in &edge_owner {
         let t = base.triangles[g];

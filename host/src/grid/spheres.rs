@@ -4,7 +4,7 @@
 
 use gridrt_shared::glam::{Vec3, Vec3A};
 use gridrt_shared::grid_index::{
-    grid_size, inner_index, inner_vertex_count, lattice_index, lattice_points, sub_triangle, triangle_count, Lattice,
+    grid_size, inner_points, lattice_index, lattice_points, sub_triangle, triangle_count, Lattice,
 };
 use gridrt_shared::traverse::sphere_center;
 
@@ -29,21 +29,17 @@ impl SphereTable {
     pub(super) fn new(levels: u32, leaf_level: u32) -> SphereTable {
         let n = grid_size(levels);
         let index = |p: [i64; 2]| lattice_index(p[0] as u32, p[1] as u32, n) as u16;
+        let at = |p: Lattice| lattice_index(p[0], p[1], n) as u16;
         let mut table = SphereTable {
-            inner: vec![0; inner_vertex_count(levels) as usize],
-            boundary: Vec::new(),
+            inner: inner_points(n).map(at).collect(),
+            boundary: lattice_points(n)
+                .filter(|&[i, j]| i == 0 || j == 0 || i + j == n)
+                .map(|p| (p, at(p)))
+                .collect(),
             corners: Vec::new(),
             start: vec![0],
             points: Vec::new(),
         };
-        for p in lattice_points(n) {
-            let at = lattice_index(p[0], p[1], n) as u16;
-            if p[0] > 0 && p[1] > 0 && p[0] + p[1] < n {
-                table.inner[inner_index(p[0], p[1], n) as usize] = at;
-            } else {
-                table.boundary.push((p, at));
-            }
-        }
         for level in 0..=leaf_level {
             for t in 0..triangle_count(level) {
                 let c = sub_triangle(n, level, t).map(|p| [p[0] as i64, p[1] as i64]);
