@@ -4,6 +4,7 @@
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
+use gridrt_shared::grid_index::MICRO_TRIANGLES;
 use gridrt_shared::layout::{FrameParams, HitRecord, RayRecord, TraceParams, TRACE_WORKGROUP_SIZE, WORKGROUP_SIZE};
 use wgpu::util::DeviceExt;
 
@@ -195,6 +196,7 @@ impl Gpu {
                 self.storage("grid header", bytemuck::cast_slice(&s.headers))?,
                 self.storage("grid vertex", bytemuck::cast_slice(&s.vertices))?,
                 self.storage("sphere radius", bytemuck::cast_slice(&s.radii))?,
+                self.storage("static index list", bytemuck::cast_slice(&MICRO_TRIANGLES))?,
             ],
         };
         Ok(GpuScene { scene, buffers })

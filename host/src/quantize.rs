@@ -105,7 +105,7 @@ mod tests {
     use super::*;
     use crate::mesh::scene::default_scene;
     use crate::subdiv::{subdivide, Scheme};
-    use gridrt_shared::quantize::read_half;
+    use gridrt_shared::quantize::{read_half, read_half_triple};
 
     #[test]
     fn halves_round_trip() {
@@ -116,6 +116,11 @@ mod tests {
         }
         for (h, &v) in values.iter().enumerate() {
             assert_eq!(read_half(&words, h as u32), v);
+        }
+        // Triples starting on either half of a word, the last one ending the array.
+        for h in 0..values.len() as u32 - 2 {
+            let want = [0, 1, 2].map(|d| read_half(&words, h + d));
+            assert_eq!(read_half_triple(&words, h), want, "triple at half {h}");
         }
     }
 

@@ -35,6 +35,7 @@ pub fn render_triangles(
 }
 
 /// Grid primitives: top-level BVH over grids, sphere hierarchy inside each.
+#[allow(clippy::too_many_arguments)] // one per binding
 #[spirv(compute(threads(8, 8, 1)))]
 pub fn render_grids(
     #[spirv(global_invocation_id)] id: UVec3,
@@ -43,7 +44,8 @@ pub fn render_grids(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] headers: &[GridHeader],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] vertices: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] radii: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] image: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] micro_triangles: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] image: &mut [u32],
 ) {
     let cam = &params.camera;
     if id.x >= cam.width || id.y >= cam.height {
@@ -54,6 +56,7 @@ pub fn render_grids(
         headers,
         vertices,
         radii,
+        micro_triangles,
         params: params.grid,
     };
     let hit = trace_grids(nodes, &scene, &ray, T_FAR);
@@ -110,14 +113,16 @@ pub fn trace_grids_rays(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] headers: &[GridHeader],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] vertices: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] radii: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] rays: &[RayRecord],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] hits: &mut [HitRecord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] micro_triangles: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] rays: &[RayRecord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] hits: &mut [HitRecord],
 ) {
     if let Some(index) = ray_index(id, params) {
         let scene = GridScene {
             headers,
             vertices,
             radii,
+            micro_triangles,
             params: params.grid,
         };
         hits[index] = record(&trace_grids(nodes, &scene, &ray_of(&rays[index]), rays[index].t_max));

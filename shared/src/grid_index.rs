@@ -256,8 +256,10 @@ impl GridSlots {
         let n = self.n;
         let k = n - i - j;
         let along = |e: usize, s: u32| self.edge_start[e].wrapping_add(s.wrapping_mul(self.edge_step[e]));
-        // Corners first, then the three edges, then the inside.
-        if i == 0 && j == 0 {
+        // The inside first (most of a leaf's vertices), then the corners and the three edges.
+        if i != 0 && j != 0 && k != 0 {
+            self.inner_first + inner_index(i, j, n) * self.stride
+        } else if i == 0 && j == 0 {
             self.corners[0]
         } else if i == n {
             self.corners[1]
@@ -267,10 +269,8 @@ impl GridSlots {
             along(0, i)
         } else if k == 0 {
             along(1, j)
-        } else if i == 0 {
-            along(2, k)
         } else {
-            self.inner_first + inner_index(i, j, n) * self.stride
+            along(2, k)
         }
     }
 }

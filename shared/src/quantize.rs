@@ -37,6 +37,18 @@ pub fn read_half(words: &[u32], h: u32) -> i32 {
     ((w << 16) as i32) >> 16
 }
 
+/// The three signed 16-bit halves `h, h + 1, h + 2` of a packed word array, from the two
+/// words that hold them.
+#[inline]
+pub fn read_half_triple(words: &[u32], h: u32) -> [i32; 3] {
+    let w0 = words[(h / 2) as usize];
+    let w1 = words[(h / 2 + 1) as usize];
+    let odd = h & 1 != 0;
+    let s = 16 * (h & 1);
+    let sext = |w: u32| ((w << 16) as i32) >> 16;
+    [sext(w0 >> s), sext(if odd { w1 } else { w0 >> 16 }), sext(w1 >> s)]
+}
+
 /// The unit `2^(biased - 127)` from its biased exponent.
 #[inline]
 pub fn unit_from_exponent(biased: u32) -> f32 {

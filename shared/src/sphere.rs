@@ -26,15 +26,21 @@ pub fn decode_radius(half: u32, scale: f32) -> f32 {
 /// away, which is exactly the case of the deep levels of a grid's hierarchy.
 #[inline]
 pub fn intersect_sphere(center: Vec3, radius: f32, ray: &Ray, t_max: f32) -> f32 {
-    let dd = ray.dir.dot(ray.dir);
+    intersect_sphere_scaled(center, radius, ray, 1.0 / ray.dir.dot(ray.dir), t_max)
+}
+
+/// [`intersect_sphere`] given `inv_dir_len2 = 1 / |dir|^2`, which a grid visit computes once
+/// for all its spheres (a field of the ray would slow down every other ray test).
+#[inline]
+pub fn intersect_sphere_scaled(center: Vec3, radius: f32, ray: &Ray, inv_dir_len2: f32, t_max: f32) -> f32 {
     let oc = center - ray.origin;
-    let b = oc.dot(ray.dir) / dd;
+    let b = oc.dot(ray.dir) * inv_dir_len2;
     let closest = oc - ray.dir * b;
     let h = radius * radius - closest.dot(closest);
     if h < 0.0 {
         return T_FAR;
     }
-    let s = (h / dd).sqrt();
+    let s = (h * inv_dir_len2).sqrt();
     let t_enter = b - s;
     let t_exit = b + s;
     if t_exit >= 0.0 && t_enter <= t_max {

@@ -5,12 +5,13 @@
 use crate::aabb::intersect_aabb;
 use crate::glam::Vec3;
 use crate::grid_index::{
-    level_start, micro_table_offset, triangle_count, vertex_count, GridSlots, Lattice, MAX_LEAF_DEPTH, MICRO_TRIANGLES,
+    lattice_from_index, level_start, micro_table_offset, triangle_count, vertex_count, GridSlots, Lattice,
+    MAX_LEAF_DEPTH,
 };
 use crate::layout::{BvhNode, GridHeader, GridParams, Hit};
-use crate::quantize::{dequantize, read_half, unit_from_exponent};
+use crate::quantize::{dequantize, read_half, read_half_triple, unit_from_exponent};
 use crate::ray::{Ray, T_FAR};
-use crate::sphere::{decode_radius, intersect_sphere};
+use crate::sphere::{decode_radius, intersect_sphere_scaled};
 use crate::triangle::{intersect_sheared, intersect_triangle, shear, triangle_normal};
 
 /// Deepest BVH the traversal can walk; the builder never makes a deeper one.
@@ -33,13 +34,18 @@ pub fn traverse_bvh<P: LeafPrimitives>(nodes: &[BvhNode], prims: &P, ray: &Ray, 
     if nodes.is_empty() {
         return;
     }
+    let root = nodes[0];
+    if intersect_aabb(Vec3::from(root.min), Vec3::from(root.max), ray, hit.t) == T_FAR {
+        // Before any working memory is made: clearing it would cost a missing ray more than
+        // the box test.
+        return;
+    }
     let mut stack = [0u32; MAX_BVH_DEPTH];
     let mut stack_t = [0f32; MAX_BVH_DEPTH];
     let mut sp = 0usize;
     let mut scratch = prims.scratch();
-    let root = nodes[0];
     let mut node = 0u32;
-    let mut live = intersect_aabb(Vec3::from(root.min), Vec3::from(root.max), ray, hit.t) < T_FAR;
+    let mut live = true;
     while live {
         let n = nodes[node as usize];
         if n.is_leaf() {
@@ -153,6 +159,9 @@ pub struct GridScene<'a> {
     /// Sphere radii in breadth-first order per grid: `f32` bits, or half floats two to a
     /// word (see `GridParams::half_radii`).
     pub radii: &'a [u32],
+    /// The static index list, [`crate::grid_index::MICRO_TRIANGLES`]: read where it lives (a storage buffer on
+    /// the GPU) rather than copied per ray, which costs a GPU thread 85 private words.
+    pub micro_triangles: &'a [u32],
     pub params: GridParams,
 }
 
@@ -177,12 +186,8 @@ pub struct GridScratch {
     stack: [u32; GRID_STACK],
     stack_corner: [u32; GRID_STACK],
     stack_t: [f32; GRID_STACK],
-    /// A leaf's vertices: world positions for the normal of a hit, sheared ones for the tests.
-    verts: [Vec3; LEAF_VERTICES],
+    /// A leaf's vertices in the ray's sheared frame.
     sheared: [Vec3; LEAF_VERTICES],
-    /// The static index list, copied out of the constant once (indexing a constant array
-    /// at run time makes rust-gpu copy it at every access).
-    table: [u32; MICRO_TRIANGLES.len()],
 }
 
 /// Most vertices a leaf can hold: a sub-triangle subdivided `MAX_LEAF_DEPTH` times.
@@ -248,12 +253,7 @@ impl GridScene<'_> {
             return load_vec3_bits(self.vertices, at);
         }
         let h = at & !INNER_CODES;
-        let code = [
-            read_half(self.vertices, h),
-            read_half(self.vertices, h + 1),
-            read_half(self.vertices, h + 2),
-        ];
-        dequantize(grid.origin, code, grid.unit)
+        dequantize(grid.origin, read_half_triple(self.vertices, h), grid.unit)
     }
 
     /// Radius of sphere `node` (breadth-first id) of `grid`.
@@ -285,6 +285,11 @@ impl GridScene<'_> {
     ) {
         let m = 1u32 << k;
         let mut slot = 0usize;
+        // In the sheared frame the ray is the z axis; a leaf whose vertices all lie strictly on
+        // one side of it (right, left, above or below: one bit each, kept while every vertex
+        // so far agrees) holds no triangle the ray can cross. This catches about half the
+        // leaves whose sphere the ray enters, before their 16 triangle tests.
+        let mut one_side = 0xfu32;
         let mut lb = 0u32;
         while lb <= m {
             let mut la = 0u32;
@@ -293,13 +298,19 @@ impl GridScene<'_> {
                     (corner[0] + la as i32 * step) as u32,
                     (corner[1] + lb as i32 * step) as u32,
                 ];
-                let v = self.vertex(open, p);
-                scratch.verts[slot] = v;
-                scratch.sheared[slot] = shear(v, ray);
+                let sv = shear(self.vertex(open, p), ray);
+                scratch.sheared[slot] = sv;
+                one_side &= (sv.x > 0.0) as u32
+                    | ((sv.x < 0.0) as u32) << 1
+                    | ((sv.y > 0.0) as u32) << 2
+                    | ((sv.y < 0.0) as u32) << 3;
                 slot += 1;
                 la += 1;
             }
             lb += 1;
+        }
+        if one_side != 0 {
+            return;
         }
         let offset = micro_table_offset(k);
         let count = triangle_count(k);
@@ -307,7 +318,7 @@ impl GridScene<'_> {
         let mut best = [LEAF_VERTICES as u32; 3];
         let mut t = 0;
         while t < count {
-            let packed = scratch.table[(offset + t) as usize];
+            let packed = self.micro_triangles[(offset + t) as usize];
             let i0 = corner_slot(packed, 0);
             let i1 = corner_slot(packed, 1);
             let i2 = corner_slot(packed, 2);
@@ -322,9 +333,16 @@ impl GridScene<'_> {
             t += 1;
         }
         if best[0] != LEAF_VERTICES as u32 {
-            let v = &scratch.verts;
-            let n = triangle_normal(v[best[0] as usize], v[best[1] as usize], v[best[2] as usize]);
-            hit.normal = n.to_array();
+            // Only the closest triangle needs world positions: load its three again.
+            let world = |slot: u32| {
+                let [la, lb] = lattice_from_index(slot, m);
+                let p = [
+                    (corner[0] + la as i32 * step) as u32,
+                    (corner[1] + lb as i32 * step) as u32,
+                ];
+                self.vertex(open, p)
+            };
+            hit.normal = triangle_normal(world(best[0]), world(best[1]), world(best[2])).to_array();
         }
     }
 
@@ -339,7 +357,8 @@ impl GridScene<'_> {
         } else {
             lod
         };
-        if intersect_sphere(open.origin, self.radius(grid, 0), ray, hit.t) == T_FAR {
+        let inv_dir_len2 = 1.0 / ray.dir.dot(ray.dir);
+        if intersect_sphere_scaled(open.origin, self.radius(grid, 0), ray, inv_dir_len2, hit.t) == T_FAR {
             return;
         }
         let mut sp = 1usize;
@@ -383,7 +402,7 @@ impl GridScene<'_> {
             // first so the nearest is popped next.
             let r = |c: u32| self.radius(grid, first_child + c);
             let entry = |center: Vec3, child: u32| Entry {
-                t: intersect_sphere(center, r(child), ray, hit.t),
+                t: intersect_sphere_scaled(center, r(child), ray, inv_dir_len2, hit.t),
                 child,
             };
             let mut e0 = entry(sphere_center(pa, pab, pca), 0);
@@ -448,9 +467,7 @@ impl LeafPrimitives for GridScene<'_> {
             stack: [0; GRID_STACK],
             stack_corner: [0; GRID_STACK],
             stack_t: [0.0; GRID_STACK],
-            verts: [Vec3::ZERO; LEAF_VERTICES],
             sheared: [Vec3::ZERO; LEAF_VERTICES],
-            table: MICRO_TRIANGLES,
         }
     }
 

@@ -64,6 +64,7 @@ impl GridScene {
             headers: &self.headers,
             vertices: &self.vertices,
             radii: &self.radii,
+            micro_triangles: &gridrt_shared::grid_index::MICRO_TRIANGLES,
             params: self.params,
         }
     }
