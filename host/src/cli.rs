@@ -81,6 +81,10 @@ pub struct BuildArgs {
     /// Store sphere radii as half floats (rounded up) instead of 32-bit floats.
     #[arg(long)]
     pub half_radii: bool,
+    /// Store no leaf thicknesses and cull leaves by their spheres alone (smaller, faster to
+    /// build, slower to trace; see README).
+    #[arg(long)]
+    pub no_leaf_footprint: bool,
     /// How each grid stores its inner vertices: 16-bit codes around the grid's centre (a
     /// vertex moves by at most 2^-15 of the grid's radius; edges and corners stay exact), or
     /// 32-bit floats. Both representations get the same positions.
@@ -99,6 +103,7 @@ impl BuildArgs {
         grid::GridOptions {
             excluded_levels: self.excluded_levels,
             half_radii: self.half_radii,
+            leaf_footprint: !self.no_leaf_footprint,
         }
     }
 }

@@ -143,7 +143,13 @@ pub struct GridParams {
     /// otherwise one `f32` per word.
     pub half_radii: u32,
     pub radius_scale: f32,
-    pub _pad: [u32; 4],
+    /// Word of the radius buffer where the leaves' thicknesses begin: a byte per leaf, the
+    /// thickness in 255ths of the leaf's radius (see `crate::footprint`), `4^leaf_level` bytes
+    /// per grid in whole words, grids in order.
+    pub thickness_word: u32,
+    /// Whether leaf thicknesses are stored and leaves culled by their footprint.
+    pub leaf_footprint: u32,
+    pub _pad: [u32; 2],
 }
 
 /// Everything one dispatch needs besides geometry.

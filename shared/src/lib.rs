@@ -9,6 +9,7 @@ pub use spirv_std::glam;
 
 pub mod aabb;
 pub mod camera;
+pub mod footprint;
 pub mod grid_index;
 pub mod layout;
 pub mod quantize;

@@ -3,6 +3,7 @@
 //! bottom-level loop over its sphere hierarchy).
 
 use crate::aabb::intersect_aabb;
+use crate::footprint::FootprintFrame;
 use crate::glam::Vec3;
 use crate::grid_index::{
     lattice_from_index, level_start, micro_table_offset, triangle_count, vertex_count, GridSlots, Lattice,
@@ -267,6 +268,16 @@ impl GridScene<'_> {
         decode_radius(half, self.params.radius_scale)
     }
 
+    /// Thickness of leaf `leaf` (its index at the stored leaf level) of `grid`, whose sphere
+    /// has radius `radius`.
+    #[inline]
+    pub fn thickness(&self, grid: u32, leaf: u32, radius: f32) -> f32 {
+        let words_per_grid = triangle_count(self.params.leaf_level).div_ceil(4);
+        let word = self.radii[(self.params.thickness_word + grid * words_per_grid + leaf / 4) as usize];
+        let code = (word >> (8 * (leaf & 3))) & 0xff;
+        radius * (code as f32 * (1.0 / 255.0))
+    }
+
     /// Tests the `4^k` micro-triangles of a leaf sub-triangle: its first corner is `corner`,
     /// and one step of its own lattice (`2^k` a side) is `step` grid-lattice units along both
     /// axes (negative for an inverted sub-triangle). Its vertices are loaded once; the static
@@ -358,9 +369,13 @@ impl GridScene<'_> {
             lod
         };
         let inv_dir_len2 = 1.0 / ray.dir.dot(ray.dir);
-        if intersect_sphere_scaled(open.origin, self.radius(grid, 0), ray, inv_dir_len2, hit.t) == T_FAR {
+        let root_radius = self.radius(grid, 0);
+        if intersect_sphere_scaled(open.origin, root_radius, ray, inv_dir_len2, hit.t) == T_FAR {
             return;
         }
+        // Every vertex of the grid lies within the root sphere.
+        let frame = FootprintFrame::new(ray);
+        let slack = FootprintFrame::slack((open.origin - ray.origin).abs().max_element() + root_radius);
         let mut sp = 1usize;
         scratch.stack[0] = 0;
         scratch.stack_corner[0] = pack_corner([0, 0], false);
@@ -409,6 +424,25 @@ impl GridScene<'_> {
             let mut e1 = entry(sphere_center(pab, pb, pbc), 1);
             let mut e2 = entry(sphere_center(pca, pbc, pc), 2);
             let mut e3 = entry(sphere_center(pbc, pca, pab), 3);
+            if self.params.leaf_footprint != 0 && level + 1 == leaf_level && leaf_level == self.params.leaf_level {
+                // The children are stored leaves: drop those whose footprint misses the ray
+                // before their vertices are loaded.
+                let (sa, sb, sc) = (shear(pa, ray), shear(pb, ray), shear(pc, ray));
+                let (sab, sbc, sca) = (shear(pab, ray), shear(pbc, ray), shear(pca, ray));
+                let d = |c: u32| self.thickness(grid, 4 * index + c, r(c));
+                if e0.t < T_FAR && !frame.overlaps(sa, sab, sca, d(0), slack) {
+                    e0.t = T_FAR;
+                }
+                if e1.t < T_FAR && !frame.overlaps(sab, sb, sbc, d(1), slack) {
+                    e1.t = T_FAR;
+                }
+                if e2.t < T_FAR && !frame.overlaps(sca, sbc, sc, d(2), slack) {
+                    e2.t = T_FAR;
+                }
+                if e3.t < T_FAR && !frame.overlaps(sbc, sca, sab, d(3), slack) {
+                    e3.t = T_FAR;
+                }
+            }
             sort_descending(&mut e0, &mut e1);
             sort_descending(&mut e2, &mut e3);
             sort_descending(&mut e0, &mut e2);

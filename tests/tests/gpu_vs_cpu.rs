@@ -90,6 +90,7 @@ fn default_scene_gpu_equals_cpu() {
     let options = gridrt::grid::GridOptions {
         excluded_levels: 1,
         half_radii: true,
+        leaf_footprint: false,
     };
     let pair = gridrt_tests::build_pair_from(&default_scene(), 3, 3, Scheme::Loop, &options, false);
     compare(

@@ -140,12 +140,17 @@ fn default_scene_flat_and_other_depths() {
 /// 32-bit inner vertices.
 #[test]
 fn default_scene_grid_variants() {
-    for (excluded_levels, half_radii, quantized) in
-        [(2, true, true), (1, false, true), (3, true, true), (2, false, false)]
-    {
+    for (excluded_levels, half_radii, quantized, leaf_footprint) in [
+        (2, true, true, true),
+        (1, false, true, true),
+        (3, true, true, true),
+        (2, false, false, true),
+        (2, false, true, false),
+    ] {
         let options = GridOptions {
             excluded_levels,
             half_radii,
+            leaf_footprint,
         };
         let a = compare_with(
             &default_scene(),

@@ -32,6 +32,9 @@ pub struct GridOptions {
     pub excluded_levels: u32,
     /// Store radii as half floats (rounded up, so spheres only grow) instead of `f32`.
     pub half_radii: bool,
+    /// Store each leaf's thickness, so the traversal can cull leaves by their footprint
+    /// (see `gridrt_shared::footprint`) before loading their vertices.
+    pub leaf_footprint: bool,
 }
 
 impl Default for GridOptions {
@@ -39,6 +42,7 @@ impl Default for GridOptions {
         GridOptions {
             excluded_levels: DEFAULT_EXCLUDED_LEVELS,
             half_radii: false,
+            leaf_footprint: true,
         }
     }
 }
@@ -51,7 +55,8 @@ pub struct GridScene {
     /// Words: each grid's inner area (`f32` triples or 16-bit codes), then the edge and corner
     /// areas as `f32` triples (see `gridrt_shared::traverse::GridScene`).
     pub vertices: Vec<u32>,
-    /// Sphere radii: `f32` bits, or half floats two per word (see `GridParams::half_radii`).
+    /// Sphere radii: `f32` bits, or half floats two per word (see `GridParams::half_radii`);
+    /// then the leaves' thickness codes (see `GridParams::thickness_word`).
     pub radii: Vec<u32>,
     pub params: GridParams,
     /// `base_triangle[slot]`: which base triangle the grid stored at `slot` is.
@@ -99,7 +104,11 @@ impl GridScene {
             ("inner_vertices", inner * 4),
             ("edge_vertices", edge * 4),
             ("corner_vertices", corner * 4),
-            ("sphere_radii", std::mem::size_of_val(self.radii.as_slice())),
+            ("sphere_radii", self.params.thickness_word as usize * 4),
+            (
+                "leaf_thickness",
+                (self.radii.len() - self.params.thickness_word as usize) * 4,
+            ),
         ]
     }
 }
@@ -121,6 +130,7 @@ pub struct GridLayout {
     pub levels: u32,
     pub leaf_level: u32,
     pub half_radii: bool,
+    pub leaf_footprint: bool,
     pub headers: Vec<GridHeader>,
     /// Inner area (grid after grid), edge area, corner area: every position, decoded.
     pub vertices: Vec<Vec3>,
@@ -254,6 +264,7 @@ pub fn layout(base: &Mesh, sub: &Subdivided, options: &GridOptions) -> Result<Gr
         levels,
         leaf_level,
         half_radii: options.half_radii,
+        leaf_footprint: options.leaf_footprint,
         headers,
         vertices,
         edge_offset,
@@ -284,13 +295,23 @@ pub fn build_from_layout(layout: GridLayout) -> GridScene {
     let table = SphereTable::new(layout.levels, layout.leaf_level);
     let mut boxes = vec![Aabb::EMPTY; grids];
     let mut radii_by_base = vec![0f32; grids * spheres];
+    let leaves = match layout.leaf_footprint {
+        true => triangle_count(layout.leaf_level) as usize,
+        false => 0,
+    };
+    // Thickness codes, a byte per leaf, in whole words per grid.
+    let leaf_words = leaves.div_ceil(4);
+    // (A byte per grid even without any, since chunks cannot be empty.)
+    let leaf_bytes = (leaf_words * 4).max(1);
+    let mut thickness_by_base = vec![0u8; grids * leaf_bytes];
     boxes
         .par_iter_mut()
         .zip(radii_by_base.par_chunks_mut(spheres))
+        .zip(thickness_by_base.par_chunks_mut(leaf_bytes))
         .enumerate()
         .with_min_len(GRIDS_PER_TASK)
-        .for_each_init(Vec::new, |points, (g, (bounds, radii))| {
-            *bounds = grid_bounds_and_radii(&layout, &table, g, radii, points)
+        .for_each_init(Vec::new, |points, (g, ((bounds, radii), thickness))| {
+            *bounds = grid_bounds_and_radii(&layout, &table, g, radii, &mut thickness[..leaves], points)
         });
     let top = bvh::build(&boxes, &top_level_params());
 
@@ -318,7 +339,7 @@ pub fn build_from_layout(layout: GridLayout) -> GridScene {
         .for_each(|(r, &g)| r.copy_from_slice(&radii_by_base[g as usize * spheres..][..spheres]));
 
     let radius_scale = radius_scale(radii.iter().fold(0f32, |m, &r| m.max(r)));
-    let radii = if layout.half_radii {
+    let mut radii: Vec<u32> = if layout.half_radii {
         radii
             .chunks(2)
             .map(|pair| {
@@ -330,6 +351,20 @@ pub fn build_from_layout(layout: GridLayout) -> GridScene {
     } else {
         radii.iter().map(|r| r.to_bits()).collect()
     };
+    let thickness_word = radii.len() as u32;
+    if leaf_words > 0 {
+        radii.resize(radii.len() + grids * leaf_words, 0);
+        radii[thickness_word as usize..]
+            .par_chunks_mut(leaf_words)
+            .zip(&top.order)
+            .with_min_len(GRIDS_PER_TASK)
+            .for_each(|(words, &g)| {
+                let bytes = &thickness_by_base[g as usize * leaf_bytes..][..leaf_words * 4];
+                for (w, b) in words.iter_mut().zip(bytes.chunks(4)) {
+                    *w = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+                }
+            });
+    }
     GridScene {
         nodes: top.nodes,
         headers,
@@ -347,8 +382,10 @@ pub fn build_from_layout(layout: GridLayout) -> GridScene {
             inner_words: layout.inner_words,
             edge_word: (grids * words) as u32,
             half_radii: layout.half_radii as u32,
+            leaf_footprint: layout.leaf_footprint as u32,
             radius_scale,
-            _pad: [0; 4],
+            thickness_word,
+            _pad: [0; 2],
         },
         base_triangle: top.order,
     }
@@ -426,6 +463,7 @@ mod tests {
             let options = GridOptions {
                 excluded_levels: excluded,
                 half_radii,
+                ..Default::default()
             };
             let scene = build(&mesh, &sub, &options).unwrap();
             let n = grid_size(levels);
@@ -451,12 +489,73 @@ mod tests {
         }
     }
 
+    /// Every micro-vertex of a leaf lies within the leaf's stored thickness of its flat place
+    /// (the same lattice point of the flat triangle of the leaf's corners), hence of that
+    /// triangle; and the thickness is no larger than it has to be.
+    #[test]
+    fn leaf_thickness_is_conservative() {
+        for (mesh, levels, excluded, half_radii) in [
+            (default_scene(), 3, 2, false),
+            (cube(), 4, 1, true),
+            (cube(), 3, 3, false),
+        ] {
+            let sub = subdivide(&mesh, levels, Scheme::Loop);
+            let options = GridOptions {
+                excluded_levels: excluded,
+                half_radii,
+                ..Default::default()
+            };
+            let scene = build(&mesh, &sub, &options).unwrap();
+            let n = grid_size(levels);
+            let leaf_level = scene.params.leaf_level;
+            let m = (n >> leaf_level) as i32;
+            let mut thick = 0;
+            for slot in 0..scene.headers.len() {
+                for leaf in 0..triangle_count(leaf_level) {
+                    let lattice = sub_triangle(n, leaf_level, leaf).map(|p| [p[0] as i32, p[1] as i32]);
+                    let c = lattice.map(|p| lattice_vertex(&scene, slot, [p[0] as u32, p[1] as u32]));
+                    let view = scene.view();
+                    let d = view.thickness(
+                        slot as u32,
+                        leaf,
+                        view.radius(slot as u32, level_start(leaf_level) + leaf),
+                    );
+                    let mut moved = 0f32;
+                    for lb in 0..=m {
+                        for la in 0..=m - lb {
+                            let p = [0, 1].map(|x| {
+                                lattice[0][x]
+                                    + (la * (lattice[1][x] - lattice[0][x]) + lb * (lattice[2][x] - lattice[0][x])) / m
+                            });
+                            let v = lattice_vertex(&scene, slot, [p[0] as u32, p[1] as u32]);
+                            let (u, w) = (la as f32 / m as f32, lb as f32 / m as f32);
+                            let flat = c[0] + (c[1] - c[0]) * u + (c[2] - c[0]) * w;
+                            moved = moved.max(v.distance(flat));
+                        }
+                    }
+                    assert!(moved <= d, "a vertex moved {moved} from its flat place, thickness {d}");
+                    let size = (c[1] - c[0]).length().max((c[2] - c[0]).length());
+                    // Codes step in 255ths of the leaf's radius.
+                    let step = view.radius(slot as u32, level_start(leaf_level) + leaf) / 255.0;
+                    assert!(
+                        d <= moved + 3.0 * step + size * 1e-3,
+                        "thickness {d}, farthest move {moved}"
+                    );
+                    thick += (moved > 1e-3 * size) as usize;
+                }
+            }
+            assert!(thick > 0, "every leaf was flat: the test proves nothing");
+        }
+    }
+
     #[test]
     fn sizes_follow_the_layout() {
         let mesh = cube();
         let sub = subdivide(&mesh, 3, Scheme::Loop);
         let scene = build(&mesh, &sub, &GridOptions::default()).unwrap();
-        assert_eq!(scene.radii.len(), 12 * 5);
+        // Five f32 radii per grid, then four leaf thickness codes (one word).
+        assert_eq!(scene.params.thickness_word, 12 * 5);
+        assert_eq!(scene.radii.len(), 12 * 5 + 12);
         let half = build(
             &mesh,
             &sub,
@@ -466,7 +565,17 @@ mod tests {
             },
         )
         .unwrap();
-        assert_eq!(half.radii.len(), 12 * 5 / 2);
+        assert_eq!(half.radii.len(), 12 * 5 / 2 + 12);
+        let bare = build(
+            &mesh,
+            &sub,
+            &GridOptions {
+                leaf_footprint: false,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        assert_eq!(bare.radii.len(), 12 * 5);
         assert_eq!(scene.params.inner_count, 21);
         // 18 edges of 7 vertices, 8 corners.
         assert_eq!(scene.vertices.len() / 3, 12 * 21 + 18 * 7 + 8);

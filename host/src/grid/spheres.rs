@@ -23,6 +23,9 @@ pub(super) struct SphereTable {
     /// The lattice points under sphere `s` are `points[start[s] .. start[s + 1]]`.
     start: Vec<u32>,
     points: Vec<u16>,
+    /// Each of those points' place in its sub-triangle, `(la, lb) / m`: where it would be if
+    /// the sub-triangle were flat, `a + la/m (b - a) + lb/m (c - a)`.
+    flat: Vec<[f32; 2]>,
 }
 
 impl SphereTable {
@@ -39,6 +42,7 @@ impl SphereTable {
             corners: Vec::new(),
             start: vec![0],
             points: Vec::new(),
+            flat: Vec::new(),
         };
         for level in 0..=leaf_level {
             for t in 0..triangle_count(level) {
@@ -53,6 +57,7 @@ impl SphereTable {
                     for la in 0..=m - lb {
                         let p = [c[0][0] + la * e1[0] + lb * e2[0], c[0][1] + la * e1[1] + lb * e2[1]];
                         table.points.push(index(p));
+                        table.flat.push([la as f32 / m as f32, lb as f32 / m as f32]);
                     }
                 }
                 table.start.push(table.points.len() as u32);
@@ -62,13 +67,18 @@ impl SphereTable {
     }
 }
 
-/// The bounds of grid `g`, and its spheres' radii in breadth-first order, each padded for the
-/// rounding of the GPU's own centre computation. `points` is scratch space.
+/// The bounds of grid `g`, its spheres' radii in breadth-first order, each padded for the
+/// rounding of the GPU's own centre computation, and each leaf's thickness: how far its
+/// micro-vertices may be from the flat triangle of its corners, a bound found in the same pass
+/// as the largest move of a vertex from its flat place (the same lattice point of that flat
+/// triangle), encoded by [`thickness_code`].
+/// `points` is scratch space.
 pub(super) fn grid_bounds_and_radii(
     layout: &GridLayout,
     table: &SphereTable,
     g: usize,
     radii: &mut [f32],
+    thickness: &mut [u8],
     points: &mut Vec<Vec3A>,
 ) -> Aabb {
     // Gather the grid in lattice order: its own inner area is contiguous, the boundary is
@@ -86,23 +96,57 @@ pub(super) fn grid_bounds_and_radii(
     for &p in points.iter() {
         bounds = (bounds.0.min(p), bounds.1.max(p));
     }
+    let first_leaf = table.corners.len() - thickness.len();
     for (s, (corners, radius)) in table.corners.iter().zip(radii).enumerate() {
         let [a, b, c] = corners.map(|k| Vec3::from(points[k as usize]));
         // The centre exactly as the traversal computes it, then SIMD lanes for the scan.
         let center = sphere_center(a, b, c);
-        let c = Vec3A::from(center);
+        let centre = Vec3A::from(center);
+        let range = table.start[s] as usize..table.start[s + 1] as usize;
         let mut r2 = 0f32;
-        for &k in &table.points[table.start[s] as usize..table.start[s + 1] as usize] {
-            let d = points[k as usize] - c;
-            let d2 = d.dot(d);
-            r2 = if d2 > r2 { d2 } else { r2 };
+        let mut moved2 = 0f32;
+        if s < first_leaf {
+            for &k in &table.points[range] {
+                let d = points[k as usize] - centre;
+                r2 = r2.max(d.dot(d));
+            }
+        } else {
+            // A leaf: also how far each vertex lies from its flat place.
+            let (a, ab, ac) = (Vec3A::from(a), Vec3A::from(b - a), Vec3A::from(c - a));
+            for (&k, &[u, v]) in table.points[range.clone()].iter().zip(&table.flat[range]) {
+                let p = points[k as usize];
+                let d = p - centre;
+                r2 = r2.max(d.dot(d));
+                let moved = p - (a + ab * u + ac * v);
+                moved2 = moved2.max(moved.dot(moved));
+            }
         }
         let r = r2.sqrt();
-        *radius = r + (r + center.abs().max_element()) * 1e-5;
+        let scale = center.abs().max_element();
+        *radius = r + (r + scale) * 1e-5;
+        if s >= first_leaf {
+            let d = moved2.sqrt() * (1.0 + 1e-5) + (r + scale) * 1e-5;
+            thickness[s - first_leaf] = thickness_code(d, *radius);
+        }
     }
     Aabb {
         min: bounds.0.into(),
         max: bounds.1.into(),
+    }
+}
+
+/// A leaf's thickness `d` in 8 bits, as a fraction of its sphere's radius `r` (a bound on the
+/// distance to the flat triangle never exceeds the distance to its centroid): `ceil(255 d / r)`,
+/// decoded as `r code / 255`, never below `d`. Computed per grid in the radius pass, with no
+/// scale shared across grids, so nothing waits for the whole mesh.
+pub fn thickness_code(d: f32, r: f32) -> u8 {
+    if d <= 0.0 {
+        0
+    } else if d >= r {
+        255
+    } else {
+        // One more step than the f64 quotient asks, against the f32 rounding of the decode.
+        ((d as f64 / r as f64 * 255.0).ceil() as u32 + 1).min(255) as u8
     }
 }
 
