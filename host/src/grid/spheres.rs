@@ -108,7 +108,8 @@ pub(super) fn grid_bounds_and_radii(
         if s < first_leaf {
             for &k in &table.points[range] {
                 let d = points[k as usize] - centre;
-                r2 = r2.max(d.dot(d));
+                let d2 = d.dot(d);
+                r2 = if d2 > r2 { d2 } else { r2 };
             }
         } else {
             // A leaf: also how far each vertex lies from its flat place.
@@ -116,9 +117,11 @@ pub(super) fn grid_bounds_and_radii(
             for (&k, &[u, v]) in table.points[range.clone()].iter().zip(&table.flat[range]) {
                 let p = points[k as usize];
                 let d = p - centre;
-                r2 = r2.max(d.dot(d));
+                let d2 = d.dot(d);
+                r2 = if d2 > r2 { d2 } else { r2 };
                 let moved = p - (a + ab * u + ac * v);
-                moved2 = moved2.max(moved.dot(moved));
+                let m2 = moved.dot(moved);
+                moved2 = if m2 > moved2 { m2 } else { moved2 };
             }
         }
         let r = r2.sqrt();
