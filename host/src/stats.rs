@@ -37,21 +37,24 @@ pub struct Stats {
 
 /// Median wall time of `repeats` runs of `f`, and the last result.
 pub fn median_time<T>(repeats: usize, mut f: impl FnMut() -> T) -> (f64, T) {
-    median_time_of(repeats, || (), |()| f())
+    median_time_of(repeats, || (), |_| f())
 }
 
-/// [`median_time`] of `f` on a fresh input from `input` each time (made outside the timer).
-pub fn median_time_of<I, T>(repeats: usize, mut input: impl FnMut() -> I, mut f: impl FnMut(I) -> T) -> (f64, T) {
+/// [`median_time`] of `f` on a fresh input from `input` each time. Made and freed outside
+/// the timer: the input, and the previous run's result.
+pub fn median_time_of<I, T>(repeats: usize, mut input: impl FnMut() -> I, mut f: impl FnMut(&mut I) -> T) -> (f64, T) {
     let mut times = Vec::with_capacity(repeats);
     let mut last = None;
     for _ in 0..repeats.max(1) {
-        let x = input();
+        let mut x = input();
+        drop(last.take());
         // Every worker thread awake before the clock starts: a build that follows a pause
         // (here, making its input) would otherwise also time the pool waking up.
         rayon::broadcast(|_| ());
         let start = Instant::now();
-        last = Some(f(x));
+        let result = f(&mut x);
         times.push(start.elapsed().as_secs_f64());
+        last = Some(result);
     }
     times.sort_by(f64::total_cmp);
     (times[times.len() / 2], last.unwrap())

@@ -278,7 +278,7 @@ pub fn layout(base: &Mesh, sub: &Subdivided, options: &GridOptions) -> Result<Gr
 
 /// Lays out and builds in one go.
 pub fn build(base: &Mesh, sub: &Subdivided, options: &GridOptions) -> Result<GridScene> {
-    Ok(build_from_layout(layout(base, sub, options)?))
+    Ok(build_from_layout(&mut layout(base, sub, options)?))
 }
 
 /// Grids one parallel task handles at least: below that, handing work to another thread
@@ -288,10 +288,15 @@ const GRIDS_PER_TASK: usize = 128;
 /// The grid representation's build proper, what `stats` and `bench` time: grid bounds and
 /// sphere radii, the top-level BVH, and the grids' inner areas, headers and radii in its leaf
 /// order. The edge and corner areas stay where the layout put them.
-pub fn build_from_layout(layout: GridLayout) -> GridScene {
+///
+/// The layout's vertex buffer moves into the result (its edge and corner areas are final);
+/// the rest of it is left to the caller, so freeing it is not part of the build.
+pub fn build_from_layout(layout: &mut GridLayout) -> GridScene {
     let grids = layout.headers.len();
     let spheres = sphere_count(layout.leaf_level) as usize;
-    // One pass over each grid's vertices gives its box and its radii.
+    let mut vertices = std::mem::take(&mut layout.buffer);
+    let layout = &*layout;
+    // One pass over each grid's vertices gives its box, its radii and its leaves' thicknesses.
     let table = SphereTable::new(layout.levels, layout.leaf_level);
     let mut boxes = vec![Aabb::EMPTY; grids];
     let mut radii_by_base = vec![0f32; grids * spheres];
@@ -311,13 +316,12 @@ pub fn build_from_layout(layout: GridLayout) -> GridScene {
         .enumerate()
         .with_min_len(GRIDS_PER_TASK)
         .for_each_init(Vec::new, |points, (g, ((bounds, radii), thickness))| {
-            *bounds = grid_bounds_and_radii(&layout, &table, g, radii, &mut thickness[..leaves], points)
+            *bounds = grid_bounds_and_radii(layout, &table, g, radii, &mut thickness[..leaves], points)
         });
     let top = bvh::build(&boxes, &top_level_params());
 
     // Store grids in leaf order, so leaves name contiguous ranges and need no indirection.
     let words = layout.inner_words as usize;
-    let mut vertices = layout.buffer;
     if words > 0 {
         vertices[..grids * words]
             .par_chunks_mut(words)
