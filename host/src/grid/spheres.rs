@@ -23,9 +23,9 @@ pub(super) struct SphereTable {
     /// The lattice points under sphere `s` are `points[start[s] .. start[s + 1]]`.
     start: Vec<u32>,
     points: Vec<u16>,
-    /// Each of those points' place in its sub-triangle, `(la, lb) / m`: where it would be if
-    /// the sub-triangle were flat, `a + la/m (b - a) + lb/m (c - a)`.
-    flat: Vec<[f32; 2]>,
+    /// Lattice steps along a leaf's side. A sub-triangle's points are listed in rows of
+    /// constant `lb` (`la` = 0 ..= m - lb), the point `(la, lb)` being `a + la e1 + lb e2`.
+    leaf_side: u32,
 }
 
 impl SphereTable {
@@ -42,7 +42,7 @@ impl SphereTable {
             corners: Vec::new(),
             start: vec![0],
             points: Vec::new(),
-            flat: Vec::new(),
+            leaf_side: n >> leaf_level,
         };
         for level in 0..=leaf_level {
             for t in 0..triangle_count(level) {
@@ -57,7 +57,6 @@ impl SphereTable {
                     for la in 0..=m - lb {
                         let p = [c[0][0] + la * e1[0] + lb * e2[0], c[0][1] + la * e1[1] + lb * e2[1]];
                         table.points.push(index(p));
-                        table.flat.push([la as f32 / m as f32, lb as f32 / m as f32]);
                     }
                 }
                 table.start.push(table.points.len() as u32);
@@ -112,16 +111,26 @@ pub(super) fn grid_bounds_and_radii(
                 r2 = if d2 > r2 { d2 } else { r2 };
             }
         } else {
-            // A leaf: also how far each vertex lies from its flat place.
-            let (a, ab, ac) = (Vec3A::from(a), Vec3A::from(b - a), Vec3A::from(c - a));
-            for (&k, &[u, v]) in table.points[range.clone()].iter().zip(&table.flat[range]) {
-                let p = points[k as usize];
-                let d = p - centre;
-                let d2 = d.dot(d);
-                r2 = if d2 > r2 { d2 } else { r2 };
-                let moved = p - (a + ab * u + ac * v);
-                let m2 = moved.dot(moved);
-                moved2 = if m2 > moved2 { m2 } else { moved2 };
+            // A leaf: also how far each vertex lies from its flat place, walking the flat
+            // triangle's lattice along with the leaf's points (rows of constant `lb`).
+            let m = table.leaf_side;
+            let step = 1.0 / m as f32;
+            let (a, along, up) = (Vec3A::from(a), Vec3A::from(b - a) * step, Vec3A::from(c - a) * step);
+            let mut ks = table.points[range].iter();
+            let mut row = a;
+            for lb in 0..=m {
+                let mut flat = row;
+                for (_, &k) in (0..=m - lb).zip(&mut ks) {
+                    let p = points[k as usize];
+                    let d = p - centre;
+                    let d2 = d.dot(d);
+                    r2 = if d2 > r2 { d2 } else { r2 };
+                    let moved = p - flat;
+                    let m2 = moved.dot(moved);
+                    moved2 = if m2 > moved2 { m2 } else { moved2 };
+                    flat += along;
+                }
+                row += up;
             }
         }
         let r = r2.sqrt();
