@@ -1,0 +1,193 @@
+//! Grid builds read back: vertices, sphere radii, leaf thicknesses and sizes.
+
+use super::*;
+use crate::mesh::scene::{cube, default_scene};
+use crate::subdiv::{subdivide, Scheme};
+use gridrt_shared::grid_index::{lattice_points, level_start, sub_triangle};
+use gridrt_shared::traverse::sphere_center;
+
+fn lattice_vertex(scene: &GridScene, slot: usize, p: Lattice) -> Vec3 {
+    let view = scene.view();
+    view.vertex(&view.open(slot as u32), p)
+}
+
+/// Reading a grid back through its header gives exactly the subdivided vertices, shared
+/// edges and corners included, whichever way a grid walks its edges.
+#[test]
+fn every_grid_reads_back_its_vertices() {
+    for (levels, quantized) in (0..=4).flat_map(|l| [(l, false), (l, true)]) {
+        let mesh = default_scene();
+        let mut sub = subdivide(&mesh, levels, Scheme::Loop);
+        if quantized {
+            sub.quantize_inner();
+        }
+        let scene = build(&mesh, &sub, &GridOptions::default()).unwrap();
+        let n = grid_size(levels);
+        for (slot, &base) in scene.base_triangle.iter().enumerate() {
+            for p in lattice_points(n) {
+                let expect = sub.positions[sub.vertex(base as usize, p) as usize];
+                assert_eq!(
+                    lattice_vertex(&scene, slot, p),
+                    expect,
+                    "L={levels} grid {base} at {p:?}"
+                );
+            }
+        }
+        // Nothing stored twice: one slot per distinct subdivided vertex.
+        let g = &scene.params;
+        assert_eq!(g.corner_offset as usize + mesh.positions.len(), sub.positions.len());
+        let per_grid = match quantized {
+            true => quantize::inner_words(g.inner_count),
+            false => 3 * g.inner_count,
+        };
+        assert_eq!(g.edge_word, scene.headers.len() as u32 * per_grid);
+        let shared = sub.positions.len() - g.edge_offset as usize;
+        assert_eq!(scene.vertices.len(), g.edge_word as usize + 3 * shared, "L={levels}");
+    }
+}
+
+/// Every micro-vertex lies inside the sphere of each of its ancestor sub-triangles, with
+/// the centre computed as the traversal computes it.
+#[test]
+fn spheres_are_conservative() {
+    for (mesh, levels, excluded, half_radii) in [
+        (default_scene(), 3, 2, false),
+        (default_scene(), 3, 2, true),
+        (cube(), 5, 2, true),
+        (cube(), 4, 1, false),
+        (cube(), 4, 3, true),
+    ] {
+        let sub = subdivide(&mesh, levels, Scheme::Loop);
+        let options = GridOptions {
+            excluded_levels: excluded,
+            half_radii,
+            ..Default::default()
+        };
+        let scene = build(&mesh, &sub, &options).unwrap();
+        let n = grid_size(levels);
+        let g = &scene.params;
+        for slot in 0..scene.headers.len() {
+            for level in 0..=g.leaf_level {
+                for index in 0..triangle_count(level) {
+                    let c = sub_triangle(n, level, index).map(|p| lattice_vertex(&scene, slot, p));
+                    let center = sphere_center(c[0], c[1], c[2]);
+                    let r = scene.view().radius(slot as u32, level_start(level) + index);
+                    // Every micro-triangle below this node, through its corners.
+                    let below = levels - level;
+                    for t in 0..triangle_count(below) {
+                        let id = index * triangle_count(below) + t;
+                        for p in sub_triangle(n, levels, id) {
+                            let d = lattice_vertex(&scene, slot, p).distance(center);
+                            assert!(d <= r, "vertex at {d} outside sphere {r} (level {level})");
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Every micro-vertex of a leaf lies within the leaf's stored thickness of its flat place
+/// (the same lattice point of the flat triangle of the leaf's corners), hence of that
+/// triangle; and the thickness is no larger than it has to be.
+#[test]
+fn leaf_thickness_is_conservative() {
+    for (mesh, levels, excluded, half_radii) in [
+        (default_scene(), 3, 2, false),
+        (cube(), 4, 1, true),
+        (cube(), 3, 3, false),
+    ] {
+        let sub = subdivide(&mesh, levels, Scheme::Loop);
+        let options = GridOptions {
+            excluded_levels: excluded,
+            half_radii,
+            ..Default::default()
+        };
+        let scene = build(&mesh, &sub, &options).unwrap();
+        let n = grid_size(levels);
+        let leaf_level = scene.params.leaf_level;
+        let m = (n >> leaf_level) as i32;
+        let mut thick = 0;
+        for slot in 0..scene.headers.len() {
+            for leaf in 0..triangle_count(leaf_level) {
+                let lattice = sub_triangle(n, leaf_level, leaf).map(|p| [p[0] as i32, p[1] as i32]);
+                let c = lattice.map(|p| lattice_vertex(&scene, slot, [p[0] as u32, p[1] as u32]));
+                let view = scene.view();
+                let d = view.thickness(
+                    slot as u32,
+                    leaf,
+                    view.radius(slot as u32, level_start(leaf_level) + leaf),
+                );
+                let mut moved = 0f32;
+                for lb in 0..=m {
+                    for la in 0..=m - lb {
+                        let p = [0, 1].map(|x| {
+                            lattice[0][x]
+                                + (la * (lattice[1][x] - lattice[0][x]) + lb * (lattice[2][x] - lattice[0][x])) / m
+                        });
+                        let v = lattice_vertex(&scene, slot, [p[0] as u32, p[1] as u32]);
+                        let (u, w) = (la as f32 / m as f32, lb as f32 / m as f32);
+                        let flat = c[0] + (c[1] - c[0]) * u + (c[2] - c[0]) * w;
+                        moved = moved.max(v.distance(flat));
+                    }
+                }
+                assert!(moved <= d, "a vertex moved {moved} from its flat place, thickness {d}");
+                let size = (c[1] - c[0]).length().max((c[2] - c[0]).length());
+                // Codes step in 255ths of the leaf's radius.
+                let step = view.radius(slot as u32, level_start(leaf_level) + leaf) / 255.0;
+                assert!(
+                    d <= moved + 3.0 * step + size * 1e-3,
+                    "thickness {d}, farthest move {moved}"
+                );
+                thick += (moved > 1e-3 * size) as usize;
+            }
+        }
+        assert!(thick > 0, "every leaf was flat: the test proves nothing");
+    }
+}
+
+#[test]
+fn sizes_follow_the_layout() {
+    let mesh = cube();
+    let sub = subdivide(&mesh, 3, Scheme::Loop);
+    let scene = build(&mesh, &sub, &GridOptions::default()).unwrap();
+    // Five f32 radii per grid, then four leaf thickness codes (one word).
+    assert_eq!(scene.params.thickness_word, 12 * 5);
+    assert_eq!(scene.radii.len(), 12 * 5 + 12);
+    let half = build(
+        &mesh,
+        &sub,
+        &GridOptions {
+            half_radii: true,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(half.radii.len(), 12 * 5 / 2 + 12);
+    let bare = build(
+        &mesh,
+        &sub,
+        &GridOptions {
+            leaf_footprint: false,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(bare.radii.len(), 12 * 5);
+    assert_eq!(scene.params.inner_count, 21);
+    // 18 edges of 7 vertices, 8 corners.
+    assert_eq!(scene.vertices.len() / 3, 12 * 21 + 18 * 7 + 8);
+    // Quantized: an exponent and 21 x 3 codes in 32 words per grid.
+    let mut quantized = sub.clone();
+    quantized.quantize_inner();
+    let q = build(&mesh, &quantized, &GridOptions::default()).unwrap();
+    assert_eq!(q.params.inner_words, 32);
+    assert_eq!(q.vertices.len(), 12 * 32 + 3 * (18 * 7 + 8));
+    assert!(scene.set_lod_checked(4).is_err());
+}
+
+impl GridScene {
+    fn set_lod_checked(&self, lod: u32) -> Result<()> {
+        self.clone().set_lod(lod)
+    }
+}
