@@ -46,6 +46,17 @@ fn every_grid_reads_back_its_vertices() {
     }
 }
 
+/// `mesh` Loop-subdivided `levels` times, as grids with `excluded` sphere levels left out.
+fn loop_grids(mesh: &Mesh, levels: u32, excluded: u32, half_radii: bool) -> GridScene {
+    let sub = subdivide(mesh, levels, Scheme::Loop);
+    let options = GridOptions {
+        excluded_levels: excluded,
+        half_radii,
+        ..Default::default()
+    };
+    build(mesh, &sub, &options).unwrap()
+}
+
 /// Every micro-vertex lies inside the sphere of each of its ancestor sub-triangles, with
 /// the centre computed as the traversal computes it.
 #[test]
@@ -57,13 +68,7 @@ fn spheres_are_conservative() {
         (cube(), 4, 1, false),
         (cube(), 4, 3, true),
     ] {
-        let sub = subdivide(&mesh, levels, Scheme::Loop);
-        let options = GridOptions {
-            excluded_levels: excluded,
-            half_radii,
-            ..Default::default()
-        };
-        let scene = build(&mesh, &sub, &options).unwrap();
+        let scene = loop_grids(&mesh, levels, excluded, half_radii);
         let n = grid_size(levels);
         let g = &scene.params;
         for slot in 0..scene.headers.len() {
@@ -97,13 +102,7 @@ fn leaf_thickness_is_conservative() {
         (cube(), 4, 1, true),
         (cube(), 3, 3, false),
     ] {
-        let sub = subdivide(&mesh, levels, Scheme::Loop);
-        let options = GridOptions {
-            excluded_levels: excluded,
-            half_radii,
-            ..Default::default()
-        };
-        let scene = build(&mesh, &sub, &options).unwrap();
+        let scene = loop_grids(&mesh, levels, excluded, half_radii);
         let n = grid_size(levels);
         let leaf_level = scene.params.leaf_level;
         let m = (n >> leaf_level) as i32;
