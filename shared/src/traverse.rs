@@ -160,8 +160,9 @@ pub struct GridScene<'a> {
     /// Sphere radii in breadth-first order per grid: `f32` bits, or half floats two to a
     /// word (see `GridParams::half_radii`).
     pub radii: &'a [u32],
-    /// The static index list, [`crate::grid_index::MICRO_TRIANGLES`]: read where it lives (a storage buffer on
-    /// the GPU) rather than copied per ray, which costs a GPU thread 85 private words.
+    /// The static index list, [`crate::grid_index::MICRO_TRIANGLES`]: read where it lives
+    /// (a storage buffer on the GPU) rather than copied per ray, which costs a GPU thread 85
+    /// private words.
     pub micro_triangles: &'a [u32],
     pub params: GridParams,
 }
