@@ -2,13 +2,13 @@
 //! any of its vertices is loaded.
 //!
 //! The host stores for every leaf its thickness `d`: how far any of its micro-vertices lies
-//! from its flat place, the same lattice point of the flat triangle of the leaf's three corners.
-//! Every micro-vertex is then a point of that triangle moved by at most `d`. In the ray's sheared frame (the ray is the z axis, see
-//! [`crate::triangle::shear`]), a move by `delta` shifts `x` by `delta[kx] - sx delta[kz]`, at
-//! most `d sqrt(1 + sx^2)`, and `y` likewise; so the leaf lies inside the 2D box of its three
-//! sheared corners grown by those margins, and a ray outside that box cannot hit it. Unlike
-//! the leaf's sphere, the box follows a flat leaf's true shape: the sphere around a long thin
-//! or tilted triangle is mostly empty.
+//! from its flat place, the same lattice point of the flat triangle of the leaf's three
+//! corners. Every micro-vertex is then a point of that triangle moved by at most `d`. In the
+//! ray's sheared frame (the ray is the z axis, see [`crate::triangle::shear`]), a move by
+//! `delta` shifts `x` by `delta[kx] - sx delta[kz]`, at most `d sqrt(1 + sx^2)`, and `y`
+//! likewise; so the leaf lies inside the 2D box of its three sheared corners grown by those
+//! margins, and a ray outside that box cannot hit it. Unlike the leaf's sphere, the box follows
+//! a flat leaf's true shape: the sphere around a long thin or tilted triangle is mostly empty.
 
 use crate::glam::Vec3;
 use crate::ray::Ray;
