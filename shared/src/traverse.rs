@@ -20,10 +20,10 @@ pub const MAX_BVH_DEPTH: usize = 64;
 
 /// What a BVH leaf refers to.
 pub trait LeafPrimitives {
-    /// Working memory of the leaf tests, made once per ray rather than once per leaf: on GPUs
-    /// every fresh local array costs a store per element.
+    /// Working memory of the leaf tests and the per-ray constants they need, made once per
+    /// ray rather than once per leaf: on GPUs every fresh local array costs a store per element.
     type Scratch;
-    fn scratch(&self) -> Self::Scratch;
+    fn scratch(&self, ray: &Ray) -> Self::Scratch;
     /// Intersects primitives `first .. first + count`, shrinking `hit.t` on every closer hit.
     fn intersect_leaf(&self, first: u32, count: u32, ray: &Ray, hit: &mut Hit, scratch: &mut Self::Scratch);
 }
@@ -44,7 +44,7 @@ pub fn traverse_bvh<P: LeafPrimitives>(nodes: &[BvhNode], prims: &P, ray: &Ray, 
     let mut stack = [0u32; MAX_BVH_DEPTH];
     let mut stack_t = [0f32; MAX_BVH_DEPTH];
     let mut sp = 0usize;
-    let mut scratch = prims.scratch();
+    let mut scratch = prims.scratch(ray);
     let mut node = 0u32;
     let mut live = true;
     while live {
@@ -122,7 +122,7 @@ pub struct TriangleMesh<'a> {
 impl LeafPrimitives for TriangleMesh<'_> {
     type Scratch = ();
 
-    fn scratch(&self) {}
+    fn scratch(&self, _ray: &Ray) {}
 
     fn intersect_leaf(&self, first: u32, count: u32, ray: &Ray, hit: &mut Hit, _scratch: &mut ()) {
         let mut tri = first;
@@ -190,6 +190,9 @@ pub struct GridScratch {
     stack_t: [f32; GRID_STACK],
     /// A leaf's vertices in the ray's sheared frame.
     sheared: [Vec3; LEAF_VERTICES],
+    /// `1 / |dir|^2`, for the sphere tests.
+    inv_dir_len2: f32,
+    frame: FootprintFrame,
 }
 
 /// Most vertices a leaf can hold: a sub-triangle subdivided `MAX_LEAF_DEPTH` times.
@@ -369,13 +372,13 @@ impl GridScene<'_> {
         } else {
             lod
         };
-        let inv_dir_len2 = 1.0 / ray.dir.dot(ray.dir);
+        let inv_dir_len2 = scratch.inv_dir_len2;
         let root_radius = self.radius(grid, 0);
         if intersect_sphere_scaled(open.origin, root_radius, ray, inv_dir_len2, hit.t) == T_FAR {
             return;
         }
         // Every vertex of the grid lies within the root sphere.
-        let frame = FootprintFrame::new(ray);
+        let frame = scratch.frame;
         let slack = FootprintFrame::slack((open.origin - ray.origin).abs().max_element() + root_radius);
         let mut sp = 1usize;
         scratch.stack[0] = 0;
@@ -497,12 +500,14 @@ fn sort_descending(x: &mut Entry, y: &mut Entry) {
 impl LeafPrimitives for GridScene<'_> {
     type Scratch = GridScratch;
 
-    fn scratch(&self) -> GridScratch {
+    fn scratch(&self, ray: &Ray) -> GridScratch {
         GridScratch {
             stack: [0; GRID_STACK],
             stack_corner: [0; GRID_STACK],
             stack_t: [0.0; GRID_STACK],
             sheared: [Vec3::ZERO; LEAF_VERTICES],
+            inv_dir_len2: 1.0 / ray.dir.dot(ray.dir),
+            frame: FootprintFrame::new(ray),
         }
     }
 
