@@ -53,6 +53,54 @@ impl FootprintFrame {
         let hi_y = max3(a.y, b.y, c.y) + my;
         lo_x <= 0.0 && hi_x >= 0.0 && lo_y <= 0.0 && hi_y >= 0.0
     }
+
+    /// Which lattice points of a leaf can belong to a micro-triangle the ray crosses: the box
+    /// `[la_lo, la_hi, lb_lo, lb_hi]` of lattice coordinates (empty when a `lo` exceeds its
+    /// `hi`). The leaf has `m` steps a side, thickness `thickness` and sheared corners `a`,
+    /// `b`, `c` at lattice points `(0, 0)`, `(m, 0)`, `(0, m)`.
+    ///
+    /// The leaf's flat lattice in the sheared plane is `F(la, lb) = a + la u + lb v`. A
+    /// micro-triangle the ray crosses has a flat version that meets the margin box around the
+    /// ray (the margins of [`Self::overlaps`]), so its cell meets the preimage of that box under
+    /// `F`: a parallelogram around the ray's own lattice coordinates. Its bounding box, widened
+    /// for rounding and by one step (a cell touching it keeps all three vertices), is returned.
+    /// A leaf seen nearly edge-on makes `F` ill-conditioned: then the whole leaf is returned.
+    #[inline]
+    pub fn leaf_window(&self, a: Vec3, b: Vec3, c: Vec3, m: u32, thickness: f32, slack: f32) -> [u32; 4] {
+        let whole = [0, m, 0, m];
+        let steps = m as f32;
+        let (ux, uy) = ((b.x - a.x) / steps, (b.y - a.y) / steps);
+        let (vx, vy) = ((c.x - a.x) / steps, (c.y - a.y) / steps);
+        let det = ux * vy - uy * vx;
+        // The sine of the angle between u and v at least 1/16 (and no underflow); a NaN from
+        // overflow shows up in `margin` below.
+        if det * det * 256.0 <= (ux * ux + uy * uy) * (vx * vx + vy * vy) {
+            return whole;
+        }
+        let inv = 1.0 / det;
+        let mx = thickness * self.grow_x + slack;
+        let my = thickness * self.grow_y + slack;
+        // Lattice coordinates of the ray (F(alpha, beta) = 0) and the half extents of the
+        // margin box's preimage.
+        let alpha = (a.y * vx - a.x * vy) * inv;
+        let beta = (a.x * uy - a.y * ux) * inv;
+        let half_a = (vy.abs() * mx + vx.abs() * my) * inv.abs();
+        let half_b = (uy.abs() * mx + ux.abs() * my) * inv.abs();
+        // The solve's rounding is a few units of 2^-24 times the condition number (below 16)
+        // and the sizes involved; this allows some hundred times as much.
+        let margin = (1.0 + alpha.abs() + beta.abs() + half_a + half_b) * (1.0 / 1024.0);
+        if margin.is_nan() || margin >= 64.0 * steps {
+            return whole;
+        }
+        let lo_a = ((alpha - half_a - margin).ceil() - 1.0).max(0.0);
+        let hi_a = ((alpha + half_a + margin).floor() + 1.0).min(steps);
+        let lo_b = ((beta - half_b - margin).ceil() - 1.0).max(0.0);
+        let hi_b = ((beta + half_b + margin).floor() + 1.0).min(steps);
+        if lo_a > hi_a || lo_b > hi_b || lo_a + lo_b > steps {
+            return [1, 0, 1, 0];
+        }
+        [lo_a as u32, hi_a as u32, lo_b as u32, hi_b as u32]
+    }
 }
 
 #[inline]
@@ -67,6 +115,7 @@ fn max3(a: f32, b: f32, c: f32) -> f32 {
 
 #[cfg(test)]
 mod tests {
+    extern crate std;
     use super::*;
     use crate::triangle::shear;
 
@@ -108,5 +157,93 @@ mod tests {
         assert!(
             crate::sphere::intersect_sphere(Vec3::splat(1.0 / 3.0), 0.75, &miss, crate::ray::T_FAR) < crate::ray::T_FAR
         );
+    }
+
+    /// A fixed stream of numbers in `[0, 1)`.
+    struct Numbers(u64);
+
+    impl Numbers {
+        fn next(&mut self) -> f32 {
+            self.0 = self
+                .0
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (self.0 >> 40) as f32 / (1u64 << 24) as f32
+        }
+
+        fn vec(&mut self) -> Vec3 {
+            Vec3::new(self.next(), self.next(), self.next()) * 2.0 - Vec3::ONE
+        }
+    }
+
+    /// Leaves of 16 micro-triangles whose points are moved off their flat places by up to the
+    /// thickness: every micro-triangle a ray crosses (rays at random points of them, at their
+    /// vertices, from steep to grazing directions) keeps its three lattice points inside the
+    /// window, and the window is mostly much smaller than the leaf.
+    #[test]
+    fn leaf_window_keeps_every_crossed_triangle() {
+        let m = 4u32;
+        let mut numbers = Numbers(7);
+        let (mut crossed, mut points_in_windows, mut windows) = (0, 0, 0);
+        for _ in 0..300 {
+            let corners = [numbers.vec(), numbers.vec(), numbers.vec()];
+            let thickness = 0.1 * numbers.next() * numbers.next();
+            let mut points = [Vec3::ZERO; 15];
+            for lb in 0..=m {
+                for la in 0..=m - lb {
+                    let flat = corners[0]
+                        + (corners[1] - corners[0]) * (la as f32 / m as f32)
+                        + (corners[2] - corners[0]) * (lb as f32 / m as f32);
+                    // The corners are vertices of their own: they are their flat places.
+                    let corner = (la == 0 || la == m) && (lb == 0 || lb == m);
+                    let moved = numbers.vec().clamp_length_max(1.0) * thickness * !corner as u32 as f32;
+                    points[crate::grid_index::lattice_index(la, lb, m) as usize] = flat + moved;
+                }
+            }
+            for k in 0..40 {
+                let dir = numbers.vec();
+                // Half the rays through a micro-triangle's point, some exactly at its vertex.
+                let (la, lb) = ((numbers.next() * 3.0) as u32, (numbers.next() * 2.0) as u32);
+                let [a, b, c] = [(la, lb), (la + 1, lb), (la, lb + 1)]
+                    .map(|(i, j)| points[crate::grid_index::lattice_index(i, j, m) as usize]);
+                let (u, v) = (numbers.next() * 0.5, numbers.next() * 0.5);
+                let target = if k % 8 == 0 { a } else { a + (b - a) * u + (c - a) * v };
+                let ray = Ray::new(target - dir * 3.0, dir);
+                let frame = FootprintFrame::new(&ray);
+                let [sa, sb, sc] = [points[0], points[4], points[14]].map(|q| shear(q, &ray));
+                let slack = FootprintFrame::slack((target - ray.origin).abs().max_element() + 4.0);
+                let window = frame.leaf_window(sa, sb, sc, m, thickness, slack);
+                let inside = |i: u32, j: u32| i >= window[0] && i <= window[1] && j >= window[2] && j <= window[3];
+                windows += 1;
+                for lb in 0..=m {
+                    for la in 0..=m - lb {
+                        points_in_windows += inside(la, lb) as u32;
+                    }
+                }
+                // Every micro-triangle: upright cells, then inverted ones.
+                for lb in 0..m {
+                    for la in 0..m - lb {
+                        let mut cells = std::vec![[(la, lb), (la + 1, lb), (la, lb + 1)]];
+                        if la + lb + 2 <= m {
+                            cells.push([(la + 1, lb), (la, lb + 1), (la + 1, lb + 1)]);
+                        }
+                        for cell in cells {
+                            let [p0, p1, p2] =
+                                cell.map(|(i, j)| points[crate::grid_index::lattice_index(i, j, m) as usize]);
+                            if crate::triangle::intersect_triangle(p0, p1, p2, &ray, crate::ray::T_FAR).is_some() {
+                                crossed += 1;
+                                assert!(
+                                    cell.iter().all(|&(i, j)| inside(i, j)),
+                                    "cell {cell:?} crossed outside window {window:?}"
+                                );
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        assert!(crossed > 1000, "only {crossed} crossings");
+        let mean = points_in_windows as f32 / windows as f32;
+        assert!(mean < 9.0, "windows hold {mean} of 15 points on average");
     }
 }

@@ -14,12 +14,16 @@ pub struct Ray {
     /// tiny one so the reciprocal stays finite and `0 * 1/dir` never makes a NaN (which GPU
     /// `min`/`max` would resolve arbitrarily).
     pub inv_dir: Vec3,
-    /// Axis permutation of the watertight triangle test: `kz` is the dominant axis of `dir`.
-    pub kx: u32,
-    pub ky: u32,
-    pub kz: u32,
-    /// Shear constants of the watertight triangle test.
+    /// Shear constants of the watertight triangle test: with `kz` the dominant axis of `dir`
+    /// and `kx`, `ky` the other two (in winding order), `(dir[kx] / dir[kz], dir[ky] / dir[kz],
+    /// 1 / dir[kz])`.
     pub shear: Vec3,
+    /// The permutation and shear as the rows of a matrix, `e_kx - sx e_kz`, `e_ky - sy e_kz`
+    /// and `sz e_kz`, so a vertex is sheared by three dot products instead of picking
+    /// components by index (a branch per component on the CPU). Each row's other entries are
+    /// 1 and 0, whose products are exact, so the dot products round exactly like
+    /// `a[kx] - sx a[kz]` and friends.
+    pub shear_rows: [Vec3; 3],
 }
 
 impl Ray {
@@ -40,14 +44,18 @@ impl Ray {
         }
         let dz = component(dir, kz);
         let shear = Vec3::new(component(dir, kx) / dz, component(dir, ky) / dz, 1.0 / dz);
+        let unit = |k: u32| Vec3::new((k == 0) as u32 as f32, (k == 1) as u32 as f32, (k == 2) as u32 as f32);
+        let shear_rows = [
+            unit(kx) - unit(kz) * shear.x,
+            unit(ky) - unit(kz) * shear.y,
+            unit(kz) * shear.z,
+        ];
         Ray {
             origin,
             dir,
             inv_dir: Vec3::ONE / Vec3::new(nonzero(dir.x), nonzero(dir.y), nonzero(dir.z)),
-            kx,
-            ky,
-            kz,
             shear,
+            shear_rows,
         }
     }
 

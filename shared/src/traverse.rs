@@ -6,8 +6,8 @@ use crate::aabb::intersect_aabb;
 use crate::footprint::FootprintFrame;
 use crate::glam::Vec3;
 use crate::grid_index::{
-    lattice_from_index, level_start, micro_table_offset, triangle_count, vertex_count, GridSlots, Lattice,
-    MAX_LEAF_DEPTH,
+    lattice_from_index, lattice_index, level_start, micro_table_offset, triangle_count, vertex_count, GridSlots,
+    Lattice, MAX_LEAF_DEPTH,
 };
 use crate::layout::{BvhNode, GridHeader, GridParams, Hit};
 use crate::quantize::{dequantize, read_half, read_half_triple, unit_from_exponent};
@@ -171,6 +171,8 @@ pub struct GridScene<'a> {
 #[derive(Copy, Clone)]
 pub struct OpenGrid {
     slots: GridSlots,
+    /// The grid's corners: lattice points `(0, 0)`, `(n, 0)`, `(0, n)`.
+    pub corners: [Vec3; 3],
     /// Mean of the corners: the root sphere's centre and the origin of the inner codes.
     pub origin: Vec3,
     /// Length of one code step (zero for `f32` inner vertices).
@@ -190,10 +192,16 @@ pub struct GridScratch {
     stack_t: [f32; GRID_STACK],
     /// A leaf's vertices in the ray's sheared frame.
     sheared: [Vec3; LEAF_VERTICES],
+    /// Which sides of the ray each sheared vertex lies strictly on: bits for `x > 0`, `x < 0`,
+    /// `y > 0`, `y < 0`; and [`LOADED`].
+    sides: [u32; LEAF_VERTICES],
     /// `1 / |dir|^2`, for the sphere tests.
     inv_dir_len2: f32,
     frame: FootprintFrame,
 }
+
+/// Flag of [`GridScratch::sides`]: the vertex is loaded for the current leaf.
+const LOADED: u32 = 1 << 4;
 
 /// Most vertices a leaf can hold: a sub-triangle subdivided `MAX_LEAF_DEPTH` times.
 const LEAF_VERTICES: usize = vertex_count(MAX_LEAF_DEPTH) as usize;
@@ -236,17 +244,23 @@ impl GridScene<'_> {
             corner_word,
             3,
         );
-        let origin = sphere_center(
+        let corners = [
             load_vec3_bits(self.vertices, slots.slot([0, 0])),
             load_vec3_bits(self.vertices, slots.slot([n, 0])),
             load_vec3_bits(self.vertices, slots.slot([0, n])),
-        );
+        ];
+        let origin = sphere_center(corners[0], corners[1], corners[2]);
         let unit = if quantized && g.inner_count > 0 {
             unit_from_exponent(read_half(self.vertices, 2 * inner_word) as u32)
         } else {
             0.0
         };
-        OpenGrid { slots, origin, unit }
+        OpenGrid {
+            slots,
+            corners,
+            origin,
+            unit,
+        }
     }
 
     /// Position of lattice point `p` of an opened grid. (Always inlined: a call per vertex
@@ -284,8 +298,10 @@ impl GridScene<'_> {
 
     /// Tests the `4^k` micro-triangles of a leaf sub-triangle: its first corner is `corner`,
     /// and one step of its own lattice (`2^k` a side) is `step` grid-lattice units along both
-    /// axes (negative for an inverted sub-triangle). Its vertices are loaded once; the static
-    /// index list then names each triangle's three among them.
+    /// axes (negative for an inverted sub-triangle). Only its lattice points inside `window`
+    /// (`[la_lo, la_hi, lb_lo, lb_hi]`, see [`FootprintFrame::leaf_window`]) are loaded, once
+    /// each; the static index list then names each triangle's three among them, and only
+    /// triangles with all three loaded are tested.
     #[allow(clippy::too_many_arguments)]
     fn intersect_leaf_triangles(
         &self,
@@ -293,33 +309,43 @@ impl GridScene<'_> {
         corner: [i32; 2],
         step: i32,
         k: u32,
+        window: [u32; 4],
         first_id: u32,
         ray: &Ray,
         hit: &mut Hit,
         scratch: &mut GridScratch,
     ) {
         let m = 1u32 << k;
-        let mut slot = 0usize;
-        // In the sheared frame the ray is the z axis; a leaf whose vertices all lie strictly on
-        // one side of it (right, left, above or below: one bit each, kept while every vertex
-        // so far agrees) holds no triangle the ray can cross. This catches about half the
-        // leaves whose sphere the ray enters, before their 16 triangle tests.
+        if window[0] != 0 || window[1] != m || window[2] != 0 || window[3] != m {
+            // Part of the leaf: forget the previous leaf's vertices.
+            let mut slot = 0;
+            while slot < vertex_count(k) as usize {
+                scratch.sides[slot] = 0;
+                slot += 1;
+            }
+        }
+        // In the sheared frame the ray is the z axis; triangles whose vertices all lie strictly
+        // on one side of it (right, left, above or below: one bit each) cannot be crossed. A
+        // leaf whose loaded vertices all agree is done before any triangle test.
         let mut one_side = 0xfu32;
-        let mut lb = 0u32;
-        while lb <= m {
-            let mut la = 0u32;
-            while la <= m - lb {
+        let mut lb = window[2];
+        while lb <= window[3] {
+            let mut la = window[0];
+            let la_end = if window[1] < m - lb { window[1] } else { m - lb };
+            while la <= la_end {
                 let p = [
                     (corner[0] + la as i32 * step) as u32,
                     (corner[1] + lb as i32 * step) as u32,
                 ];
                 let sv = shear(self.vertex(open, p), ray);
+                let slot = lattice_index(la, lb, m) as usize;
                 scratch.sheared[slot] = sv;
-                one_side &= (sv.x > 0.0) as u32
+                let side = (sv.x > 0.0) as u32
                     | ((sv.x < 0.0) as u32) << 1
                     | ((sv.y > 0.0) as u32) << 2
                     | ((sv.y < 0.0) as u32) << 3;
-                slot += 1;
+                scratch.sides[slot] = side | LOADED;
+                one_side &= side;
                 la += 1;
             }
             lb += 1;
@@ -337,6 +363,12 @@ impl GridScene<'_> {
             let i0 = corner_slot(packed, 0);
             let i1 = corner_slot(packed, 1);
             let i2 = corner_slot(packed, 2);
+            // The same side test per triangle: most of a leaf's triangles fail it, for three
+            // loads instead of nine and no edge functions.
+            if scratch.sides[i0] & scratch.sides[i1] & scratch.sides[i2] != LOADED {
+                t += 1;
+                continue;
+            }
             if let Some(found) = intersect_sheared(scratch.sheared[i0], scratch.sheared[i1], scratch.sheared[i2], hit.t)
             {
                 hit.t = found.0;
@@ -359,6 +391,43 @@ impl GridScene<'_> {
             };
             hit.normal = triangle_normal(world(best[0]), world(best[1]), world(best[2])).to_array();
         }
+    }
+
+    /// Leaf `e.child` of `family`, reached from its parent (whose six points are `sheared`)
+    /// with its sphere entry distance `e.t`: only the part of it the footprint leaves open is
+    /// loaded and tested.
+    #[allow(clippy::too_many_arguments)]
+    fn intersect_child_leaf(
+        &self,
+        open: &OpenGrid,
+        family: &LeafFamily,
+        sheared: &[Vec3; 6],
+        e: Entry,
+        slack: f32,
+        ray: &Ray,
+        hit: &mut Hit,
+        scratch: &mut GridScratch,
+    ) {
+        if e.t >= hit.t {
+            return;
+        }
+        let leaf = family.first_leaf + e.child;
+        let radius = self.radius(family.grid, level_start(self.params.leaf_level) + leaf);
+        let thickness = self.thickness(family.grid, leaf, radius);
+        let [ca, cb, cc] = child_corners(sheared, e.child);
+        let m = 1u32 << family.k;
+        let window = scratch.frame.leaf_window(ca, cb, cc, m, thickness, slack);
+        // Child corners `a`: a, ab, ca, and bc for the inverted middle child.
+        let (a, h) = (family.corner, family.half);
+        let corner = match e.child {
+            0 => a,
+            1 => [a[0] + h, a[1]],
+            2 => [a[0], a[1] + h],
+            _ => [a[0] + h, a[1] + h],
+        };
+        let step = if e.child == 3 { -family.step } else { family.step };
+        let first_id = family.grid * triangle_count(self.params.lod) + leaf * triangle_count(family.k);
+        self.intersect_leaf_triangles(open, corner, step, family.k, window, first_id, ray, hit, scratch);
     }
 
     /// The bottom level: depth-first, nearest sphere first, over the grid's 4-ary hierarchy.
@@ -402,15 +471,29 @@ impl GridScene<'_> {
                 let k = lod - level;
                 let first_id = grid * triangle_count(lod) + index * triangle_count(k);
                 let step = d * (size >> k);
-                self.intersect_leaf_triangles(&open, a, step, k, first_id, ray, hit, scratch);
+                let m = 1 << k;
+                self.intersect_leaf_triangles(&open, a, step, k, [0, m, 0, m], first_id, ray, hit, scratch);
                 continue;
             }
             // The four children share six vertices: three corners and three midpoints.
             let (s, h) = (d * size, d * size / 2);
             let at = |x: i32, y: i32| [(a[0] + x) as u32, (a[1] + y) as u32];
-            let pa = self.vertex(&open, at(0, 0));
-            let pb = self.vertex(&open, at(s, 0));
-            let pc = self.vertex(&open, at(0, s));
+            // The root's corners are the grid's, already loaded.
+            let pa = if level == 0 {
+                open.corners[0]
+            } else {
+                self.vertex(&open, at(0, 0))
+            };
+            let pb = if level == 0 {
+                open.corners[1]
+            } else {
+                self.vertex(&open, at(s, 0))
+            };
+            let pc = if level == 0 {
+                open.corners[2]
+            } else {
+                self.vertex(&open, at(0, s))
+            };
             let pab = self.vertex(&open, at(h, 0));
             let pbc = self.vertex(&open, at(h, h));
             let pca = self.vertex(&open, at(0, h));
@@ -428,30 +511,6 @@ impl GridScene<'_> {
             let mut e1 = entry(sphere_center(pab, pb, pbc), 1);
             let mut e2 = entry(sphere_center(pca, pbc, pc), 2);
             let mut e3 = entry(sphere_center(pbc, pca, pab), 3);
-            if self.params.leaf_footprint != 0 && level + 1 == leaf_level && leaf_level == self.params.leaf_level {
-                // The children are stored leaves: drop those whose footprint misses the ray
-                // before their vertices are loaded.
-                let (sa, sb, sc) = (shear(pa, ray), shear(pb, ray), shear(pc, ray));
-                let (sab, sbc, sca) = (shear(pab, ray), shear(pbc, ray), shear(pca, ray));
-                let d = |c: u32| self.thickness(grid, 4 * index + c, r(c));
-                if e0.t < T_FAR && !frame.overlaps(sa, sab, sca, d(0), slack) {
-                    e0.t = T_FAR;
-                }
-                if e1.t < T_FAR && !frame.overlaps(sab, sb, sbc, d(1), slack) {
-                    e1.t = T_FAR;
-                }
-                if e2.t < T_FAR && !frame.overlaps(sca, sbc, sc, d(2), slack) {
-                    e2.t = T_FAR;
-                }
-                if e3.t < T_FAR && !frame.overlaps(sbc, sca, sab, d(3), slack) {
-                    e3.t = T_FAR;
-                }
-            }
-            sort_descending(&mut e0, &mut e1);
-            sort_descending(&mut e2, &mut e3);
-            sort_descending(&mut e0, &mut e2);
-            sort_descending(&mut e1, &mut e3);
-            sort_descending(&mut e1, &mut e2);
             // Child corners `a`: a, ab, ca, and bc for the inverted middle child.
             let child_corner = |c: u32| match c {
                 0 => pack_corner(a, inverted),
@@ -459,6 +518,58 @@ impl GridScene<'_> {
                 2 => pack_corner([a[0], a[1] + h], inverted),
                 _ => pack_corner([a[0] + h, a[1] + h], !inverted),
             };
+            if self.params.leaf_footprint != 0 && level + 1 == leaf_level && leaf_level == self.params.leaf_level {
+                // The children are stored leaves: drop those whose footprint misses the ray
+                // before their vertices are loaded.
+                let sheared = [
+                    shear(pa, ray),
+                    shear(pb, ray),
+                    shear(pc, ray),
+                    shear(pab, ray),
+                    shear(pbc, ray),
+                    shear(pca, ray),
+                ];
+                let thick = |c: u32| self.thickness(grid, 4 * index + c, r(c));
+                let [sa, sb, sc, sab, sbc, sca] = sheared;
+                if e0.t < T_FAR && !frame.overlaps(sa, sab, sca, thick(0), slack) {
+                    e0.t = T_FAR;
+                }
+                if e1.t < T_FAR && !frame.overlaps(sab, sb, sbc, thick(1), slack) {
+                    e1.t = T_FAR;
+                }
+                if e2.t < T_FAR && !frame.overlaps(sca, sbc, sc, thick(2), slack) {
+                    e2.t = T_FAR;
+                }
+                if e3.t < T_FAR && !frame.overlaps(sbc, sca, sab, thick(3), slack) {
+                    e3.t = T_FAR;
+                }
+                sort_descending(&mut e0, &mut e1);
+                sort_descending(&mut e2, &mut e3);
+                sort_descending(&mut e0, &mut e2);
+                sort_descending(&mut e1, &mut e3);
+                sort_descending(&mut e1, &mut e2);
+                // They would be popped next, nearest first: test them here instead, where their
+                // sheared corners are at hand to find the part of each the ray can cross.
+                let k = lod - leaf_level;
+                let family = LeafFamily {
+                    grid,
+                    first_leaf: 4 * index,
+                    corner: a,
+                    half: h,
+                    k,
+                    step: ((size / 2) >> k) * d,
+                };
+                self.intersect_child_leaf(&open, &family, &sheared, e3, slack, ray, hit, scratch);
+                self.intersect_child_leaf(&open, &family, &sheared, e2, slack, ray, hit, scratch);
+                self.intersect_child_leaf(&open, &family, &sheared, e1, slack, ray, hit, scratch);
+                self.intersect_child_leaf(&open, &family, &sheared, e0, slack, ray, hit, scratch);
+                continue;
+            }
+            sort_descending(&mut e0, &mut e1);
+            sort_descending(&mut e2, &mut e3);
+            sort_descending(&mut e0, &mut e2);
+            sort_descending(&mut e1, &mut e3);
+            sort_descending(&mut e1, &mut e2);
             let mut push = |e: &Entry| {
                 if e.t < T_FAR {
                     scratch.stack[sp] = ((4 * index + e.child) << 4) | (level + 1);
@@ -475,10 +586,35 @@ impl GridScene<'_> {
     }
 }
 
+/// Corners `a`, `b`, `c` of child `child` among a sub-triangle's six points in the order
+/// `a`, `b`, `c`, `ab`, `bc`, `ca` (see [`GridScene::intersect_grid`]).
+#[inline]
+fn child_corners(points: &[Vec3; 6], child: u32) -> [Vec3; 3] {
+    match child {
+        0 => [points[0], points[3], points[5]],
+        1 => [points[3], points[1], points[4]],
+        2 => [points[5], points[4], points[2]],
+        _ => [points[4], points[5], points[3]],
+    }
+}
+
 /// A sub-triangle's first corner and orientation as one word (coordinates below 256).
 #[inline]
 fn pack_corner(a: [i32; 2], inverted: bool) -> u32 {
     a[0] as u32 | ((a[1] as u32) << 8) | ((inverted as u32) << 16)
+}
+
+/// Four sibling leaves: their parent's grid, the index of its first child, its first corner
+/// `corner` and half its edge `half` (signed, see [`GridScene::intersect_grid`]), and each leaf's depth `k` and lattice step (`repr(C)`: naga rejects members out of
+/// offset order).
+#[repr(C)]
+struct LeafFamily {
+    grid: u32,
+    first_leaf: u32,
+    corner: [i32; 2],
+    half: i32,
+    k: u32,
+    step: i32,
 }
 
 /// A child sphere's entry distance and which child it is.
@@ -506,6 +642,7 @@ impl LeafPrimitives for GridScene<'_> {
             stack_corner: [0; GRID_STACK],
             stack_t: [0.0; GRID_STACK],
             sheared: [Vec3::ZERO; LEAF_VERTICES],
+            sides: [0; LEAF_VERTICES],
             inv_dir_len2: 1.0 / ray.dir.dot(ray.dir),
             frame: FootprintFrame::new(ray),
         }

@@ -1,5 +1,5 @@
 use crate::glam::Vec3;
-use crate::ray::{component, Ray};
+use crate::ray::Ray;
 
 /// A vertex moved into the ray's sheared frame: the ray runs from the origin along +z, and
 /// `z` is already scaled by the shear. Splitting this from [`intersect_sheared`] lets a grid
@@ -7,11 +7,10 @@ use crate::ray::{component, Ray};
 #[inline]
 pub fn shear(v: Vec3, ray: &Ray) -> Vec3 {
     let a = v - ray.origin;
-    let az = component(a, ray.kz);
     Vec3::new(
-        component(a, ray.kx) - ray.shear.x * az,
-        component(a, ray.ky) - ray.shear.y * az,
-        ray.shear.z * az,
+        ray.shear_rows[0].dot(a),
+        ray.shear_rows[1].dot(a),
+        ray.shear_rows[2].dot(a),
     )
 }
 
