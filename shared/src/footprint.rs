@@ -92,15 +92,43 @@ impl FootprintFrame {
         if margin.is_nan() || margin >= 64.0 * steps {
             return whole;
         }
-        let lo_a = ((alpha - half_a - margin).ceil() - 1.0).max(0.0);
-        let hi_a = ((alpha + half_a + margin).floor() + 1.0).min(steps);
-        let lo_b = ((beta - half_b - margin).ceil() - 1.0).max(0.0);
-        let hi_b = ((beta + half_b + margin).floor() + 1.0).min(steps);
-        if lo_a > hi_a || lo_b > hi_b || lo_a + lo_b > steps {
+        let (lo_a, hi_a) = (
+            first_point(alpha - half_a - margin, m),
+            last_point(alpha + half_a + margin, m),
+        );
+        let (lo_b, hi_b) = (
+            first_point(beta - half_b - margin, m),
+            last_point(beta + half_b + margin, m),
+        );
+        if lo_a > hi_a || lo_b > hi_b || lo_a + lo_b > m as i32 {
             return [1, 0, 1, 0];
         }
         [lo_a as u32, hi_a as u32, lo_b as u32, hi_b as u32]
     }
+}
+
+/// `max(0, ceil(x) - 1)`, or more than `m` when that is, for `x` not NaN: the first lattice
+/// point of a cell reaching `x`. Floors by truncating a non-negative number, which every target
+/// does in one instruction (`ceil` and `floor` are library calls on baseline x86-64).
+#[inline]
+fn first_point(x: f32, m: u32) -> i32 {
+    let top = m as f32 + 2.0;
+    // ceil(x) - 1 = top - 1 - floor(top - x), with top - x >= 0 once x <= top.
+    let x = x.max(0.0).min(top);
+    let first = (top - 1.0) as i32 - (top - x) as i32;
+    if first < 0 {
+        0
+    } else {
+        first
+    }
+}
+
+/// `min(m, floor(x) + 1)`, or negative when that is, for `x` not NaN: the last lattice point of
+/// a cell reaching `x`.
+#[inline]
+fn last_point(x: f32, m: u32) -> i32 {
+    let x = x.max(-2.0).min(m as f32 - 1.0);
+    (x + 2.0) as i32 - 1
 }
 
 #[inline]
@@ -157,6 +185,18 @@ mod tests {
         assert!(
             crate::sphere::intersect_sphere(Vec3::splat(1.0 / 3.0), 0.75, &miss, crate::ray::T_FAR) < crate::ray::T_FAR
         );
+    }
+
+    #[test]
+    fn window_ends_match_ceil_and_floor() {
+        let m = 4;
+        for k in -800..=800 {
+            let x = k as f32 / 100.0 + 0.001 * (k % 3) as f32;
+            let first = ((x.ceil() - 1.0).max(0.0) as i32).min(m as i32 + 1);
+            assert_eq!(first_point(x, m).min(m as i32 + 1), first, "first point at {x}");
+            let last = ((x.floor() + 1.0).min(m as f32) as i32).max(-1);
+            assert_eq!(last_point(x, m).max(-1), last, "last point at {x}");
+        }
     }
 
     /// A fixed stream of numbers in `[0, 1)`.
