@@ -417,14 +417,7 @@ impl GridScene<'_> {
         let [ca, cb, cc] = child_corners(sheared, e.child);
         let m = 1u32 << family.k;
         let window = scratch.frame.leaf_window(ca, cb, cc, m, thickness, slack);
-        // Child corners `a`: a, ab, ca, and bc for the inverted middle child.
-        let (a, h) = (family.corner, family.half);
-        let corner = match e.child {
-            0 => a,
-            1 => [a[0] + h, a[1]],
-            2 => [a[0], a[1] + h],
-            _ => [a[0] + h, a[1] + h],
-        };
+        let corner = child_first_corner(family.corner, family.half, e.child);
         let step = if e.child == 3 { -family.step } else { family.step };
         let first_id = family.grid * triangle_count(self.params.lod) + leaf * triangle_count(family.k);
         self.intersect_leaf_triangles(open, corner, step, family.k, window, first_id, ray, hit, scratch);
@@ -511,13 +504,7 @@ impl GridScene<'_> {
             let mut e1 = entry(sphere_center(pab, pb, pbc), 1);
             let mut e2 = entry(sphere_center(pca, pbc, pc), 2);
             let mut e3 = entry(sphere_center(pbc, pca, pab), 3);
-            // Child corners `a`: a, ab, ca, and bc for the inverted middle child.
-            let child_corner = |c: u32| match c {
-                0 => pack_corner(a, inverted),
-                1 => pack_corner([a[0] + h, a[1]], inverted),
-                2 => pack_corner([a[0], a[1] + h], inverted),
-                _ => pack_corner([a[0] + h, a[1] + h], !inverted),
-            };
+            let child_corner = |c: u32| pack_corner(child_first_corner(a, h, c), inverted != (c == 3));
             if self.params.leaf_footprint != 0 && level + 1 == leaf_level && leaf_level == self.params.leaf_level {
                 // The children are stored leaves: drop those whose footprint misses the ray
                 // before their vertices are loaded.
@@ -604,6 +591,18 @@ fn child_corners(points: &[Vec3; 6], child: u32) -> [Vec3; 3] {
         1 => [points[3], points[1], points[4]],
         2 => [points[5], points[4], points[2]],
         _ => [points[4], points[5], points[3]],
+    }
+}
+
+/// First corner `a` of child `child` of a sub-triangle with first corner `a` and signed half
+/// edge `h`: a, ab, ca, and bc for the inverted middle child.
+#[inline]
+fn child_first_corner(a: [i32; 2], h: i32, child: u32) -> [i32; 2] {
+    match child {
+        0 => a,
+        1 => [a[0] + h, a[1]],
+        2 => [a[0], a[1] + h],
+        _ => [a[0] + h, a[1] + h],
     }
 }
 
