@@ -9,8 +9,8 @@
 
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::grid_index::{grid_size, inner_points, inner_vertex_count};
+use gridrt_shared::grid_traverse::sphere_center;
 use gridrt_shared::quantize::{dequantize, inner_words, unit_from_exponent, CODE_MAX};
-use gridrt_shared::traverse::sphere_center;
 use rayon::prelude::*;
 
 use crate::subdiv::Subdivided;

@@ -6,7 +6,10 @@ use gridrt_shared::grid_index::{sub_triangle, triangle_count};
 use gridrt_shared::layout::{Camera, FrameParams, GridParams, Hit};
 use gridrt_shared::ray::{Ray, T_FAR};
 use gridrt_shared::shade::{pack_rgba8, shade};
-use gridrt_shared::traverse::{load_vec3, trace_grids, trace_triangles};
+use gridrt_shared::{
+    grid_traverse::trace_grids,
+    traverse::{load_vec3, trace_triangles},
+};
 use rayon::prelude::*;
 
 use crate::grid::GridScene;

@@ -4,6 +4,7 @@
 use gridrt_shared::camera::primary_ray;
 use gridrt_shared::glam::UVec3;
 use gridrt_shared::glam::Vec3;
+use gridrt_shared::grid_traverse::{trace_grids, GridScene};
 use gridrt_shared::layout::Hit;
 use gridrt_shared::layout::{
     BvhNode, FrameParams, GridHeader, HitRecord, RayRecord, TraceParams, TRACE_WORKGROUP_SIZE, WORKGROUP_SIZE,
@@ -11,7 +12,7 @@ use gridrt_shared::layout::{
 use gridrt_shared::ray::Ray;
 use gridrt_shared::ray::T_FAR;
 use gridrt_shared::shade::{pack_rgba8, shade};
-use gridrt_shared::traverse::{trace_grids, trace_triangles, GridScene, TriangleMesh};
+use gridrt_shared::traverse::{trace_triangles, TriangleMesh};
 use spirv_std::spirv;
 
 /// The baseline: a triangle BVH over an indexed triangle list.

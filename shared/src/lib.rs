@@ -11,6 +11,7 @@ pub mod aabb;
 pub mod camera;
 pub mod footprint;
 pub mod grid_index;
+pub mod grid_traverse;
 pub mod layout;
 pub mod quantize;
 pub mod ray;

@@ -9,9 +9,9 @@ use gridrt_shared::glam::Vec3;
 use gridrt_shared::grid_index::{
     edge_vertex_count, grid_size, inner_points, inner_vertex_count, sphere_count, triangle_count, GridSlots, Lattice,
 };
+use gridrt_shared::grid_traverse::MAX_SPHERE_LEVEL;
 use gridrt_shared::layout::{BvhNode, GridHeader, GridParams, MAX_HEADER_ID};
 use gridrt_shared::quantize;
-use gridrt_shared::traverse::MAX_SPHERE_LEVEL;
 use rayon::prelude::*;
 
 use crate::bvh::{self, Aabb, BuildParams};
@@ -55,7 +55,7 @@ pub struct GridScene {
     pub nodes: Vec<BvhNode>,
     pub headers: Vec<GridHeader>,
     /// Words: each grid's inner area (`f32` triples or 16-bit codes), then the edge and corner
-    /// areas as `f32` triples (see `gridrt_shared::traverse::GridScene`).
+    /// areas as `f32` triples (see `gridrt_shared::grid_traverse::GridScene`).
     pub vertices: Vec<u32>,
     /// Sphere radii: `f32` bits, or half floats two per word (see `GridParams::half_radii`);
     /// then the leaves' thickness codes (see `GridParams::thickness_word`).
@@ -66,8 +66,8 @@ pub struct GridScene {
 }
 
 impl GridScene {
-    pub fn view(&self) -> gridrt_shared::traverse::GridScene<'_> {
-        gridrt_shared::traverse::GridScene {
+    pub fn view(&self) -> gridrt_shared::grid_traverse::GridScene<'_> {
+        gridrt_shared::grid_traverse::GridScene {
             headers: &self.headers,
             vertices: &self.vertices,
             radii: &self.radii,

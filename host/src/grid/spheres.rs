@@ -6,7 +6,7 @@ use gridrt_shared::glam::{Vec3, Vec3A};
 use gridrt_shared::grid_index::{
     grid_size, inner_points, lattice_index, lattice_points, sub_triangle, triangle_count, Lattice,
 };
-use gridrt_shared::traverse::sphere_center;
+use gridrt_shared::grid_traverse::sphere_center;
 
 use super::GridLayout;
 use crate::bvh::Aabb;

@@ -4,7 +4,7 @@ use super::*;
 use crate::mesh::scene::{cube, default_scene};
 use crate::subdiv::{subdivide, Scheme};
 use gridrt_shared::grid_index::{lattice_points, level_start, sub_triangle};
-use gridrt_shared::traverse::sphere_center;
+use gridrt_shared::grid_traverse::sphere_center;
 
 fn lattice_vertex(scene: &GridScene, slot: usize, p: Lattice) -> Vec3 {
     let view = scene.view();

@@ -1,0 +1,542 @@
+//! The bottom level: grid primitives searched through their 4-ary sphere hierarchies, nearest
+//! sphere first, down to leaves whose micro-triangles the static index list names; under the
+//! top-level BVH of [`crate::traverse`].
+
+use crate::footprint::FootprintFrame;
+use crate::glam::Vec3;
+use crate::grid_index::{
+    lattice_from_index, lattice_index, level_start, micro_table_offset, triangle_count, vertex_count, GridSlots,
+    Lattice, MAX_LEAF_DEPTH,
+};
+use crate::layout::{BvhNode, GridHeader, GridParams, Hit};
+use crate::quantize::{dequantize, read_half, read_half_triple, unit_from_exponent};
+use crate::ray::{Ray, T_FAR};
+use crate::sphere::{decode_radius, intersect_sphere_scaled};
+use crate::traverse::{load_vec3_bits, traverse_bvh, LeafPrimitives};
+use crate::triangle::{intersect_sheared, shear, triangle_normal};
+
+/// Most spheres a grid hierarchy may be deep: levels `0 ..= MAX_SPHERE_LEVEL`.
+pub const MAX_SPHERE_LEVEL: u32 = 6;
+/// A 4-ary depth-first search pushes at most three siblings per level plus one.
+const GRID_STACK: usize = 3 * MAX_SPHERE_LEVEL as usize + 4;
+
+/// Grid primitives: headers, the three vertex areas in one buffer, and the sphere radii.
+pub struct GridScene<'a> {
+    pub headers: &'a [GridHeader],
+    /// Each grid's inner area (`GridParams::inner_words` words: `f32` triples or 16-bit
+    /// codes), then the edge and corner areas as `f32` triples.
+    pub vertices: &'a [u32],
+    /// Sphere radii in breadth-first order per grid: `f32` bits, or half floats two to a
+    /// word (see `GridParams::half_radii`).
+    pub radii: &'a [u32],
+    /// The static index list, [`crate::grid_index::MICRO_TRIANGLES`]: read where it lives
+    /// (a storage buffer on the GPU) rather than copied per ray, which costs a GPU thread 85
+    /// private words.
+    pub micro_triangles: &'a [u32],
+    pub params: GridParams,
+}
+
+/// A grid resolved for reading by [`GridScene::open`].
+#[derive(Copy, Clone)]
+pub struct OpenGrid {
+    slots: GridSlots,
+    /// The grid's corners: lattice points `(0, 0)`, `(n, 0)`, `(0, n)`.
+    pub corners: [Vec3; 3],
+    /// Mean of the corners: the root sphere's centre and the origin of the inner codes.
+    pub origin: Vec3,
+    /// Length of one code step (zero for `f32` inner vertices).
+    unit: f32,
+}
+
+/// Flag bit of an address in 16-bit halves of the inner codes (buffers stay far below 2^31
+/// words).
+const INNER_CODES: u32 = 1 << 31;
+
+/// Working memory of the grid traversal, one per ray.
+pub struct GridScratch {
+    /// Pending sub-triangles: `index << 4 | level`, the corner `a` packed by [`pack_corner`],
+    /// and the sphere's entry distance.
+    stack: [u32; GRID_STACK],
+    stack_corner: [u32; GRID_STACK],
+    stack_t: [f32; GRID_STACK],
+    /// A leaf's vertices in the ray's sheared frame.
+    sheared: [Vec3; LEAF_VERTICES],
+    /// Which sides of the ray each sheared vertex lies strictly on: bits for `x > 0`, `x < 0`,
+    /// `y > 0`, `y < 0`; and [`LOADED`].
+    sides: [u32; LEAF_VERTICES],
+    /// `1 / |dir|^2`, for the sphere tests.
+    inv_dir_len2: f32,
+    frame: FootprintFrame,
+}
+
+/// Flag of [`GridScratch::sides`]: the vertex is loaded for the current leaf.
+const LOADED: u32 = 1 << 4;
+
+/// Most vertices a leaf can hold: a sub-triangle subdivided `MAX_LEAF_DEPTH` times.
+const LEAF_VERTICES: usize = vertex_count(MAX_LEAF_DEPTH) as usize;
+
+/// Slot in a leaf's vertex list of corner `v` of a packed static-list entry.
+#[inline]
+fn corner_slot(packed: u32, v: u32) -> usize {
+    ((packed >> (8 * v)) & 0xff) as usize
+}
+
+/// Mean of three corners, summed in corner order: the host computes the radii around exactly
+/// this point.
+#[inline]
+pub fn sphere_center(a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
+    (a + b + c) * (1.0 / 3.0)
+}
+
+impl GridScene<'_> {
+    /// Grid `grid` resolved for reading, once per visit: where its vertices live, and the
+    /// frame its inner vertices are decoded in.
+    #[inline]
+    pub fn open(&self, grid: u32) -> OpenGrid {
+        let g = &self.params;
+        let n = 1u32 << g.levels;
+        let quantized = g.quantized_inner != 0;
+        // Addresses are buffer words, or halves for 16-bit inner codes (marked by a flag bit);
+        // either way three units per vertex.
+        let inner_word = grid * g.inner_words;
+        let inner_first = if quantized {
+            (2 * inner_word + 1) | INNER_CODES
+        } else {
+            inner_word
+        };
+        let corner_word = g.edge_word + 3 * (g.corner_offset - g.edge_offset);
+        let slots = GridSlots::addressed(
+            &self.headers[grid as usize],
+            n,
+            inner_first,
+            g.edge_word,
+            corner_word,
+            3,
+        );
+        let corners = [
+            load_vec3_bits(self.vertices, slots.slot([0, 0])),
+            load_vec3_bits(self.vertices, slots.slot([n, 0])),
+            load_vec3_bits(self.vertices, slots.slot([0, n])),
+        ];
+        let origin = sphere_center(corners[0], corners[1], corners[2]);
+        let unit = if quantized && g.inner_count > 0 {
+            unit_from_exponent(read_half(self.vertices, 2 * inner_word) as u32)
+        } else {
+            0.0
+        };
+        OpenGrid {
+            slots,
+            corners,
+            origin,
+            unit,
+        }
+    }
+
+    /// Position of lattice point `p` of an opened grid. (Always inlined: a call per vertex
+    /// costs the CPU backend about 8%.)
+    #[inline(always)]
+    pub fn vertex(&self, grid: &OpenGrid, p: Lattice) -> Vec3 {
+        let at = grid.slots.slot(p);
+        if at & INNER_CODES == 0 {
+            return load_vec3_bits(self.vertices, at);
+        }
+        let h = at & !INNER_CODES;
+        dequantize(grid.origin, read_half_triple(self.vertices, h), grid.unit)
+    }
+
+    /// Radius of sphere `node` (breadth-first id) of `grid`.
+    #[inline]
+    pub fn radius(&self, grid: u32, node: u32) -> f32 {
+        let k = grid * self.params.sphere_count + node;
+        if self.params.half_radii == 0 {
+            return f32::from_bits(self.radii[k as usize]);
+        }
+        let half = (self.radii[(k / 2) as usize] >> (16 * (k & 1))) & 0xffff;
+        decode_radius(half, self.params.radius_scale)
+    }
+
+    /// Thickness of leaf `leaf` (its index at the stored leaf level) of `grid`, whose sphere
+    /// has radius `radius`.
+    #[inline]
+    pub fn thickness(&self, grid: u32, leaf: u32, radius: f32) -> f32 {
+        let words_per_grid = triangle_count(self.params.leaf_level).div_ceil(4);
+        let word = self.radii[(self.params.thickness_word + grid * words_per_grid + leaf / 4) as usize];
+        let code = (word >> (8 * (leaf & 3))) & 0xff;
+        radius * (code as f32 * (1.0 / 255.0))
+    }
+
+    /// Tests the `4^k` micro-triangles of a leaf sub-triangle: its first corner is `corner`,
+    /// and one step of its own lattice (`2^k` a side) is `step` grid-lattice units along both
+    /// axes (negative for an inverted sub-triangle). Only its lattice points inside `window`
+    /// (`[la_lo, la_hi, lb_lo, lb_hi]`, see [`FootprintFrame::leaf_window`]) are loaded, once
+    /// each; the static index list then names each triangle's three among them, and only
+    /// triangles with all three loaded are tested.
+    #[allow(clippy::too_many_arguments)]
+    fn intersect_leaf_triangles(
+        &self,
+        open: &OpenGrid,
+        corner: [i32; 2],
+        step: i32,
+        k: u32,
+        window: [u32; 4],
+        first_id: u32,
+        ray: &Ray,
+        hit: &mut Hit,
+        scratch: &mut GridScratch,
+    ) {
+        let m = 1u32 << k;
+        if window[0] != 0 || window[1] != m || window[2] != 0 || window[3] != m {
+            // Part of the leaf: forget the previous leaf's vertices.
+            let mut slot = 0;
+            while slot < vertex_count(k) as usize {
+                scratch.sides[slot] = 0;
+                slot += 1;
+            }
+        }
+        // In the sheared frame the ray is the z axis; triangles whose vertices all lie strictly
+        // on one side of it (right, left, above or below: one bit each) cannot be crossed. A
+        // leaf whose loaded vertices all agree is done before any triangle test.
+        let mut one_side = 0xfu32;
+        let mut lb = window[2];
+        while lb <= window[3] {
+            let mut la = window[0];
+            let la_end = if window[1] < m - lb { window[1] } else { m - lb };
+            while la <= la_end {
+                let p = [
+                    (corner[0] + la as i32 * step) as u32,
+                    (corner[1] + lb as i32 * step) as u32,
+                ];
+                let sv = shear(self.vertex(open, p), ray);
+                let slot = lattice_index(la, lb, m) as usize;
+                scratch.sheared[slot] = sv;
+                let side = (sv.x > 0.0) as u32
+                    | ((sv.x < 0.0) as u32) << 1
+                    | ((sv.y > 0.0) as u32) << 2
+                    | ((sv.y < 0.0) as u32) << 3;
+                scratch.sides[slot] = side | LOADED;
+                one_side &= side;
+                la += 1;
+            }
+            lb += 1;
+        }
+        if one_side != 0 {
+            return;
+        }
+        let offset = micro_table_offset(k);
+        let count = triangle_count(k);
+        // The closest triangle of this leaf, as its three vertex slots (none yet).
+        let mut best = [LEAF_VERTICES as u32; 3];
+        let mut t = 0;
+        while t < count {
+            let packed = self.micro_triangles[(offset + t) as usize];
+            let i0 = corner_slot(packed, 0);
+            let i1 = corner_slot(packed, 1);
+            let i2 = corner_slot(packed, 2);
+            // The same side test per triangle: most of a leaf's triangles fail it, for three
+            // loads instead of nine and no edge functions.
+            if scratch.sides[i0] & scratch.sides[i1] & scratch.sides[i2] != LOADED {
+                t += 1;
+                continue;
+            }
+            if let Some(found) = intersect_sheared(scratch.sheared[i0], scratch.sheared[i1], scratch.sheared[i2], hit.t)
+            {
+                hit.t = found.0;
+                hit.u = found.1;
+                hit.v = found.2;
+                hit.prim = first_id + t;
+                best = [i0 as u32, i1 as u32, i2 as u32];
+            }
+            t += 1;
+        }
+        if best[0] != LEAF_VERTICES as u32 {
+            // Only the closest triangle needs world positions: load its three again.
+            let world = |slot: u32| {
+                let [la, lb] = lattice_from_index(slot, m);
+                let p = [
+                    (corner[0] + la as i32 * step) as u32,
+                    (corner[1] + lb as i32 * step) as u32,
+                ];
+                self.vertex(open, p)
+            };
+            hit.normal = triangle_normal(world(best[0]), world(best[1]), world(best[2])).to_array();
+        }
+    }
+
+    /// Leaf `e.child` of `family`, reached from its parent (whose six points are `sheared`)
+    /// with its sphere entry distance `e.t`: only the part of it the footprint leaves open is
+    /// loaded and tested.
+    #[allow(clippy::too_many_arguments)]
+    fn intersect_child_leaf(
+        &self,
+        open: &OpenGrid,
+        family: &LeafFamily,
+        sheared: &[Vec3; 6],
+        e: Entry,
+        slack: f32,
+        ray: &Ray,
+        hit: &mut Hit,
+        scratch: &mut GridScratch,
+    ) {
+        if e.t >= hit.t {
+            return;
+        }
+        let leaf = family.first_leaf + e.child;
+        let radius = self.radius(family.grid, level_start(self.params.leaf_level) + leaf);
+        let thickness = self.thickness(family.grid, leaf, radius);
+        let [ca, cb, cc] = child_corners(sheared, e.child);
+        let m = 1u32 << family.k;
+        let window = scratch.frame.leaf_window(ca, cb, cc, m, thickness, slack);
+        let corner = child_first_corner(family.corner, family.half, e.child);
+        let step = if e.child == 3 { -family.step } else { family.step };
+        let first_id = family.grid * triangle_count(self.params.lod) + leaf * triangle_count(family.k);
+        self.intersect_leaf_triangles(open, corner, step, family.k, window, first_id, ray, hit, scratch);
+    }
+
+    /// The bottom level: depth-first, nearest sphere first, over the grid's 4-ary hierarchy.
+    pub fn intersect_grid(&self, grid: u32, ray: &Ray, hit: &mut Hit, scratch: &mut GridScratch) {
+        let open = self.open(grid);
+        let n = 1u32 << self.params.levels;
+        let lod = self.params.lod;
+        // At a coarse level of detail the hierarchy is cut where the rendered triangles are.
+        let leaf_level = if self.params.leaf_level < lod {
+            self.params.leaf_level
+        } else {
+            lod
+        };
+        let inv_dir_len2 = scratch.inv_dir_len2;
+        let root_radius = self.radius(grid, 0);
+        if intersect_sphere_scaled(open.origin, root_radius, ray, inv_dir_len2, hit.t) == T_FAR {
+            return;
+        }
+        // Every vertex of the grid lies within the root sphere.
+        let frame = scratch.frame;
+        let slack = FootprintFrame::slack((open.origin - ray.origin).abs().max_element() + root_radius);
+        let mut sp = 1usize;
+        scratch.stack[0] = 0;
+        scratch.stack_corner[0] = pack_corner([0, 0], false);
+        scratch.stack_t[0] = 0.0;
+        while sp > 0 {
+            sp -= 1;
+            if scratch.stack_t[sp] >= hit.t {
+                continue;
+            }
+            let level = scratch.stack[sp] & 0xf;
+            let index = scratch.stack[sp] >> 4;
+            // A sub-triangle is its first corner `a`, its edge length and its orientation:
+            // `b = a + d (s, 0)`, `c = a + d (0, s)`, `d = -1` for the inverted ones.
+            let packed = scratch.stack_corner[sp];
+            let a = [(packed & 0xff) as i32, ((packed >> 8) & 0xff) as i32];
+            let inverted = packed >> 16 != 0;
+            let d = if inverted { -1 } else { 1 };
+            let size = (n >> level) as i32;
+            if level == leaf_level {
+                let k = lod - level;
+                let first_id = grid * triangle_count(lod) + index * triangle_count(k);
+                let step = d * (size >> k);
+                let m = 1 << k;
+                self.intersect_leaf_triangles(&open, a, step, k, [0, m, 0, m], first_id, ray, hit, scratch);
+                continue;
+            }
+            // The four children share six vertices: three corners and three midpoints.
+            let (s, h) = (d * size, d * size / 2);
+            let at = |x: i32, y: i32| [(a[0] + x) as u32, (a[1] + y) as u32];
+            // The root's corners are the grid's, already loaded.
+            let pa = if level == 0 {
+                open.corners[0]
+            } else {
+                self.vertex(&open, at(0, 0))
+            };
+            let pb = if level == 0 {
+                open.corners[1]
+            } else {
+                self.vertex(&open, at(s, 0))
+            };
+            let pc = if level == 0 {
+                open.corners[2]
+            } else {
+                self.vertex(&open, at(0, s))
+            };
+            let pab = self.vertex(&open, at(h, 0));
+            let pbc = self.vertex(&open, at(h, h));
+            let pca = self.vertex(&open, at(0, h));
+            // Children in `child_corners` order; their radii are adjacent in BFS order.
+            let first_child = level_start(level + 1) + 4 * index;
+            // Test the four children, sort them by entry distance with a fixed network (no
+            // dynamically indexed arrays: those are slow on GPUs), push the hit ones farthest
+            // first so the nearest is popped next.
+            let r = |c: u32| self.radius(grid, first_child + c);
+            let entry = |center: Vec3, child: u32| Entry {
+                t: intersect_sphere_scaled(center, r(child), ray, inv_dir_len2, hit.t),
+                child,
+            };
+            let mut e0 = entry(sphere_center(pa, pab, pca), 0);
+            let mut e1 = entry(sphere_center(pab, pb, pbc), 1);
+            let mut e2 = entry(sphere_center(pca, pbc, pc), 2);
+            let mut e3 = entry(sphere_center(pbc, pca, pab), 3);
+            let child_corner = |c: u32| pack_corner(child_first_corner(a, h, c), inverted != (c == 3));
+            if self.params.leaf_footprint != 0 && level + 1 == leaf_level && leaf_level == self.params.leaf_level {
+                // The children are stored leaves: drop those whose footprint misses the ray
+                // before their vertices are loaded.
+                let sheared = [
+                    shear(pa, ray),
+                    shear(pb, ray),
+                    shear(pc, ray),
+                    shear(pab, ray),
+                    shear(pbc, ray),
+                    shear(pca, ray),
+                ];
+                let thick = |c: u32| self.thickness(grid, 4 * index + c, r(c));
+                let [sa, sb, sc, sab, sbc, sca] = sheared;
+                if e0.t < T_FAR && !frame.overlaps(sa, sab, sca, thick(0), slack) {
+                    e0.t = T_FAR;
+                }
+                if e1.t < T_FAR && !frame.overlaps(sab, sb, sbc, thick(1), slack) {
+                    e1.t = T_FAR;
+                }
+                if e2.t < T_FAR && !frame.overlaps(sca, sbc, sc, thick(2), slack) {
+                    e2.t = T_FAR;
+                }
+                if e3.t < T_FAR && !frame.overlaps(sbc, sca, sab, thick(3), slack) {
+                    e3.t = T_FAR;
+                }
+                sort_descending(&mut e0, &mut e1);
+                sort_descending(&mut e2, &mut e3);
+                sort_descending(&mut e0, &mut e2);
+                sort_descending(&mut e1, &mut e3);
+                sort_descending(&mut e1, &mut e2);
+                // They would be popped next, nearest first: test them here instead, where their
+                // sheared corners are at hand to find the part of each the ray can cross.
+                let k = lod - leaf_level;
+                let family = LeafFamily {
+                    grid,
+                    first_leaf: 4 * index,
+                    corner: a,
+                    half: h,
+                    k,
+                    step: ((size / 2) >> k) * d,
+                };
+                // One call site: rust-gpu inlines every call, and four copies of the leaf test
+                // made the GPU kernel about twice as slow on lavapipe.
+                let mut c = 0;
+                while c < 4 {
+                    let e = match c {
+                        0 => e3,
+                        1 => e2,
+                        2 => e1,
+                        _ => e0,
+                    };
+                    self.intersect_child_leaf(&open, &family, &sheared, e, slack, ray, hit, scratch);
+                    c += 1;
+                }
+                continue;
+            }
+            sort_descending(&mut e0, &mut e1);
+            sort_descending(&mut e2, &mut e3);
+            sort_descending(&mut e0, &mut e2);
+            sort_descending(&mut e1, &mut e3);
+            sort_descending(&mut e1, &mut e2);
+            let mut push = |e: &Entry| {
+                if e.t < T_FAR {
+                    scratch.stack[sp] = ((4 * index + e.child) << 4) | (level + 1);
+                    scratch.stack_corner[sp] = child_corner(e.child);
+                    scratch.stack_t[sp] = e.t;
+                    sp += 1;
+                }
+            };
+            push(&e0);
+            push(&e1);
+            push(&e2);
+            push(&e3);
+        }
+    }
+}
+
+/// Corners `a`, `b`, `c` of child `child` among a sub-triangle's six points in the order
+/// `a`, `b`, `c`, `ab`, `bc`, `ca` (see [`GridScene::intersect_grid`]).
+#[inline]
+fn child_corners(points: &[Vec3; 6], child: u32) -> [Vec3; 3] {
+    match child {
+        0 => [points[0], points[3], points[5]],
+        1 => [points[3], points[1], points[4]],
+        2 => [points[5], points[4], points[2]],
+        _ => [points[4], points[5], points[3]],
+    }
+}
+
+/// First corner `a` of child `child` of a sub-triangle with first corner `a` and signed half
+/// edge `h`: a, ab, ca, and bc for the inverted middle child.
+#[inline]
+fn child_first_corner(a: [i32; 2], h: i32, child: u32) -> [i32; 2] {
+    match child {
+        0 => a,
+        1 => [a[0] + h, a[1]],
+        2 => [a[0], a[1] + h],
+        _ => [a[0] + h, a[1] + h],
+    }
+}
+
+/// A sub-triangle's first corner and orientation as one word (coordinates below 256).
+#[inline]
+fn pack_corner(a: [i32; 2], inverted: bool) -> u32 {
+    a[0] as u32 | ((a[1] as u32) << 8) | ((inverted as u32) << 16)
+}
+
+/// Four sibling leaves: their parent's grid, the index of its first child, its first corner
+/// `corner` and half its edge `half` (signed, see [`GridScene::intersect_grid`]), and each
+/// leaf's depth `k` and lattice step (`repr(C)`: naga rejects members out of offset order).
+#[repr(C)]
+struct LeafFamily {
+    grid: u32,
+    first_leaf: u32,
+    corner: [i32; 2],
+    half: i32,
+    k: u32,
+    step: i32,
+}
+
+/// A child sphere's entry distance and which child it is.
+#[repr(C)]
+#[derive(Copy, Clone)]
+struct Entry {
+    t: f32,
+    child: u32,
+}
+
+/// Orders two children so the farther comes first.
+#[inline]
+fn sort_descending(x: &mut Entry, y: &mut Entry) {
+    if x.t < y.t {
+        core::mem::swap(x, y);
+    }
+}
+
+impl LeafPrimitives for GridScene<'_> {
+    type Scratch = GridScratch;
+
+    fn scratch(&self, ray: &Ray) -> GridScratch {
+        GridScratch {
+            stack: [0; GRID_STACK],
+            stack_corner: [0; GRID_STACK],
+            stack_t: [0.0; GRID_STACK],
+            sheared: [Vec3::ZERO; LEAF_VERTICES],
+            sides: [0; LEAF_VERTICES],
+            inv_dir_len2: 1.0 / ray.dir.dot(ray.dir),
+            frame: FootprintFrame::new(ray),
+        }
+    }
+
+    fn intersect_leaf(&self, first: u32, count: u32, ray: &Ray, hit: &mut Hit, scratch: &mut GridScratch) {
+        let mut grid = first;
+        while grid < first + count {
+            self.intersect_grid(grid, ray, hit, scratch);
+            grid += 1;
+        }
+    }
+}
+
+/// Closest hit among grid primitives under a top-level BVH.
+pub fn trace_grids(nodes: &[BvhNode], scene: &GridScene, ray: &Ray, t_max: f32) -> Hit {
+    let mut hit = Hit::miss(t_max);
+    traverse_bvh(nodes, scene, ray, &mut hit);
+    hit
+}
