@@ -322,55 +322,63 @@ pub fn build_from_layout(layout: &mut GridLayout) -> GridScene {
         });
     let top = bvh::build(&boxes, &top_level_params());
 
-    // Store grids in leaf order, so leaves name contiguous ranges and need no indirection.
+    // Store grids in leaf order, so leaves name contiguous ranges and need no indirection: one
+    // parallel pass over every per-grid part (each pass wakes the workers again).
     let words = layout.inner_words as usize;
-    if words > 0 {
-        vertices[..grids * words]
-            .par_chunks_mut(words)
-            .zip(&top.order)
-            .with_min_len(GRIDS_PER_TASK)
-            .for_each(|(dst, &g)| dst.copy_from_slice(&layout.inner_by_grid[g as usize * words..][..words]));
-    }
+    let sphere_words = if layout.half_radii { 0 } else { spheres };
     let mut headers = vec![GridHeader::default(); grids];
-    headers
-        .par_iter_mut()
-        .zip(&top.order)
-        .with_min_len(GRIDS_PER_TASK)
-        .for_each(|(h, &g)| *h = layout.headers[g as usize]);
-    let mut radii = vec![0f32; grids * spheres];
-    radii
-        .par_chunks_mut(spheres)
-        .zip(&top.order)
-        .with_min_len(GRIDS_PER_TASK)
-        .for_each(|(r, &g)| r.copy_from_slice(&radii_by_base[g as usize * spheres..][..spheres]));
-
-    let radius_scale = radius_scale(radii.iter().fold(0f32, |m, &r| m.max(r)));
-    let mut radii: Vec<u32> = if layout.half_radii {
-        radii
-            .chunks(2)
-            .map(|pair| {
-                let lo = encode_radius(pair[0], radius_scale) as u32;
-                let hi = pair.get(1).map_or(0, |&r| encode_radius(r, radius_scale) as u32);
-                lo | (hi << 16)
-            })
-            .collect()
-    } else {
-        radii.iter().map(|r| r.to_bits()).collect()
-    };
-    let thickness_word = radii.len() as u32;
-    if leaf_words > 0 {
-        radii.resize(radii.len() + grids * leaf_words, 0);
-        radii[thickness_word as usize..]
-            .par_chunks_mut(leaf_words)
-            .zip(&top.order)
-            .with_min_len(GRIDS_PER_TASK)
-            .for_each(|(words, &g)| {
-                let bytes = &thickness_by_base[g as usize * leaf_bytes..][..leaf_words * 4];
-                for (w, b) in words.iter_mut().zip(bytes.chunks(4)) {
+    let mut radii = vec![0u32; grids * (sphere_words + leaf_words)];
+    let (radius_area, thickness_area) = radii.split_at_mut(grids * sphere_words);
+    let tasks: Vec<_> = top
+        .order
+        .chunks(GRIDS_PER_TASK)
+        .zip(headers.chunks_mut(GRIDS_PER_TASK))
+        .zip(chunks_or_empty(&mut vertices[..grids * words], words))
+        .zip(chunks_or_empty(radius_area, sphere_words))
+        .zip(chunks_or_empty(thickness_area, leaf_words))
+        .collect();
+    tasks
+        .into_par_iter()
+        .for_each(|((((order, headers), inner), radii), thickness)| {
+            for (i, &g) in order.iter().enumerate() {
+                let g = g as usize;
+                headers[i] = layout.headers[g];
+                if words > 0 {
+                    inner[i * words..][..words].copy_from_slice(&layout.inner_by_grid[g * words..][..words]);
+                }
+                for (r, &from) in radii[i * sphere_words..][..sphere_words]
+                    .iter_mut()
+                    .zip(&radii_by_base[g * spheres..][..sphere_words])
+                {
+                    *r = from.to_bits();
+                }
+                let bytes = &thickness_by_base[g * leaf_bytes..][..leaf_words * 4];
+                for (w, b) in thickness[i * leaf_words..][..leaf_words]
+                    .iter_mut()
+                    .zip(bytes.chunks(4))
+                {
                     *w = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
                 }
-            });
+            }
+        });
+    let radius_scale = radius_scale(radii_by_base.iter().fold(0f32, |m, &r| m.max(r)));
+    if layout.half_radii {
+        // Two radii to a word, across grid boundaries: packed in one go, in leaf order.
+        let half: Vec<u32> = top
+            .order
+            .iter()
+            .flat_map(|&g| &radii_by_base[g as usize * spheres..][..spheres])
+            .collect::<Vec<_>>()
+            .chunks(2)
+            .map(|pair| {
+                let lo = encode_radius(*pair[0], radius_scale) as u32;
+                let hi = pair.get(1).map_or(0, |&&r| encode_radius(r, radius_scale) as u32);
+                lo | (hi << 16)
+            })
+            .collect();
+        radii.splice(0..0, half);
     }
+    let thickness_word = (radii.len() - grids * leaf_words) as u32;
     GridScene {
         nodes: top.nodes,
         headers,
@@ -394,6 +402,16 @@ pub fn build_from_layout(layout: &mut GridLayout) -> GridScene {
             _pad: [0; 2],
         },
         base_triangle: top.order,
+    }
+}
+
+/// `GRIDS_PER_TASK` grids' worth of `per_grid` items at a time, or endless empty slices when
+/// there are none per grid.
+fn chunks_or_empty<T>(items: &mut [T], per_grid: usize) -> Box<dyn Iterator<Item = &mut [T]> + '_> {
+    if per_grid == 0 {
+        Box::new(std::iter::repeat_with(|| &mut [][..]))
+    } else {
+        Box::new(items.chunks_mut(GRIDS_PER_TASK * per_grid))
     }
 }
 
