@@ -135,16 +135,36 @@ pub const fn micro_table_offset(k: u32) -> u32 {
     level_start(k)
 }
 
+/// Words of the triangle lists in [`MICRO_TRIANGLES`]; the cell tables follow.
+const TRIANGLE_LISTS: u32 = level_start(MAX_LEAF_DEPTH + 1);
+
+/// Offset in [`MICRO_TRIANGLES`] of the cell table of a depth-`k` leaf: two words per lattice
+/// point `p` (its [`lattice_index`]), for the upright cell `(la, lb), (la + 1, lb), (la, lb +
+/// 1)` at `2 p` and the inverted cell `(la + 1, lb), (la, lb + 1), (la + 1, lb + 1)` at
+/// `2 p + 1`. Each holds the micro-triangle covering that cell as its triangle-list entry
+/// with its index `t` in bits 24 and up.
+#[inline]
+pub const fn micro_cell_offset(k: u32) -> u32 {
+    let mut offset = TRIANGLE_LISTS;
+    let mut j = 0;
+    while j < k {
+        offset += 2 * vertex_count(j);
+        j += 1;
+    }
+    offset
+}
+
 /// The static index list: for every leaf depth `k <= MAX_LEAF_DEPTH`, the `4^k` triangles of a
 /// sub-triangle subdivided `k` times, in recursion order, as the [`lattice_index`] of each
 /// corner in the sub-triangle's own lattice (`2^k` steps a side), eight bits each: corner `c`
-/// in bits `8c .. 8c + 8`. A leaf loads its vertices in that order once; the list then names
-/// each triangle's three. The same list serves every grid, every leaf and every level of
-/// detail.
-pub const MICRO_TRIANGLES: [u32; level_start(MAX_LEAF_DEPTH + 1) as usize] = build_micro_triangles();
+/// in bits `8c .. 8c + 8`; then the same triangles by lattice cell (see
+/// [`micro_cell_offset`]), so a leaf can test just the cells around the ray. A leaf loads its
+/// vertices once; the list then names each triangle's three. The same list serves every grid,
+/// every leaf and every level of detail.
+pub const MICRO_TRIANGLES: [u32; micro_cell_offset(MAX_LEAF_DEPTH + 1) as usize] = build_micro_triangles();
 
-const fn build_micro_triangles() -> [u32; level_start(MAX_LEAF_DEPTH + 1) as usize] {
-    let mut table = [0u32; level_start(MAX_LEAF_DEPTH + 1) as usize];
+const fn build_micro_triangles() -> [u32; micro_cell_offset(MAX_LEAF_DEPTH + 1) as usize] {
+    let mut table = [0u32; micro_cell_offset(MAX_LEAF_DEPTH + 1) as usize];
     let mut k = 0;
     while k <= MAX_LEAF_DEPTH {
         let m = 1 << k;
@@ -153,11 +173,25 @@ const fn build_micro_triangles() -> [u32; level_start(MAX_LEAF_DEPTH + 1) as usi
             let c = sub_triangle(m, k, t);
             let mut packed = 0;
             let mut v = 0;
+            // The cell's anchor: the smallest coordinates among the corners.
+            let (mut la, mut lb) = (m, m);
             while v < 3 {
                 packed |= lattice_index(c[v][0], c[v][1], m) << (8 * v);
+                if c[v][0] < la {
+                    la = c[v][0];
+                }
+                if c[v][1] < lb {
+                    lb = c[v][1];
+                }
                 v += 1;
             }
             table[(micro_table_offset(k) + t) as usize] = packed;
+            // Upright cells contain their anchor, inverted ones do not.
+            let upright = (c[0][0] == la && c[0][1] == lb)
+                || (c[1][0] == la && c[1][1] == lb)
+                || (c[2][0] == la && c[2][1] == lb);
+            let cell = 2 * lattice_index(la, lb, m) + !upright as u32;
+            table[(micro_cell_offset(k) + cell) as usize] = packed | (t << 24);
             t += 1;
         }
         k += 1;
@@ -461,6 +495,44 @@ mod tests {
             }
             let off_edges = lattice_points(n).filter(|&[i, j]| i > 0 && j > 0 && i + j < n).count();
             assert_eq!(off_edges as u32, k);
+        }
+    }
+
+    /// Every cell of a leaf's lattice names the static list's triangle on it: the cell's own
+    /// three points, as the same entry (same corner order) and the right index; every triangle
+    /// lies on exactly one cell.
+    #[test]
+    fn cell_table_names_each_cells_triangle() {
+        for k in 0..=MAX_LEAF_DEPTH {
+            let m = 1 << k;
+            let mut seen = BTreeSet::new();
+            for lb in 0..m {
+                for la in 0..m - lb {
+                    let p = lattice_index(la, lb, m);
+                    let upright = [[la, lb], [la + 1, lb], [la, lb + 1]];
+                    let inverted = [[la + 1, lb], [la, lb + 1], [la + 1, lb + 1]];
+                    for (half, points) in [(0, upright), (1, inverted)] {
+                        if half == 1 && la + lb + 2 > m {
+                            continue;
+                        }
+                        let entry = MICRO_TRIANGLES[(micro_cell_offset(k) + 2 * p + half) as usize];
+                        let t = entry >> 24;
+                        assert!(t < triangle_count(k));
+                        assert_eq!(
+                            entry & 0xff_ffff,
+                            MICRO_TRIANGLES[(micro_table_offset(k) + t) as usize],
+                            "k {k} cell ({la}, {lb}) half {half}"
+                        );
+                        let mut corners: Vec<u32> = (0..3).map(|v| (entry >> (8 * v)) & 0xff).collect();
+                        let mut expected: Vec<u32> = points.iter().map(|q| lattice_index(q[0], q[1], m)).collect();
+                        corners.sort();
+                        expected.sort();
+                        assert_eq!(corners, expected, "k {k} cell ({la}, {lb}) half {half}");
+                        assert!(seen.insert(t), "triangle {t} on two cells");
+                    }
+                }
+            }
+            assert_eq!(seen.len() as u32, triangle_count(k));
         }
     }
 }

@@ -5,7 +5,7 @@
 use crate::footprint::FootprintFrame;
 use crate::glam::Vec3;
 use crate::grid_index::{
-    lattice_from_index, lattice_index, level_start, micro_table_offset, triangle_count, vertex_count, GridSlots,
+    lattice_from_index, lattice_index, level_start, micro_cell_offset, triangle_count, vertex_count, GridSlots,
     Lattice, MAX_LEAF_DEPTH,
 };
 use crate::layout::{BvhNode, GridHeader, GridParams, Hit};
@@ -62,15 +62,12 @@ pub struct GridScratch {
     /// A leaf's vertices in the ray's sheared frame.
     sheared: [Vec3; LEAF_VERTICES],
     /// Which sides of the ray each sheared vertex lies strictly on: bits for `x > 0`, `x < 0`,
-    /// `y > 0`, `y < 0`; and [`LOADED`].
+    /// `y > 0`, `y < 0`.
     sides: [u32; LEAF_VERTICES],
     /// `1 / |dir|^2`, for the sphere tests.
     inv_dir_len2: f32,
     frame: FootprintFrame,
 }
-
-/// Flag of [`GridScratch::sides`]: the vertex is loaded for the current leaf.
-const LOADED: u32 = 1 << 4;
 
 /// Most vertices a leaf can hold: a sub-triangle subdivided `MAX_LEAF_DEPTH` times.
 const LEAF_VERTICES: usize = vertex_count(MAX_LEAF_DEPTH) as usize;
@@ -169,8 +166,8 @@ impl GridScene<'_> {
     /// and one step of its own lattice (`2^k` a side) is `step` grid-lattice units along both
     /// axes (negative for an inverted sub-triangle). Only its lattice points inside `window`
     /// (`[la_lo, la_hi, lb_lo, lb_hi]`, see [`FootprintFrame::leaf_window`]) are loaded, once
-    /// each; the static index list then names each triangle's three among them, and only
-    /// triangles with all three loaded are tested.
+    /// each, and only the cells between them are tested: the static list's cell table names
+    /// each cell's triangle and its three points.
     #[allow(clippy::too_many_arguments)]
     fn intersect_leaf_triangles(
         &self,
@@ -185,14 +182,6 @@ impl GridScene<'_> {
         scratch: &mut GridScratch,
     ) {
         let m = 1u32 << k;
-        if window[0] != 0 || window[1] != m || window[2] != 0 || window[3] != m {
-            // Part of the leaf: forget the previous leaf's vertices.
-            let mut slot = 0;
-            while slot < vertex_count(k) as usize {
-                scratch.sides[slot] = 0;
-                slot += 1;
-            }
-        }
         // In the sheared frame the ray is the z axis; triangles whose vertices all lie strictly
         // on one side of it (right, left, above or below: one bit each) cannot be crossed. A
         // leaf whose loaded vertices all agree is done before any triangle test.
@@ -213,7 +202,7 @@ impl GridScene<'_> {
                     | ((sv.x < 0.0) as u32) << 1
                     | ((sv.y > 0.0) as u32) << 2
                     | ((sv.y < 0.0) as u32) << 3;
-                scratch.sides[slot] = side | LOADED;
+                scratch.sides[slot] = side;
                 one_side &= side;
                 la += 1;
             }
@@ -222,31 +211,48 @@ impl GridScene<'_> {
         if one_side != 0 {
             return;
         }
-        let offset = micro_table_offset(k);
-        let count = triangle_count(k);
+        let cells = micro_cell_offset(k);
         // The closest triangle of this leaf, as its three vertex slots (none yet).
         let mut best = [LEAF_VERTICES as u32; 3];
-        let mut t = 0;
-        while t < count {
-            let packed = self.micro_triangles[(offset + t) as usize];
-            let i0 = corner_slot(packed, 0);
-            let i1 = corner_slot(packed, 1);
-            let i2 = corner_slot(packed, 2);
-            // The same side test per triangle: most of a leaf's triangles fail it, for three
-            // loads instead of nine and no edge functions.
-            if scratch.sides[i0] & scratch.sides[i1] & scratch.sides[i2] != LOADED {
-                t += 1;
-                continue;
+        // Cells anchored at `(la, lb)` with all their points loaded: the upright one needs
+        // `la + 1 <= la_hi`, `lb + 1 <= lb_hi` and `la + lb + 1 <= m`, the inverted one also
+        // `la + lb + 2 <= m`.
+        let mut lb = window[2];
+        while lb < window[3] {
+            let mut la = window[0];
+            let la_end = if window[1] < m - lb { window[1] } else { m - lb };
+            while la < la_end {
+                let first_cell = 2 * lattice_index(la, lb, m);
+                let end_cell = if la + lb + 2 <= m {
+                    first_cell + 2
+                } else {
+                    first_cell + 1
+                };
+                let mut cell = first_cell;
+                while cell < end_cell {
+                    let entry = self.micro_triangles[(cells + cell) as usize];
+                    cell += 1;
+                    let i0 = corner_slot(entry, 0);
+                    let i1 = corner_slot(entry, 1);
+                    let i2 = corner_slot(entry, 2);
+                    // The same side test per triangle: many fail it, for three loads instead of
+                    // nine and no edge functions.
+                    if scratch.sides[i0] & scratch.sides[i1] & scratch.sides[i2] != 0 {
+                        continue;
+                    }
+                    if let Some(found) =
+                        intersect_sheared(scratch.sheared[i0], scratch.sheared[i1], scratch.sheared[i2], hit.t)
+                    {
+                        hit.t = found.0;
+                        hit.u = found.1;
+                        hit.v = found.2;
+                        hit.prim = first_id + (entry >> 24);
+                        best = [i0 as u32, i1 as u32, i2 as u32];
+                    }
+                }
+                la += 1;
             }
-            if let Some(found) = intersect_sheared(scratch.sheared[i0], scratch.sheared[i1], scratch.sheared[i2], hit.t)
-            {
-                hit.t = found.0;
-                hit.u = found.1;
-                hit.v = found.2;
-                hit.prim = first_id + t;
-                best = [i0 as u32, i1 as u32, i2 as u32];
-            }
-            t += 1;
+            lb += 1;
         }
         if best[0] != LEAF_VERTICES as u32 {
             // Only the closest triangle needs world positions: load its three again.
