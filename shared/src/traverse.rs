@@ -21,9 +21,18 @@ pub trait LeafPrimitives {
     fn intersect_leaf(&self, first: u32, count: u32, ray: &Ray, hit: &mut Hit, scratch: &mut Self::Scratch);
 }
 
+/// No node: the stack is empty.
+const NO_NODE: u32 = u32::MAX;
+
 /// Closest hit along `ray` closer than `hit.t`. A near-first, stack-based loop: descend into
 /// the nearer child while the farther one waits on the stack with its entry distance, so it can
 /// be skipped once a closer hit is known.
+///
+/// Shaped while-while (Aila and Laine 2009): an inner loop descends to the next leaf, and the
+/// leaf is tested after it, once per leaf rather than inside every node step. On SIMD hardware
+/// a group's rays then test their leaves together, and some targets (lavapipe) run the code
+/// under a branch even when none of the group's rays takes it: with the leaf test inside the
+/// node loop, every node step paid for a grid's whole bottom level.
 pub fn traverse_bvh<P: LeafPrimitives>(nodes: &[BvhNode], prims: &P, ray: &Ray, hit: &mut Hit) {
     if nodes.is_empty() {
         return;
@@ -39,39 +48,40 @@ pub fn traverse_bvh<P: LeafPrimitives>(nodes: &[BvhNode], prims: &P, ray: &Ray, 
     let mut sp = 0usize;
     let mut scratch = prims.scratch(ray);
     let mut node = 0u32;
-    let mut live = true;
-    while live {
-        let n = nodes[node as usize];
-        if n.is_leaf() {
-            prims.intersect_leaf(n.first, n.count, ray, hit, &mut scratch);
-        } else {
+    while node != NO_NODE {
+        // Down to a leaf, or to a node whose children both miss.
+        let mut n = nodes[node as usize];
+        let mut at_leaf = n.is_leaf();
+        while !at_leaf {
             let left = nodes[n.first as usize];
             let right = nodes[n.first as usize + 1];
             let tl = intersect_aabb(Vec3::from(left.min), Vec3::from(left.max), ray, hit.t);
             let tr = intersect_aabb(Vec3::from(right.min), Vec3::from(right.max), ray, hit.t);
-            if tl < T_FAR || tr < T_FAR {
-                let (near, far, t_far) = if tl <= tr {
-                    (n.first, n.first + 1, tr)
-                } else {
-                    (n.first + 1, n.first, tl)
-                };
-                if t_far < T_FAR && sp < MAX_BVH_DEPTH {
-                    stack[sp] = far;
-                    stack_t[sp] = t_far;
-                    sp += 1;
-                }
-                node = near;
-                continue;
+            if tl == T_FAR && tr == T_FAR {
+                break;
             }
+            let (near, far, t_far) = if tl <= tr {
+                (n.first, n.first + 1, tr)
+            } else {
+                (n.first + 1, n.first, tl)
+            };
+            if t_far < T_FAR && sp < MAX_BVH_DEPTH {
+                stack[sp] = far;
+                stack_t[sp] = t_far;
+                sp += 1;
+            }
+            n = nodes[near as usize];
+            at_leaf = n.is_leaf();
         }
-        // Leaf done or both children missed: resume with the nearest waiting node that can
-        // still hold a closer hit.
-        live = false;
+        if at_leaf {
+            prims.intersect_leaf(n.first, n.count, ray, hit, &mut scratch);
+        }
+        // Resume with the nearest waiting node that can still hold a closer hit.
+        node = NO_NODE;
         while sp > 0 {
             sp -= 1;
             if stack_t[sp] < hit.t {
                 node = stack[sp];
-                live = true;
                 break;
             }
         }
