@@ -422,9 +422,13 @@ impl GridScene<'_> {
                     step: ((size / 2) >> k) * d,
                 };
                 // One call site: rust-gpu inlines every call, and four copies of the leaf test
-                // made the GPU kernel about twice as slow on lavapipe.
+                // made the GPU kernel about twice as slow on lavapipe. Only the children still
+                // in (sorted last) go round: lavapipe runs a loop's body for as many rounds as
+                // any ray of the group needs, and every round costs a whole leaf test.
+                let culled =
+                    (e0.t == T_FAR) as u32 + (e1.t == T_FAR) as u32 + (e2.t == T_FAR) as u32 + (e3.t == T_FAR) as u32;
                 let mut c = 0;
-                while c < 4 {
+                while c < 4 - culled {
                     let e = match c {
                         0 => e3,
                         1 => e2,
