@@ -270,7 +270,7 @@ impl GridScene<'_> {
 
     /// Leaf `e.child` of `family`, reached from its parent (whose six points are `sheared`)
     /// with its sphere entry distance `e.t`: only the part of it the footprint leaves open is
-    /// loaded and tested.
+    /// loaded and tested (all of it for a `whole` family).
     #[allow(clippy::too_many_arguments)]
     fn intersect_child_leaf(
         &self,
@@ -287,11 +287,14 @@ impl GridScene<'_> {
             return;
         }
         let leaf = family.first_leaf + e.child;
-        let radius = self.radius(family.grid, level_start(self.params.leaf_level) + leaf);
-        let thickness = self.thickness(family.grid, leaf, radius);
-        let [ca, cb, cc] = child_corners(sheared, e.child);
         let m = 1u32 << family.k;
-        let window = scratch.frame.leaf_window(ca, cb, cc, m, thickness, slack);
+        let mut window = [0, m, 0, m];
+        if family.whole == 0 {
+            let radius = self.radius(family.grid, level_start(self.params.leaf_level) + leaf);
+            let thickness = self.thickness(family.grid, leaf, radius);
+            let [ca, cb, cc] = child_corners(sheared, e.child);
+            window = scratch.frame.leaf_window(ca, cb, cc, m, thickness, slack);
+        }
         let corner = child_first_corner(family.corner, family.half, e.child);
         let step = if e.child == 3 { -family.step } else { family.step };
         let first_id = family.grid * triangle_count(self.params.lod) + leaf * triangle_count(family.k);
@@ -335,128 +338,141 @@ impl GridScene<'_> {
             let inverted = packed >> 16 != 0;
             let d = if inverted { -1 } else { 1 };
             let size = (n >> level) as i32;
-            if level == leaf_level {
-                let k = lod - level;
-                let first_id = grid * triangle_count(lod) + index * triangle_count(k);
-                let step = d * (size >> k);
-                let m = 1 << k;
-                self.intersect_leaf_triangles(&open, a, step, k, [0, m, 0, m], first_id, ray, hit, scratch);
-                continue;
-            }
-            // The four children share six vertices: three corners and three midpoints.
-            let (s, h) = (d * size, d * size / 2);
-            let at = |x: i32, y: i32| [(a[0] + x) as u32, (a[1] + y) as u32];
-            // The root's corners are the grid's, already loaded.
-            let pa = if level == 0 {
-                open.corners[0]
-            } else {
-                self.vertex(&open, at(0, 0))
+            // The leaves this round tests, through one call site below (rust-gpu inlines every
+            // call: each copy of the leaf test costs the GPU kernel, and lavapipe runs the code
+            // of a branch even when none of its rays takes it): the popped sub-triangle itself
+            // when it is a leaf, or its children when they are stored leaves.
+            let mut family = LeafFamily {
+                grid,
+                first_leaf: index,
+                corner: a,
+                half: 0,
+                k: lod - level,
+                step: d * (size >> (lod - level)),
+                whole: 1,
             };
-            let pb = if level == 0 {
-                open.corners[1]
-            } else {
-                self.vertex(&open, at(s, 0))
+            let mut sheared = [Vec3::ZERO; 6];
+            let mut e0 = Entry { t: T_FAR, child: 0 };
+            let mut e1 = Entry { t: T_FAR, child: 1 };
+            let mut e2 = Entry { t: T_FAR, child: 2 };
+            let mut e3 = Entry {
+                t: scratch.stack_t[sp],
+                child: 0,
             };
-            let pc = if level == 0 {
-                open.corners[2]
-            } else {
-                self.vertex(&open, at(0, s))
-            };
-            let pab = self.vertex(&open, at(h, 0));
-            let pbc = self.vertex(&open, at(h, h));
-            let pca = self.vertex(&open, at(0, h));
-            // Children in `child_corners` order; their radii are adjacent in BFS order.
-            let first_child = level_start(level + 1) + 4 * index;
-            // Test the four children, sort them by entry distance with a fixed network (no
-            // dynamically indexed arrays: those are slow on GPUs), push the hit ones farthest
-            // first so the nearest is popped next.
-            let r = |c: u32| self.radius(grid, first_child + c);
-            let entry = |center: Vec3, child: u32| Entry {
-                t: intersect_sphere_scaled(center, r(child), ray, inv_dir_len2, hit.t),
-                child,
-            };
-            let mut e0 = entry(sphere_center(pa, pab, pca), 0);
-            let mut e1 = entry(sphere_center(pab, pb, pbc), 1);
-            let mut e2 = entry(sphere_center(pca, pbc, pc), 2);
-            let mut e3 = entry(sphere_center(pbc, pca, pab), 3);
-            let child_corner = |c: u32| pack_corner(child_first_corner(a, h, c), inverted != (c == 3));
-            if self.params.leaf_footprint != 0 && level + 1 == leaf_level && leaf_level == self.params.leaf_level {
-                // The children are stored leaves: drop those whose footprint misses the ray
-                // before their vertices are loaded.
-                let sheared = [
-                    shear(pa, ray),
-                    shear(pb, ray),
-                    shear(pc, ray),
-                    shear(pab, ray),
-                    shear(pbc, ray),
-                    shear(pca, ray),
-                ];
-                let thick = |c: u32| self.thickness(grid, 4 * index + c, r(c));
-                let [sa, sb, sc, sab, sbc, sca] = sheared;
-                if e0.t < T_FAR && !frame.overlaps(sa, sab, sca, thick(0), slack) {
-                    e0.t = T_FAR;
-                }
-                if e1.t < T_FAR && !frame.overlaps(sab, sb, sbc, thick(1), slack) {
-                    e1.t = T_FAR;
-                }
-                if e2.t < T_FAR && !frame.overlaps(sca, sbc, sc, thick(2), slack) {
-                    e2.t = T_FAR;
-                }
-                if e3.t < T_FAR && !frame.overlaps(sbc, sca, sab, thick(3), slack) {
-                    e3.t = T_FAR;
+            let mut leaves = 1;
+            if level != leaf_level {
+                leaves = 0;
+                // The four children share six vertices: three corners and three midpoints.
+                let (s, h) = (d * size, d * size / 2);
+                let at = |x: i32, y: i32| [(a[0] + x) as u32, (a[1] + y) as u32];
+                // The root's corners are the grid's, already loaded.
+                let pa = if level == 0 {
+                    open.corners[0]
+                } else {
+                    self.vertex(&open, at(0, 0))
+                };
+                let pb = if level == 0 {
+                    open.corners[1]
+                } else {
+                    self.vertex(&open, at(s, 0))
+                };
+                let pc = if level == 0 {
+                    open.corners[2]
+                } else {
+                    self.vertex(&open, at(0, s))
+                };
+                let pab = self.vertex(&open, at(h, 0));
+                let pbc = self.vertex(&open, at(h, h));
+                let pca = self.vertex(&open, at(0, h));
+                // Children in `child_corners` order; their radii are adjacent in BFS order.
+                let first_child = level_start(level + 1) + 4 * index;
+                // Test the four children, sort them by entry distance with a fixed network (no
+                // dynamically indexed arrays: those are slow on GPUs), then push the hit ones
+                // farthest first so the nearest is popped next, or test them here.
+                let r = |c: u32| self.radius(grid, first_child + c);
+                let entry = |center: Vec3, child: u32| Entry {
+                    t: intersect_sphere_scaled(center, r(child), ray, inv_dir_len2, hit.t),
+                    child,
+                };
+                e0 = entry(sphere_center(pa, pab, pca), 0);
+                e1 = entry(sphere_center(pab, pb, pbc), 1);
+                e2 = entry(sphere_center(pca, pbc, pc), 2);
+                e3 = entry(sphere_center(pbc, pca, pab), 3);
+                let children_are_leaves = level + 1 == leaf_level && leaf_level == self.params.leaf_level;
+                if self.params.leaf_footprint != 0 && children_are_leaves {
+                    // The children are stored leaves: drop those whose footprint misses the ray
+                    // before their vertices are loaded.
+                    sheared = [
+                        shear(pa, ray),
+                        shear(pb, ray),
+                        shear(pc, ray),
+                        shear(pab, ray),
+                        shear(pbc, ray),
+                        shear(pca, ray),
+                    ];
+                    let thick = |c: u32| self.thickness(grid, 4 * index + c, r(c));
+                    let [sa, sb, sc, sab, sbc, sca] = sheared;
+                    if e0.t < T_FAR && !frame.overlaps(sa, sab, sca, thick(0), slack) {
+                        e0.t = T_FAR;
+                    }
+                    if e1.t < T_FAR && !frame.overlaps(sab, sb, sbc, thick(1), slack) {
+                        e1.t = T_FAR;
+                    }
+                    if e2.t < T_FAR && !frame.overlaps(sca, sbc, sc, thick(2), slack) {
+                        e2.t = T_FAR;
+                    }
+                    if e3.t < T_FAR && !frame.overlaps(sbc, sca, sab, thick(3), slack) {
+                        e3.t = T_FAR;
+                    }
                 }
                 sort_descending(&mut e0, &mut e1);
                 sort_descending(&mut e2, &mut e3);
                 sort_descending(&mut e0, &mut e2);
                 sort_descending(&mut e1, &mut e3);
                 sort_descending(&mut e1, &mut e2);
-                // They would be popped next, nearest first: test them here instead, where their
-                // sheared corners are at hand to find the part of each the ray can cross.
-                let k = lod - leaf_level;
-                let family = LeafFamily {
-                    grid,
-                    first_leaf: 4 * index,
-                    corner: a,
-                    half: h,
-                    k,
-                    step: ((size / 2) >> k) * d,
-                };
-                // One call site: rust-gpu inlines every call, and four copies of the leaf test
-                // made the GPU kernel about twice as slow on lavapipe. Only the children still
-                // in (sorted last) go round: lavapipe runs a loop's body for as many rounds as
-                // any ray of the group needs, and every round costs a whole leaf test.
-                let culled =
-                    (e0.t == T_FAR) as u32 + (e1.t == T_FAR) as u32 + (e2.t == T_FAR) as u32 + (e3.t == T_FAR) as u32;
-                let mut c = 0;
-                while c < 4 - culled {
-                    let e = match c {
-                        0 => e3,
-                        1 => e2,
-                        2 => e1,
-                        _ => e0,
+                if self.params.leaf_footprint != 0 && children_are_leaves {
+                    // They would be popped next, nearest first: test them here instead, where
+                    // their sheared corners are at hand to find the part of each the ray can
+                    // cross. Only the children still in (sorted last) go round.
+                    let k = lod - leaf_level;
+                    family = LeafFamily {
+                        grid,
+                        first_leaf: 4 * index,
+                        corner: a,
+                        half: h,
+                        k,
+                        step: ((size / 2) >> k) * d,
+                        whole: 0,
                     };
-                    self.intersect_child_leaf(&open, &family, &sheared, e, slack, ray, hit, scratch);
-                    c += 1;
+                    leaves =
+                        (e0.t < T_FAR) as u32 + (e1.t < T_FAR) as u32 + (e2.t < T_FAR) as u32 + (e3.t < T_FAR) as u32;
+                } else {
+                    let child_corner = |c: u32| pack_corner(child_first_corner(a, h, c), inverted != (c == 3));
+                    let mut push = |e: &Entry| {
+                        if e.t < T_FAR {
+                            scratch.stack[sp] = ((4 * index + e.child) << 4) | (level + 1);
+                            scratch.stack_corner[sp] = child_corner(e.child);
+                            scratch.stack_t[sp] = e.t;
+                            sp += 1;
+                        }
+                    };
+                    push(&e0);
+                    push(&e1);
+                    push(&e2);
+                    push(&e3);
                 }
-                continue;
             }
-            sort_descending(&mut e0, &mut e1);
-            sort_descending(&mut e2, &mut e3);
-            sort_descending(&mut e0, &mut e2);
-            sort_descending(&mut e1, &mut e3);
-            sort_descending(&mut e1, &mut e2);
-            let mut push = |e: &Entry| {
-                if e.t < T_FAR {
-                    scratch.stack[sp] = ((4 * index + e.child) << 4) | (level + 1);
-                    scratch.stack_corner[sp] = child_corner(e.child);
-                    scratch.stack_t[sp] = e.t;
-                    sp += 1;
-                }
-            };
-            push(&e0);
-            push(&e1);
-            push(&e2);
-            push(&e3);
+            let mut c = 0;
+            while c < leaves {
+                let e = match c {
+                    0 => e3,
+                    1 => e2,
+                    2 => e1,
+                    _ => e0,
+                };
+                self.intersect_child_leaf(&open, &family, &sheared, e, slack, ray, hit, scratch);
+                c += 1;
+            }
         }
     }
 }
@@ -493,7 +509,8 @@ fn pack_corner(a: [i32; 2], inverted: bool) -> u32 {
 
 /// Four sibling leaves: their parent's grid, the index of its first child, its first corner
 /// `corner` and half its edge `half` (signed, see [`GridScene::intersect_grid`]), and each
-/// leaf's depth `k` and lattice step (`repr(C)`: naga rejects members out of offset order).
+/// leaf's depth `k` and lattice step; or, with `whole` set, one leaf (child 0, `half` 0)
+/// tested whole, without a footprint (`repr(C)`: naga rejects members out of offset order).
 #[repr(C)]
 struct LeafFamily {
     grid: u32,
@@ -502,6 +519,7 @@ struct LeafFamily {
     half: i32,
     k: u32,
     step: i32,
+    whole: u32,
 }
 
 /// A child sphere's entry distance and which child it is.
