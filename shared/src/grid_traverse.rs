@@ -5,8 +5,8 @@
 use crate::footprint::FootprintFrame;
 use crate::glam::Vec3;
 use crate::grid_index::{
-    lattice_from_index, lattice_index, level_start, micro_cell_offset, triangle_count, vertex_count, GridSlots,
-    Lattice, MAX_LEAF_DEPTH,
+    lattice_index, level_start, micro_cell_offset, sub_triangle, triangle_count, vertex_count, GridSlots, Lattice,
+    MAX_LEAF_DEPTH,
 };
 use crate::layout::{BvhNode, GridHeader, GridParams, Hit};
 use crate::quantize::{dequantize, read_half, read_half_triple, unit_from_exponent};
@@ -212,8 +212,6 @@ impl GridScene<'_> {
             return;
         }
         let cells = micro_cell_offset(k);
-        // The closest triangle of this leaf, as its three vertex slots (none yet).
-        let mut best = [LEAF_VERTICES as u32; 3];
         // Cells anchored at `(la, lb)` with all their points loaded: the upright one needs
         // `la + 1 <= la_hi`, `lb + 1 <= lb_hi` and `la + lb + 1 <= m`, the inverted one also
         // `la + lb + 2 <= m`.
@@ -247,25 +245,21 @@ impl GridScene<'_> {
                         hit.u = found.1;
                         hit.v = found.2;
                         hit.prim = first_id + (entry >> 24);
-                        best = [i0 as u32, i1 as u32, i2 as u32];
                     }
                 }
                 la += 1;
             }
             lb += 1;
         }
-        if best[0] != LEAF_VERTICES as u32 {
-            // Only the closest triangle needs world positions: load its three again.
-            let world = |slot: u32| {
-                let [la, lb] = lattice_from_index(slot, m);
-                let p = [
-                    (corner[0] + la as i32 * step) as u32,
-                    (corner[1] + lb as i32 * step) as u32,
-                ];
-                self.vertex(open, p)
-            };
-            hit.normal = triangle_normal(world(best[0]), world(best[1]), world(best[2])).to_array();
-        }
+    }
+
+    /// Geometric normal (unnormalised) of micro-triangle `prim`, numbered as hits number them:
+    /// `grid * 4^lod` plus its index in recursion order, whose digits walk down to its corners.
+    pub fn micro_triangle_normal(&self, prim: u32) -> Vec3 {
+        let per_grid = triangle_count(self.params.lod);
+        let open = self.open(prim / per_grid);
+        let [a, b, c] = sub_triangle(1 << self.params.levels, self.params.lod, prim % per_grid);
+        triangle_normal(self.vertex(&open, a), self.vertex(&open, b), self.vertex(&open, c))
     }
 
     /// Leaf `e.child` of `family`, reached from its parent (whose six points are `sheared`)
@@ -566,5 +560,9 @@ impl LeafPrimitives for GridScene<'_> {
 pub fn trace_grids(nodes: &[BvhNode], scene: &GridScene, ray: &Ray, t_max: f32) -> Hit {
     let mut hit = Hit::miss(t_max);
     traverse_bvh(nodes, scene, ray, &mut hit);
+    if hit.is_hit() {
+        // Only the closest triangle needs world positions: its three vertices, loaded again.
+        hit.normal = scene.micro_triangle_normal(hit.prim).to_array();
+    }
     hit
 }

@@ -106,15 +106,6 @@ pub(crate) fn load_vec3_bits(words: &[u32], word: u32) -> Vec3 {
     )
 }
 
-#[inline]
-fn record_hit(hit: &mut Hit, found: (f32, f32, f32), prim: u32, normal: Vec3) {
-    hit.t = found.0;
-    hit.u = found.1;
-    hit.v = found.2;
-    hit.prim = prim;
-    hit.normal = normal.to_array();
-}
-
 /// The baseline: an indexed triangle list (`positions` xyz per vertex, `indices` three per
 /// triangle) whose triangles the BVH leaves name by index.
 pub struct TriangleMesh<'a> {
@@ -135,7 +126,10 @@ impl LeafPrimitives for TriangleMesh<'_> {
             let v1 = load_vec3(self.positions, self.indices[base + 1]);
             let v2 = load_vec3(self.positions, self.indices[base + 2]);
             if let Some(found) = intersect_triangle(v0, v1, v2, ray, hit.t) {
-                record_hit(hit, found, tri, triangle_normal(v0, v1, v2));
+                hit.t = found.0;
+                hit.u = found.1;
+                hit.v = found.2;
+                hit.prim = tri;
             }
             tri += 1;
         }
@@ -146,5 +140,13 @@ impl LeafPrimitives for TriangleMesh<'_> {
 pub fn trace_triangles(nodes: &[BvhNode], mesh: &TriangleMesh, ray: &Ray, t_max: f32) -> Hit {
     let mut hit = Hit::miss(t_max);
     traverse_bvh(nodes, mesh, ray, &mut hit);
+    if hit.is_hit() {
+        // The closest triangle's normal, once (as the grids do).
+        let base = 3 * hit.prim as usize;
+        let v0 = load_vec3(mesh.positions, mesh.indices[base]);
+        let v1 = load_vec3(mesh.positions, mesh.indices[base + 1]);
+        let v2 = load_vec3(mesh.positions, mesh.indices[base + 2]);
+        hit.normal = triangle_normal(v0, v1, v2).to_array();
+    }
     hit
 }
