@@ -2,14 +2,10 @@
 
 use gridrt_shared::camera::primary_ray;
 use gridrt_shared::glam::Vec3;
-use gridrt_shared::grid_index::{sub_triangle, triangle_count};
 use gridrt_shared::layout::{Camera, FrameParams, GridParams, Hit};
 use gridrt_shared::ray::{Ray, T_FAR};
 use gridrt_shared::shade::{pack_rgba8, shade};
-use gridrt_shared::{
-    grid_traverse::trace_grids,
-    traverse::{load_vec3, trace_triangles},
-};
+use gridrt_shared::{grid_traverse::trace_grids, traverse::trace_triangles};
 use rayon::prelude::*;
 
 use crate::grid::GridScene;
@@ -54,15 +50,8 @@ impl Scene {
     /// Corners of a hit's triangle, by its primitive id.
     pub fn triangle(&self, prim: u32) -> [Vec3; 3] {
         match self {
-            Scene::Triangles(s) => {
-                let v = |k: usize| load_vec3(&s.positions, s.indices[3 * prim as usize + k]);
-                [v(0), v(1), v(2)]
-            }
-            Scene::Grids(s) => {
-                let (view, per_grid) = (s.view(), triangle_count(s.params.lod));
-                let grid = view.open(prim / per_grid);
-                sub_triangle(1 << s.params.levels, s.params.lod, prim % per_grid).map(|p| view.vertex(&grid, p))
-            }
+            Scene::Triangles(s) => s.view().corners(prim),
+            Scene::Grids(s) => s.view().micro_triangle(prim),
         }
     }
 

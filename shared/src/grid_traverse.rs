@@ -12,7 +12,7 @@ use crate::layout::{BvhNode, GridHeader, GridParams, Hit};
 use crate::quantize::{dequantize, read_half, read_half_triple, unit_from_exponent};
 use crate::ray::{Ray, T_FAR};
 use crate::sphere::{decode_radius, intersect_sphere_scaled};
-use crate::traverse::{load_vec3_bits, traverse_bvh, LeafPrimitives};
+use crate::traverse::{load_vec3_bits, record_hit, traverse_bvh, LeafPrimitives};
 use crate::triangle::{intersect_sheared, shear, triangle_normal};
 
 /// Most spheres a grid hierarchy may be deep: levels `0 ..= MAX_SPHERE_LEVEL`.
@@ -241,10 +241,7 @@ impl GridScene<'_> {
                     if let Some(found) =
                         intersect_sheared(scratch.sheared[i0], scratch.sheared[i1], scratch.sheared[i2], hit.t)
                     {
-                        hit.t = found.0;
-                        hit.u = found.1;
-                        hit.v = found.2;
-                        hit.prim = first_id + (entry >> 24);
+                        record_hit(hit, found, first_id + (entry >> 24));
                     }
                 }
                 la += 1;
@@ -253,13 +250,13 @@ impl GridScene<'_> {
         }
     }
 
-    /// Geometric normal (unnormalised) of micro-triangle `prim`, numbered as hits number them:
-    /// `grid * 4^lod` plus its index in recursion order, whose digits walk down to its corners.
-    pub fn micro_triangle_normal(&self, prim: u32) -> Vec3 {
+    /// Corners of micro-triangle `prim`, numbered as hits number them: `grid * 4^lod` plus its
+    /// index in recursion order, whose digits walk down to its corners.
+    pub fn micro_triangle(&self, prim: u32) -> [Vec3; 3] {
         let per_grid = triangle_count(self.params.lod);
         let open = self.open(prim / per_grid);
         let [a, b, c] = sub_triangle(1 << self.params.levels, self.params.lod, prim % per_grid);
-        triangle_normal(self.vertex(&open, a), self.vertex(&open, b), self.vertex(&open, c))
+        [self.vertex(&open, a), self.vertex(&open, b), self.vertex(&open, c)]
     }
 
     /// Leaf `e.child` of `family`, reached from its parent (whose six points are `sheared`)
@@ -562,7 +559,8 @@ pub fn trace_grids(nodes: &[BvhNode], scene: &GridScene, ray: &Ray, t_max: f32) 
     traverse_bvh(nodes, scene, ray, &mut hit);
     if hit.is_hit() {
         // Only the closest triangle needs world positions: its three vertices, loaded again.
-        hit.normal = scene.micro_triangle_normal(hit.prim).to_array();
+        let [a, b, c] = scene.micro_triangle(hit.prim);
+        hit.normal = triangle_normal(a, b, c).to_array();
     }
     hit
 }

@@ -106,11 +106,35 @@ pub(crate) fn load_vec3_bits(words: &[u32], word: u32) -> Vec3 {
     )
 }
 
+/// Takes a closer hit `found` (`t` and barycentrics) on primitive `prim`; the normal is
+/// found once, after the traversal.
+#[inline]
+pub(crate) fn record_hit(hit: &mut Hit, found: (f32, f32, f32), prim: u32) {
+    hit.t = found.0;
+    hit.u = found.1;
+    hit.v = found.2;
+    hit.prim = prim;
+}
+
 /// The baseline: an indexed triangle list (`positions` xyz per vertex, `indices` three per
 /// triangle) whose triangles the BVH leaves name by index.
 pub struct TriangleMesh<'a> {
     pub positions: &'a [f32],
     pub indices: &'a [u32],
+}
+
+impl TriangleMesh<'_> {
+    /// The three corners of triangle `tri`. (Always inlined: as a call it costs the baseline's
+    /// CPU traversal 2% more instructions.)
+    #[inline(always)]
+    pub fn corners(&self, tri: u32) -> [Vec3; 3] {
+        let base = 3 * tri as usize;
+        [
+            load_vec3(self.positions, self.indices[base]),
+            load_vec3(self.positions, self.indices[base + 1]),
+            load_vec3(self.positions, self.indices[base + 2]),
+        ]
+    }
 }
 
 impl LeafPrimitives for TriangleMesh<'_> {
@@ -121,15 +145,9 @@ impl LeafPrimitives for TriangleMesh<'_> {
     fn intersect_leaf(&self, first: u32, count: u32, ray: &Ray, hit: &mut Hit, _scratch: &mut ()) {
         let mut tri = first;
         while tri < first + count {
-            let base = 3 * tri as usize;
-            let v0 = load_vec3(self.positions, self.indices[base]);
-            let v1 = load_vec3(self.positions, self.indices[base + 1]);
-            let v2 = load_vec3(self.positions, self.indices[base + 2]);
+            let [v0, v1, v2] = self.corners(tri);
             if let Some(found) = intersect_triangle(v0, v1, v2, ray, hit.t) {
-                hit.t = found.0;
-                hit.u = found.1;
-                hit.v = found.2;
-                hit.prim = tri;
+                record_hit(hit, found, tri);
             }
             tri += 1;
         }
@@ -142,10 +160,7 @@ pub fn trace_triangles(nodes: &[BvhNode], mesh: &TriangleMesh, ray: &Ray, t_max:
     traverse_bvh(nodes, mesh, ray, &mut hit);
     if hit.is_hit() {
         // The closest triangle's normal, once (as the grids do).
-        let base = 3 * hit.prim as usize;
-        let v0 = load_vec3(mesh.positions, mesh.indices[base]);
-        let v1 = load_vec3(mesh.positions, mesh.indices[base + 1]);
-        let v2 = load_vec3(mesh.positions, mesh.indices[base + 2]);
+        let [v0, v1, v2] = mesh.corners(hit.prim);
         hit.normal = triangle_normal(v0, v1, v2).to_array();
     }
     hit
