@@ -28,8 +28,9 @@ const NO_NODE: u32 = u32::MAX;
 /// the nearer child while the farther one waits on the stack with its entry distance, so it can
 /// be skipped once a closer hit is known.
 ///
-/// Shaped while-while (Aila and Laine 2009): an inner loop descends to the next leaf, and the
-/// leaf is tested after it, once per leaf rather than inside every node step. On SIMD hardware
+/// Shaped while-while (Aila and Laine 2009): an inner loop descends to the next leaf, popping
+/// past dead ends, and the leaf is tested after it, once per leaf rather than inside every node
+/// step. On SIMD hardware
 /// a group's rays then test their leaves together, and some targets (lavapipe) run the code
 /// under a branch even when none of the group's rays takes it: with the leaf test inside the
 /// node loop, every node step paid for a grid's whole bottom level.
@@ -49,7 +50,8 @@ pub fn traverse_bvh<P: LeafPrimitives>(nodes: &[BvhNode], prims: &P, ray: &Ray, 
     let mut scratch = prims.scratch(ray);
     let mut node = 0u32;
     while node != NO_NODE {
-        // Down to a leaf, or to a node whose children both miss.
+        // Down to the next leaf: dead ends (both children missed) pop and go on here, so every
+        // round of the outer loop tests a leaf for each ray still going.
         let mut n = nodes[node as usize];
         let mut at_leaf = n.is_leaf();
         while !at_leaf {
@@ -57,35 +59,45 @@ pub fn traverse_bvh<P: LeafPrimitives>(nodes: &[BvhNode], prims: &P, ray: &Ray, 
             let right = nodes[n.first as usize + 1];
             let tl = intersect_aabb(Vec3::from(left.min), Vec3::from(left.max), ray, hit.t);
             let tr = intersect_aabb(Vec3::from(right.min), Vec3::from(right.max), ray, hit.t);
-            if tl == T_FAR && tr == T_FAR {
+            let next = if tl == T_FAR && tr == T_FAR {
+                pop_closer(&stack, &stack_t, &mut sp, hit.t)
+            } else {
+                let (near, far, t_far) = if tl <= tr {
+                    (n.first, n.first + 1, tr)
+                } else {
+                    (n.first + 1, n.first, tl)
+                };
+                if t_far < T_FAR && sp < MAX_BVH_DEPTH {
+                    stack[sp] = far;
+                    stack_t[sp] = t_far;
+                    sp += 1;
+                }
+                near
+            };
+            if next == NO_NODE {
                 break;
             }
-            let (near, far, t_far) = if tl <= tr {
-                (n.first, n.first + 1, tr)
-            } else {
-                (n.first + 1, n.first, tl)
-            };
-            if t_far < T_FAR && sp < MAX_BVH_DEPTH {
-                stack[sp] = far;
-                stack_t[sp] = t_far;
-                sp += 1;
-            }
-            n = nodes[near as usize];
+            n = nodes[next as usize];
             at_leaf = n.is_leaf();
         }
-        if at_leaf {
-            prims.intersect_leaf(n.first, n.count, ray, hit, &mut scratch);
+        if !at_leaf {
+            break;
         }
-        // Resume with the nearest waiting node that can still hold a closer hit.
-        node = NO_NODE;
-        while sp > 0 {
-            sp -= 1;
-            if stack_t[sp] < hit.t {
-                node = stack[sp];
-                break;
-            }
+        prims.intersect_leaf(n.first, n.count, ray, hit, &mut scratch);
+        node = pop_closer(&stack, &stack_t, &mut sp, hit.t);
+    }
+}
+
+/// The nearest waiting node that can still hold a hit closer than `t`, or [`NO_NODE`].
+#[inline]
+fn pop_closer(stack: &[u32; MAX_BVH_DEPTH], stack_t: &[f32; MAX_BVH_DEPTH], sp: &mut usize, t: f32) -> u32 {
+    while *sp > 0 {
+        *sp -= 1;
+        if stack_t[*sp] < t {
+            return stack[*sp];
         }
     }
+    NO_NODE
 }
 
 /// Vertex `index` of a flat xyz array.
