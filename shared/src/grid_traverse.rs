@@ -12,8 +12,8 @@ use crate::layout::{BvhNode, GridHeader, GridParams, Hit};
 use crate::quantize::{dequantize, read_half, read_half_triple, unit_from_exponent};
 use crate::ray::{Ray, T_FAR};
 use crate::sphere::{decode_radius, intersect_sphere_scaled};
-use crate::traverse::{load_vec3_bits, record_hit, traverse_bvh, LeafPrimitives};
-use crate::triangle::{intersect_sheared, shear, triangle_normal};
+use crate::traverse::{load_vec3_bits, record_hit, trace, LeafPrimitives};
+use crate::triangle::{intersect_sheared, shear};
 
 /// Most spheres a grid hierarchy may be deep: levels `0 ..= MAX_SPHERE_LEVEL`.
 pub const MAX_SPHERE_LEVEL: u32 = 6;
@@ -551,16 +551,14 @@ impl LeafPrimitives for GridScene<'_> {
             grid += 1;
         }
     }
+
+    #[inline]
+    fn triangle(&self, prim: u32) -> [Vec3; 3] {
+        self.micro_triangle(prim)
+    }
 }
 
 /// Closest hit among grid primitives under a top-level BVH.
 pub fn trace_grids(nodes: &[BvhNode], scene: &GridScene, ray: &Ray, t_max: f32) -> Hit {
-    let mut hit = Hit::miss(t_max);
-    traverse_bvh(nodes, scene, ray, &mut hit);
-    if hit.is_hit() {
-        // Only the closest triangle needs world positions: its three vertices, loaded again.
-        let [a, b, c] = scene.micro_triangle(hit.prim);
-        hit.normal = triangle_normal(a, b, c).to_array();
-    }
-    hit
+    trace(nodes, scene, ray, t_max)
 }

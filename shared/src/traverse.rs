@@ -19,6 +19,20 @@ pub trait LeafPrimitives {
     fn scratch(&self, ray: &Ray) -> Self::Scratch;
     /// Intersects primitives `first .. first + count`, shrinking `hit.t` on every closer hit.
     fn intersect_leaf(&self, first: u32, count: u32, ray: &Ray, hit: &mut Hit, scratch: &mut Self::Scratch);
+    /// Corners of the triangle a hit names `prim`.
+    fn triangle(&self, prim: u32) -> [Vec3; 3];
+}
+
+/// Closest hit along `ray` within `t_max`, with its triangle's normal: found once, after the
+/// traversal, from the closest triangle's corners loaded again.
+pub fn trace<P: LeafPrimitives>(nodes: &[BvhNode], prims: &P, ray: &Ray, t_max: f32) -> Hit {
+    let mut hit = Hit::miss(t_max);
+    traverse_bvh(nodes, prims, ray, &mut hit);
+    if hit.is_hit() {
+        let [a, b, c] = prims.triangle(hit.prim);
+        hit.normal = triangle_normal(a, b, c).to_array();
+    }
+    hit
 }
 
 /// No node: the stack is empty.
@@ -164,16 +178,14 @@ impl LeafPrimitives for TriangleMesh<'_> {
             tri += 1;
         }
     }
+
+    #[inline]
+    fn triangle(&self, prim: u32) -> [Vec3; 3] {
+        self.corners(prim)
+    }
 }
 
 /// Closest hit in a triangle mesh.
 pub fn trace_triangles(nodes: &[BvhNode], mesh: &TriangleMesh, ray: &Ray, t_max: f32) -> Hit {
-    let mut hit = Hit::miss(t_max);
-    traverse_bvh(nodes, mesh, ray, &mut hit);
-    if hit.is_hit() {
-        // The closest triangle's normal, once (as the grids do).
-        let [v0, v1, v2] = mesh.corners(hit.prim);
-        hit.normal = triangle_normal(v0, v1, v2).to_array();
-    }
-    hit
+    trace(nodes, mesh, ray, t_max)
 }
