@@ -143,15 +143,12 @@ const TRIANGLE_LISTS: u32 = level_start(MAX_LEAF_DEPTH + 1);
 /// 1)` at `2 p` and the inverted cell `(la + 1, lb), (la, lb + 1), (la + 1, lb + 1)` at
 /// `2 p + 1`. Each holds the micro-triangle covering that cell as its triangle-list entry
 /// with its index `t` in bits 24 and up.
+///
+/// In closed form, since every leaf test asks: the tables before depth `k` hold
+/// `sum_{j<k} (2^j + 1)(2^j + 2) = (4^k - 1) / 3 + 3 (2^k - 1) + 2 k` words.
 #[inline]
 pub const fn micro_cell_offset(k: u32) -> u32 {
-    let mut offset = TRIANGLE_LISTS;
-    let mut j = 0;
-    while j < k {
-        offset += 2 * vertex_count(j);
-        j += 1;
-    }
-    offset
+    TRIANGLE_LISTS + level_start(k) + 3 * ((1 << k) - 1) + 2 * k
 }
 
 /// The static index list: for every leaf depth `k <= MAX_LEAF_DEPTH`, the `4^k` triangles of a
@@ -533,6 +530,9 @@ mod tests {
                 }
             }
             assert_eq!(seen.len() as u32, triangle_count(k));
+            // Each depth's table holds two words per lattice point, right after the last.
+            assert_eq!(micro_cell_offset(k + 1) - micro_cell_offset(k), 2 * vertex_count(k));
         }
+        assert_eq!(micro_cell_offset(0), micro_table_offset(MAX_LEAF_DEPTH + 1));
     }
 }
