@@ -11,7 +11,7 @@ use serde::Serialize;
 use crate::bvh::Aabb;
 use crate::cli::{self, BenchArgs};
 use crate::gpu::{Gpu, Timing};
-use crate::rays::{ao_rays, primary_rays, trace_cpu};
+use crate::rays::{ao_rays, primary_rays, reorder, trace_cpu, RayOrder};
 use crate::scene::Scene;
 use crate::stats::{self, Stats};
 use gridrt_shared::layout::{HitRecord, RayRecord};
@@ -39,6 +39,7 @@ pub struct BenchResult {
     pub views: u32,
     pub width: u32,
     pub height: u32,
+    pub ray_order: RayOrder,
     pub rays: PerKind,
     pub mrays_per_s: PerRepresentation,
     /// `(max - min) / median` of the repetitions, per representation and ray kind.
@@ -147,12 +148,21 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         bar.inc(1);
         bar.set_message(format!("{name}: generating rays"));
         let bounds = Aabb::from_points(sub.positions.iter().copied());
-        let primary = primary_rays(&bounds, args.views, args.width, args.height);
+        let mut primary = primary_rays(&bounds, args.views, args.width, args.height);
         // AO rays start from the baseline's hits (the same as the grids' up to ties).
         let tris = Scene::Triangles(tris);
         let grids = Scene::Grids(grids);
         let first_hits = trace_cpu(&tris, &primary);
-        let ao = ao_rays(&primary, &first_hits, args.ao_samples, &bounds, |p| tris.normal(p));
+        let mut ao = ao_rays(&primary, &first_hits, args.ao_samples, &bounds, |p| tris.normal(p));
+        reorder(
+            args.ray_order,
+            &mut primary,
+            &mut ao,
+            args.views,
+            args.width,
+            args.height,
+            &bounds,
+        );
         bar.inc(1);
         let mut mrays = PerRepresentation::default();
         let mut spread = PerRepresentation::default();
@@ -190,6 +200,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             views: args.views,
             width: args.width,
             height: args.height,
+            ray_order: args.ray_order,
             rays: PerKind {
                 primary: primary.len() as f64,
                 ao: ao.len() as f64,

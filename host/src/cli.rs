@@ -10,6 +10,7 @@ use gridrt_shared::layout::{SHADE_EYE_LIGHT, SHADE_NORMAL, SHADE_PRIMITIVE};
 use crate::bvh::Aabb;
 use crate::gpu::{Gpu, NoAdapter};
 use crate::mesh::{self, Mesh};
+use crate::rays::RayOrder;
 use crate::scene::{render_cpu, Scene};
 use crate::subdiv::{self, Scheme, Subdivided};
 use crate::{bench, camera, grid, image_io, stats, triangles};
@@ -161,6 +162,9 @@ pub struct BenchArgs {
     /// Ambient-occlusion rays per primary hit.
     #[arg(long, default_value_t = 4)]
     pub ao_samples: u32,
+    /// Order of the ray lists (both representations trace the same list).
+    #[arg(long, value_enum, default_value_t = RayOrder::Scanline)]
+    pub ray_order: RayOrder,
     /// Untimed runs before the timed ones.
     #[arg(long, default_value_t = 1)]
     pub warmup: usize,
