@@ -13,7 +13,7 @@ use crate::quantize::{dequantize, read_half, read_half_triple, unit_from_exponen
 use crate::ray::{Ray, T_FAR};
 use crate::sphere::{decode_radius, intersect_sphere_scaled};
 use crate::traverse::{load_vec3_bits, record_hit, trace, LeafPrimitives};
-use crate::triangle::{intersect_sheared, shear, triangle_normal, unshear_normal};
+use crate::triangle::{intersect_sheared, shear};
 
 /// Most spheres a grid hierarchy may be deep: levels `0 ..= MAX_SPHERE_LEVEL`.
 pub const MAX_SPHERE_LEVEL: u32 = 6;
@@ -64,8 +64,6 @@ pub struct GridScratch {
     /// Which sides of the ray each sheared vertex lies strictly on: bits for `x > 0`, `x < 0`,
     /// `y > 0`, `y < 0`.
     sides: [u32; LEAF_VERTICES],
-    /// The closest hit's corners in the sheared frame, for its normal.
-    hit_corners: [Vec3; 3],
     /// `1 / |dir|^2`, for the sphere tests.
     inv_dir_len2: f32,
     frame: FootprintFrame,
@@ -244,7 +242,6 @@ impl GridScene<'_> {
                         intersect_sheared(scratch.sheared[i0], scratch.sheared[i1], scratch.sheared[i2], hit.t)
                     {
                         record_hit(hit, found, first_id + (entry >> 24));
-                        scratch.hit_corners = [scratch.sheared[i0], scratch.sheared[i1], scratch.sheared[i2]];
                     }
                 }
                 la += 1;
@@ -542,7 +539,6 @@ impl LeafPrimitives for GridScene<'_> {
             stack_t: [0.0; GRID_STACK],
             sheared: [Vec3::ZERO; LEAF_VERTICES],
             sides: [0; LEAF_VERTICES],
-            hit_corners: [Vec3::ZERO; 3],
             inv_dir_len2: 1.0 / ray.dir.dot(ray.dir),
             frame: FootprintFrame::new(ray),
         }
@@ -556,11 +552,9 @@ impl LeafPrimitives for GridScene<'_> {
         }
     }
 
-    /// From the corners the leaf test kept, rather than by opening the grid again.
     #[inline]
-    fn hit_normal(&self, _prim: u32, ray: &Ray, scratch: &GridScratch) -> Vec3 {
-        let [a, b, c] = scratch.hit_corners;
-        unshear_normal(triangle_normal(a, b, c), ray)
+    fn triangle(&self, prim: u32) -> [Vec3; 3] {
+        self.micro_triangle(prim)
     }
 }
 

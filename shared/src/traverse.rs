@@ -19,28 +19,18 @@ pub trait LeafPrimitives {
     fn scratch(&self, ray: &Ray) -> Self::Scratch;
     /// Intersects primitives `first .. first + count`, shrinking `hit.t` on every closer hit.
     fn intersect_leaf(&self, first: u32, count: u32, ray: &Ray, hit: &mut Hit, scratch: &mut Self::Scratch);
-    /// Unnormalised geometric normal, `(v1 - v0) x (v2 - v0)`, of the closest hit `prim` that
-    /// the traversal with `scratch` found.
-    fn hit_normal(&self, prim: u32, ray: &Ray, scratch: &Self::Scratch) -> Vec3;
+    /// Corners of the triangle a hit names `prim`.
+    fn triangle(&self, prim: u32) -> [Vec3; 3];
 }
 
 /// Closest hit along `ray` within `t_max`, with its triangle's normal: found once, after the
-/// traversal, not at every closer hit on the way.
+/// traversal, from the closest triangle's corners loaded again.
 pub fn trace<P: LeafPrimitives>(nodes: &[BvhNode], prims: &P, ray: &Ray, t_max: f32) -> Hit {
     let mut hit = Hit::miss(t_max);
-    if nodes.is_empty() {
-        return hit;
-    }
-    let root = nodes[0];
-    if intersect_aabb(Vec3::from(root.min), Vec3::from(root.max), ray, hit.t) == T_FAR {
-        // Before any working memory is made: clearing it would cost a missing ray more than
-        // the box test.
-        return hit;
-    }
-    let mut scratch = prims.scratch(ray);
-    traverse_bvh(nodes, prims, ray, &mut hit, &mut scratch);
+    traverse_bvh(nodes, prims, ray, &mut hit);
     if hit.is_hit() {
-        hit.normal = prims.hit_normal(hit.prim, ray, &scratch).to_array();
+        let [a, b, c] = prims.triangle(hit.prim);
+        hit.normal = triangle_normal(a, b, c).to_array();
     }
     hit
 }
@@ -58,12 +48,20 @@ const NO_NODE: u32 = u32::MAX;
 /// a group's rays then test their leaves together, and some targets (lavapipe) run the code
 /// under a branch even when none of the group's rays takes it: with the leaf test inside the
 /// node loop, every node step paid for a grid's whole bottom level.
-///
-/// [`trace`] has already found that the ray enters the root's box.
-fn traverse_bvh<P: LeafPrimitives>(nodes: &[BvhNode], prims: &P, ray: &Ray, hit: &mut Hit, scratch: &mut P::Scratch) {
+pub fn traverse_bvh<P: LeafPrimitives>(nodes: &[BvhNode], prims: &P, ray: &Ray, hit: &mut Hit) {
+    if nodes.is_empty() {
+        return;
+    }
+    let root = nodes[0];
+    if intersect_aabb(Vec3::from(root.min), Vec3::from(root.max), ray, hit.t) == T_FAR {
+        // Before any working memory is made: clearing it would cost a missing ray more than
+        // the box test.
+        return;
+    }
     let mut stack = [0u32; MAX_BVH_DEPTH];
     let mut stack_t = [0f32; MAX_BVH_DEPTH];
     let mut sp = 0usize;
+    let mut scratch = prims.scratch(ray);
     let mut node = 0u32;
     while node != NO_NODE {
         // Down to the next leaf: dead ends (both children missed) pop and go on here, so every
@@ -99,7 +97,7 @@ fn traverse_bvh<P: LeafPrimitives>(nodes: &[BvhNode], prims: &P, ray: &Ray, hit:
         if !at_leaf {
             break;
         }
-        prims.intersect_leaf(n.first, n.count, ray, hit, scratch);
+        prims.intersect_leaf(n.first, n.count, ray, hit, &mut scratch);
         node = pop_closer(&stack, &stack_t, &mut sp, hit.t);
     }
 }
@@ -182,9 +180,8 @@ impl LeafPrimitives for TriangleMesh<'_> {
     }
 
     #[inline]
-    fn hit_normal(&self, prim: u32, _ray: &Ray, _scratch: &()) -> Vec3 {
-        let [a, b, c] = self.corners(prim);
-        triangle_normal(a, b, c)
+    fn triangle(&self, prim: u32) -> [Vec3; 3] {
+        self.corners(prim)
     }
 }
 

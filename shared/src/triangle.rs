@@ -59,16 +59,6 @@ pub fn triangle_normal(v0: Vec3, v1: Vec3, v2: Vec3) -> Vec3 {
     (v1 - v0).cross(v2 - v0)
 }
 
-/// The world-space normal of a triangle whose normal in the ray's sheared frame (see [`shear`])
-/// is `n`, such as `triangle_normal` of its sheared corners: the shear `S` maps world offsets
-/// to sheared ones, so normals map back by `S^T / det S` (the cofactor rule), which gives
-/// `(v1 - v0) x (v2 - v0)` of the world-space corners up to rounding.
-#[inline]
-pub fn unshear_normal(n: Vec3, ray: &Ray) -> Vec3 {
-    let [r0, r1, r2] = ray.shear_rows;
-    (r0 * n.x + r1 * n.y + r2 * n.z) / r0.dot(r1.cross(r2))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -159,21 +149,5 @@ mod tests {
     #[test]
     fn degenerate_triangle_misses() {
         assert!(intersect_triangle(A, B, B * 2.0, &ray([0.5, 0.0, 1.0], [0.0, 0.0, -1.0]), T_FAR).is_none());
-    }
-
-    #[test]
-    fn normal_from_the_sheared_frame() {
-        let (a, b, c) = (
-            Vec3::new(0.3, -1.2, 2.0),
-            Vec3::new(1.7, 0.4, 1.1),
-            Vec3::new(-0.5, 0.9, 3.3),
-        );
-        let world = triangle_normal(a, b, c);
-        // Dominant axes x, y and z, with either sign (the shear swaps axes to keep the winding).
-        for d in [[3.0, 0.5, -1.0], [-0.2, -2.0, 0.7], [0.4, 0.3, 1.0], [0.1, -0.6, -1.5]] {
-            let r = ray([0.5, -0.7, -4.0], d);
-            let n = unshear_normal(triangle_normal(shear(a, &r), shear(b, &r), shear(c, &r)), &r);
-            assert!((n - world).length() < 1e-5 * world.length(), "{n} vs {world} for {d:?}");
-        }
     }
 }
