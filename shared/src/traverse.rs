@@ -169,13 +169,20 @@ impl LeafPrimitives for TriangleMesh<'_> {
     fn scratch(&self, _ray: &Ray) {}
 
     fn intersect_leaf(&self, first: u32, count: u32, ray: &Ray, hit: &mut Hit, _scratch: &mut ()) {
+        // The closest hit in plain locals, as in the grids' leaves.
+        let mut closest = (hit.t, 0.0, 0.0);
+        let mut closest_tri = NO_NODE;
         let mut tri = first;
         while tri < first + count {
             let [v0, v1, v2] = self.corners(tri);
-            if let Some(found) = intersect_triangle(v0, v1, v2, ray, hit.t) {
-                record_hit(hit, found, tri);
+            if let Some(found) = intersect_triangle(v0, v1, v2, ray, closest.0) {
+                closest = found;
+                closest_tri = tri;
             }
             tri += 1;
+        }
+        if closest_tri != NO_NODE {
+            record_hit(hit, closest, closest_tri);
         }
     }
 
