@@ -72,9 +72,6 @@ pub struct GridScratch {
 /// Most vertices a leaf can hold: a sub-triangle subdivided `MAX_LEAF_DEPTH` times.
 const LEAF_VERTICES: usize = vertex_count(MAX_LEAF_DEPTH) as usize;
 
-/// No cell: a leaf without a closer hit (cell table entries keep their top byte below 64).
-const NO_ENTRY: u32 = u32::MAX;
-
 /// Slot in a leaf's vertex list of corner `v` of a packed static-list entry.
 #[inline]
 fn corner_slot(packed: u32, v: u32) -> usize {
@@ -215,10 +212,11 @@ impl GridScene<'_> {
             return;
         }
         let cells = micro_cell_offset(k);
-        // The closest hit so far in plain locals, written to `hit` once after the walk: on
-        // lavapipe a store into the ray's memory under a branch costs at every cell.
+        // The closest hit so far in plain locals, written to `hit` once after the walk (found
+        // when its distance is below `hit.t`): on lavapipe a store into the ray's memory under
+        // a branch costs at every cell.
         let mut closest = (hit.t, 0.0, 0.0);
-        let mut closest_entry = NO_ENTRY;
+        let mut closest_entry = 0;
         // Cells anchored at `(la, lb)` with all their points loaded: the upright one needs
         // `la + 1 <= la_hi`, `lb + 1 <= lb_hi` and `la + lb + 1 <= m`, the inverted one also
         // `la + lb + 2 <= m`.
@@ -256,7 +254,7 @@ impl GridScene<'_> {
             }
             lb += 1;
         }
-        if closest_entry != NO_ENTRY {
+        if closest.0 < hit.t {
             record_hit(hit, closest, first_id + (closest_entry >> 24));
         }
     }

@@ -171,7 +171,7 @@ impl LeafPrimitives for TriangleMesh<'_> {
     fn intersect_leaf(&self, first: u32, count: u32, ray: &Ray, hit: &mut Hit, _scratch: &mut ()) {
         // The closest hit in plain locals, as in the grids' leaves.
         let mut closest = (hit.t, 0.0, 0.0);
-        let mut closest_tri = NO_NODE;
+        let mut closest_tri = 0;
         let mut tri = first;
         while tri < first + count {
             let [v0, v1, v2] = self.corners(tri);
@@ -181,7 +181,7 @@ impl LeafPrimitives for TriangleMesh<'_> {
             }
             tri += 1;
         }
-        if closest_tri != NO_NODE {
+        if closest.0 < hit.t {
             record_hit(hit, closest, closest_tri);
         }
     }
