@@ -17,7 +17,8 @@ pub trait LeafPrimitives {
     /// ray rather than once per leaf: on GPUs every fresh local array costs a store per element.
     type Scratch;
     fn scratch(&self, ray: &Ray) -> Self::Scratch;
-    /// Intersects primitives `first .. first + count`, shrinking `hit.t` on every closer hit.
+    /// Intersects primitives `first .. first + count`, taking the closest hit closer than
+    /// `hit.t` into `hit`.
     fn intersect_leaf(&self, first: u32, count: u32, ray: &Ray, hit: &mut Hit, scratch: &mut Self::Scratch);
     /// Corners of the triangle a hit names `prim`.
     fn triangle(&self, prim: u32) -> [Vec3; 3];
@@ -44,10 +45,9 @@ const NO_NODE: u32 = u32::MAX;
 ///
 /// Shaped while-while (Aila and Laine 2009): an inner loop descends to the next leaf, popping
 /// past dead ends, and the leaf is tested after it, once per leaf rather than inside every node
-/// step. On SIMD hardware
-/// a group's rays then test their leaves together, and some targets (lavapipe) run the code
-/// under a branch even when none of the group's rays takes it: with the leaf test inside the
-/// node loop, every node step paid for a grid's whole bottom level.
+/// step. On SIMD hardware a group's rays then test their leaves together, and some targets
+/// (lavapipe) run the code under a branch even when none of the group's rays takes it: with
+/// the leaf test inside the node loop, every node step paid for a grid's whole bottom level.
 pub fn traverse_bvh<P: LeafPrimitives>(nodes: &[BvhNode], prims: &P, ray: &Ray, hit: &mut Hit) {
     if nodes.is_empty() {
         return;
