@@ -2,7 +2,6 @@
 //! representations: memory, build time and ray throughput of grids against the baseline.
 
 use std::fmt::Write as _;
-use std::time::Instant;
 
 use anyhow::{bail, Result};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -10,7 +9,7 @@ use serde::Serialize;
 
 use crate::bvh::Aabb;
 use crate::cli::{self, BenchArgs};
-use crate::gpu::{Gpu, Timing};
+use crate::device::Device;
 use crate::rays::{ao_rays, primary_rays, reorder, trace_cpu, RayOrder};
 use crate::scene::Scene;
 use crate::stats::{self, Stats};
@@ -49,49 +48,34 @@ pub struct BenchResult {
     pub hit_agreement: PerKind,
 }
 
+/// Host bytes per traced ray: its record, its hit, and the copies the ray lists and
+/// their reordering hold.
+const RAY_BYTES: u64 = 2 * std::mem::size_of::<RayRecord>() as u64 + 2 * std::mem::size_of::<HitRecord>() as u64;
+
+/// Every file the run will write, checked before the first mesh is measured.
+fn check_outputs(args: &BenchArgs) -> Result<()> {
+    for path in [&args.json, &args.markdown].into_iter().flatten() {
+        crate::image_io::check_writable(path)?;
+    }
+    if let Some(chart) = &args.chart {
+        crate::image_io::check_png_path(chart)?;
+        if let Err(e) = std::fs::metadata(&args.font) {
+            bail!(
+                "{}: cannot read the chart's font: {}",
+                args.font.display(),
+                crate::mesh::io_reason(&e)
+            );
+        }
+    }
+    Ok(())
+}
+
 /// Median and relative spread of a set of timings.
 fn summarize(mut seconds: Vec<f64>) -> (f64, f64) {
     seconds.sort_by(f64::total_cmp);
     let median = seconds[seconds.len() / 2];
     let spread = (seconds[seconds.len() - 1] - seconds[0]) / median.max(1e-12);
     (median, spread)
-}
-
-enum Device {
-    Cpu,
-    Gpu(Box<Gpu>),
-}
-
-impl Device {
-    /// Hits of the last run and the seconds of each timed repetition (after the warm-up).
-    fn time(
-        &self,
-        scene: &Scene,
-        rays: &[RayRecord],
-        warmup: usize,
-        repeats: usize,
-    ) -> Result<(Vec<HitRecord>, Vec<f64>)> {
-        match self {
-            Device::Cpu => {
-                let mut hits = Vec::new();
-                let mut seconds = Vec::new();
-                for k in 0..warmup + repeats {
-                    let start = Instant::now();
-                    hits = trace_cpu(scene, rays);
-                    if k >= warmup {
-                        seconds.push(start.elapsed().as_secs_f64());
-                    }
-                }
-                Ok((hits, seconds))
-            }
-            Device::Gpu(gpu) => {
-                let uploaded = gpu.upload(scene)?;
-                let (hits, mut seconds) = gpu.time_trace(&uploaded, rays, warmup + repeats)?;
-                seconds.drain(..warmup.min(seconds.len()));
-                Ok((hits, seconds))
-            }
-        }
-    }
 }
 
 fn agreement(a: &Scene, ha: &[HitRecord], b: &Scene, hb: &[HitRecord]) -> f64 {
@@ -113,38 +97,32 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     if args.meshes.is_empty() {
         bail!("name at least one mesh to benchmark");
     }
-    let device = match cli::open_gpu(args.backend, "benchmarking")? {
-        Some(gpu) => Device::Gpu(Box::new(gpu)),
-        None => Device::Cpu,
-    };
-    let (backend, device_name, timing) = match &device {
-        Device::Cpu => (
-            "cpu",
-            format!("CPU, {} threads", rayon::current_num_threads()),
-            "wall clock".to_string(),
-        ),
-        Device::Gpu(g) => (
-            "gpu",
-            g.describe(),
-            match g.timing() {
-                Timing::Timestamps => "GPU timestamp queries".to_string(),
-                Timing::FenceToFence => "fence to fence (no timestamp queries on this adapter)".to_string(),
-            },
-        ),
-    };
+    check_outputs(args)?;
+    // Every mesh loaded before the first is measured: a bad file is reported at once.
+    let meshes = args
+        .meshes
+        .iter()
+        .map(|path| cli::load(Some(path)))
+        .collect::<Result<Vec<_>>>()?;
+    let rays_per_view = args.width as u64 * args.height as u64 * (1 + args.ao_samples as u64);
+    let ray_bytes = (args.views as u64 * rays_per_view).saturating_mul(RAY_BYTES);
+    for (name, mesh) in &meshes {
+        stats::check_memory(name, mesh, args.build.levels, ray_bytes)?;
+    }
+    let device = Device::open(args.backend, "benchmarking")?;
+    let (backend, device_name, timing) = (device.kind(), device.describe(), device.timing().to_string());
     // Per mesh: load+subdivide, stats, rays, then 4 timed runs.
     let steps = 7;
     let bar = ProgressBar::new((args.meshes.len() * steps) as u64);
     bar.set_style(ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}").unwrap());
     let mut results = Vec::new();
-    for path in &args.meshes {
-        let name = path.display().to_string();
+    for (name, mesh) in &meshes {
         bar.set_message(format!("{name}: subdividing"));
-        let (_, mesh) = cli::load(Some(path))?;
-        let sub = cli::subdivide(&mesh, &args.build);
+        let sub = cli::subdivide(mesh, &args.build);
         bar.inc(1);
-        bar.set_message(format!("{name}: building ({} times each)", args.build_repeats));
-        let (stats, grids, tris) = stats::measure(&name, &mesh, &sub, &args.build, args.build_repeats)?;
+        let (stats, grids, tris) = stats::measure(name, mesh, &sub, &args.build, args.build_repeats, &|step| {
+            bar.set_message(format!("{name}: {step}"))
+        })?;
         bar.inc(1);
         bar.set_message(format!("{name}: generating rays"));
         let bounds = Aabb::from_points(sub.positions.iter().copied());
@@ -171,7 +149,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             let mut hits = Vec::new();
             for (label, scene) in [("grid", &grids), ("triangles", &tris)] {
                 bar.set_message(format!("{name}: {} {kind} rays through {label}", rays.len()));
-                let (h, seconds) = device.time(scene, rays, args.warmup, args.repeats)?;
+                let (h, seconds) = device.time_trace(scene, rays, args.warmup, args.repeats)?;
                 let (median, rel) = summarize(seconds);
                 let rate = rays.len() as f64 / median / 1e6;
                 let (m, s) = match label {

@@ -23,7 +23,7 @@ pub fn look_at(eye: Vec3, target: Vec3, fov_degrees: f32, width: u32, height: u3
     Camera {
         origin: eye.to_array(),
         width,
-        top_left: (eye + forward - right * half_w + up * half_h).to_array(),
+        to_top_left: (forward - right * half_w + up * half_h).to_array(),
         height,
         horizontal: (right * (2.0 * half_w)).to_array(),
         vertical: (up * (-2.0 * half_h)).to_array(),

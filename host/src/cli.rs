@@ -8,12 +8,12 @@ use clap::{Parser, Subcommand, ValueEnum};
 use gridrt_shared::layout::{SHADE_EYE_LIGHT, SHADE_NORMAL, SHADE_PRIMITIVE};
 
 use crate::bvh::Aabb;
-use crate::gpu::{Gpu, NoAdapter};
+use crate::device::{Device, DeviceChoice};
 use crate::mesh::{self, Mesh};
 use crate::rays::RayOrder;
-use crate::scene::{render_cpu, Scene};
+use crate::scene::Scene;
 use crate::subdiv::{self, Scheme, Subdivided};
-use crate::{bench, camera, grid, image_io, stats, triangles};
+use crate::{bench, camera, grid, image_io, limits, stats, triangles};
 
 #[derive(Parser, Debug)]
 #[command(
@@ -34,14 +34,6 @@ pub enum Command {
     Stats(StatsArgs),
     /// Measure memory, build time and ray throughput of grids against the baseline.
     Bench(BenchArgs),
-}
-
-#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Backend {
-    /// The GPU if wgpu finds an adapter, otherwise the CPU.
-    Auto,
-    Gpu,
-    Cpu,
 }
 
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -113,8 +105,8 @@ impl BuildArgs {
 pub struct RenderArgs {
     /// Mesh to render (.obj or .ply); the built-in scene when absent.
     pub mesh: Option<PathBuf>,
-    #[arg(long, value_enum, default_value_t = Backend::Auto)]
-    pub backend: Backend,
+    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
+    pub backend: DeviceChoice,
     #[arg(long, value_enum, default_value_t = Mode::Grid)]
     pub mode: Mode,
     #[command(flatten)]
@@ -122,9 +114,9 @@ pub struct RenderArgs {
     /// Depth to render, at most L (level of detail from the same data); L when absent.
     #[arg(long)]
     pub lod: Option<u32>,
-    #[arg(long, default_value_t = 960)]
+    #[arg(long, default_value_t = 960, value_parser = clap::value_parser!(u32).range(1..))]
     pub width: u32,
-    #[arg(long, default_value_t = 720)]
+    #[arg(long, default_value_t = 720, value_parser = clap::value_parser!(u32).range(1..))]
     pub height: u32,
     #[arg(long, value_enum, default_value_t = Shading::Eye)]
     pub shading: Shading,
@@ -150,17 +142,17 @@ pub struct BenchArgs {
     pub meshes: Vec<PathBuf>,
     #[command(flatten)]
     pub build: BuildArgs,
-    #[arg(long, value_enum, default_value_t = Backend::Cpu)]
-    pub backend: Backend,
+    #[arg(long, value_enum, default_value_t = DeviceChoice::Cpu)]
+    pub backend: DeviceChoice,
     /// Camera views on an orbit around each mesh.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..))]
     pub views: u32,
-    #[arg(long, default_value_t = 480)]
+    #[arg(long, default_value_t = 480, value_parser = clap::value_parser!(u32).range(1..))]
     pub width: u32,
-    #[arg(long, default_value_t = 360)]
+    #[arg(long, default_value_t = 360, value_parser = clap::value_parser!(u32).range(1..))]
     pub height: u32,
     /// Ambient-occlusion rays per primary hit.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..))]
     pub ao_samples: u32,
     /// Order of the ray lists (both representations trace the same list).
     #[arg(long, value_enum, default_value_t = RayOrder::Scanline)]
@@ -169,10 +161,11 @@ pub struct BenchArgs {
     #[arg(long, default_value_t = 1)]
     pub warmup: usize,
     /// Timed runs per representation and ray kind; the median is reported.
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, value_parser = at_least_one())]
     pub repeats: usize,
-    /// Builds per representation; the median is reported.
-    #[arg(long, default_value_t = 11)]
+    /// Builds per representation at most (fewer once they have taken a few seconds); the
+    /// median is reported.
+    #[arg(long, default_value_t = 11, value_parser = at_least_one())]
     pub build_repeats: usize,
     /// Also write the results as JSON (one object per mesh, in an array).
     #[arg(long)]
@@ -188,6 +181,10 @@ pub struct BenchArgs {
     pub font: PathBuf,
 }
 
+fn at_least_one() -> clap::builder::RangedU64ValueParser<usize> {
+    clap::builder::RangedU64ValueParser::new().range(1..)
+}
+
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Render(args) => render(&args),
@@ -196,29 +193,15 @@ pub fn run(cli: Cli) -> Result<()> {
     }
 }
 
-/// The mesh named on the command line, or the built-in scene; with a display name.
+/// The mesh named on the command line, or the built-in scene, with a display name; moved into
+/// its local frame (see [`mesh::frame`]), where everything after loading works.
 pub fn load(path: Option<&Path>) -> Result<(String, Mesh)> {
-    match path {
-        Some(p) => Ok((p.display().to_string(), mesh::load_mesh(p)?)),
-        None => Ok(("default scene".to_string(), mesh::scene::default_scene())),
-    }
-}
-
-/// The GPU the backend choice asks for: none for `cpu`; for `auto`, none (with a note saying
-/// the CPU does the `work`) when wgpu finds no adapter at all. Any other GPU failure is an error.
-pub fn open_gpu(backend: Backend, work: &str) -> Result<Option<Gpu>> {
-    match backend {
-        Backend::Cpu => Ok(None),
-        Backend::Gpu => Gpu::new().map(Some),
-        Backend::Auto => match Gpu::new() {
-            Ok(gpu) => Ok(Some(gpu)),
-            Err(e) if e.is::<NoAdapter>() => {
-                eprintln!("note: {e}; {work} on the CPU");
-                Ok(None)
-            }
-            Err(e) => Err(e),
-        },
-    }
+    let (name, mut mesh) = match path {
+        Some(p) => (p.display().to_string(), mesh::load_mesh(p)?),
+        None => ("default scene".to_string(), mesh::scene::default_scene()),
+    };
+    mesh.into_local_frame();
+    Ok((name, mesh))
 }
 
 pub fn subdivide(mesh: &Mesh, build: &BuildArgs) -> Subdivided {
@@ -234,14 +217,15 @@ pub fn subdivide(mesh: &Mesh, build: &BuildArgs) -> Subdivided {
 }
 
 fn render(args: &RenderArgs) -> Result<()> {
-    if args.width == 0 || args.height == 0 {
-        bail!("the image must be at least 1x1 pixels");
-    }
     let lod = args.lod.unwrap_or(args.build.levels);
     if lod > args.build.levels {
         bail!("--lod {lod} is deeper than --levels {}", args.build.levels);
     }
+    image_io::check_png_path(&args.output)?;
     let (name, mesh) = load(args.mesh.as_deref())?;
+    check_render_memory(&name, &mesh, args)?;
+    let device = Device::open(args.backend, "rendering")?;
+    device.check_image(args.width, args.height)?;
     let started = Instant::now();
     let sub = subdivide(&mesh, &args.build);
     let scene = match args.mode {
@@ -266,17 +250,40 @@ fn render(args: &RenderArgs) -> Result<()> {
     };
     let frame = scene.frame(camera::frame(&bounds, args.width, args.height), shading);
     let started = Instant::now();
-    let (pixels, device) = match open_gpu(args.backend, "rendering")? {
-        Some(gpu) => (gpu.render(&scene, &frame)?, gpu.describe()),
-        None => (render_cpu(&scene, &frame), "CPU".to_string()),
-    };
+    let pixels = device.render(&scene, &frame)?;
     image_io::write_png(&args.output, &pixels, args.width, args.height)?;
     eprintln!(
-        "rendered {}x{} on {device} in {:.3} s -> {}",
+        "rendered {}x{} on {} in {:.3} s -> {}",
         args.width,
         args.height,
+        device.describe(),
         started.elapsed().as_secs_f64(),
         args.output.display()
     );
     Ok(())
+}
+
+/// Refuses a render whose build and image would not fit in memory, before building.
+fn check_render_memory(name: &str, mesh: &Mesh, args: &RenderArgs) -> Result<()> {
+    let (builds, mode) = match args.mode {
+        Mode::Grid => (limits::Builds::Grids, "grid"),
+        Mode::Triangles => (limits::Builds::Triangles, "triangles"),
+    };
+    let levels = args.build.levels;
+    let micro = limits::micro_triangles(mesh.triangles.len(), levels);
+    let pixels = args.width as u64 * args.height as u64;
+    let image = pixels.saturating_mul(limits::IMAGE_BYTES_PER_PIXEL);
+    let available = limits::available_memory()?;
+    limits::check_memory(
+        image,
+        available,
+        &format!("a {}x{} image", args.width, args.height),
+        "render a smaller image",
+    )?;
+    limits::check_memory(
+        limits::build_bytes(micro, builds).saturating_add(image),
+        available,
+        &format!("{name} in {mode} mode at --levels {levels} ({micro} micro-triangles)"),
+        "use fewer --levels",
+    )
 }

@@ -65,6 +65,7 @@ impl Gpu {
     /// Opens the first adapter wgpu finds (a real GPU before a software one). Fails with a
     /// message saying what to do when there is none.
     pub fn new() -> Result<Gpu> {
+        quiet_device_select_layer();
         let instance = wgpu::Instance::new(&wgpu::InstanceDescriptor {
             backends: wgpu::Backends::from_env().unwrap_or(wgpu::Backends::PRIMARY),
             ..Default::default()
@@ -143,8 +144,35 @@ impl Gpu {
         }
     }
 
+    /// Refuses, before any work, an image this adapter cannot render in one dispatch: its
+    /// pixels must fit in one storage buffer and its workgroups in the dispatch limits.
+    pub fn check_image(&self, width: u32, height: u32) -> Result<()> {
+        let bytes = width as u64 * height as u64 * 4;
+        let limit = self.buffer_limit();
+        if bytes > limit {
+            bail!(
+                "a {width}x{height} image needs {bytes} bytes on the GPU, more than the {limit} bytes this GPU ({}) \
+                 allows in one storage buffer; render a smaller image or use --backend cpu",
+                self.adapter.name
+            );
+        }
+        let groups = self.limits.max_compute_workgroups_per_dimension as u64 * WORKGROUP_SIZE as u64;
+        if width as u64 > groups || height as u64 > groups {
+            bail!(
+                "a {width}x{height} image is wider or taller than the {groups} pixels this GPU ({}) dispatches at \
+                 once; render a smaller image or use --backend cpu",
+                self.adapter.name
+            );
+        }
+        Ok(())
+    }
+
+    fn buffer_limit(&self) -> u64 {
+        (self.limits.max_storage_buffer_binding_size as u64).min(self.limits.max_buffer_size)
+    }
+
     fn check_size(&self, name: &str, bytes: u64) -> Result<()> {
-        let limit = (self.limits.max_storage_buffer_binding_size as u64).min(self.limits.max_buffer_size);
+        let limit = self.buffer_limit();
         if bytes > limit {
             bail!(
                 "the {name} buffer needs {bytes} bytes, more than the {limit} bytes this GPU ({}) allows in one \
@@ -387,6 +415,24 @@ impl Gpu {
         buffer.unmap();
         Ok(data)
     }
+}
+
+/// Mesa's device-select Vulkan layer, on by default wherever Mesa's drivers are installed,
+/// orders adapters by asking a Wayland compositor which GPU drives the display. Without a
+/// session (`XDG_RUNTIME_DIR` unset: a server, a container, CI) the Wayland client library
+/// prints "error: XDG_RUNTIME_DIR is invalid or not set" to stderr from inside it, twice,
+/// on every successful run. wgpu chooses among the adapters itself, so the layer is switched
+/// off there, through its own off switch, unless the user asked it to pick a device.
+fn quiet_device_select_layer() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        let unset = |name| std::env::var_os(name).is_none();
+        if unset("XDG_RUNTIME_DIR") && unset("NODEVICE_SELECT") && unset("MESA_VK_DEVICE_SELECT") {
+            // Before any Vulkan call of this process: the loader reads it when the instance is
+            // made, and every `Gpu::new` passes through this `Once` first.
+            std::env::set_var("NODEVICE_SELECT", "1");
+        }
+    });
 }
 
 /// A wgpu error with its causes on one line (its `Display` alone says only "Validation Error").

@@ -2,13 +2,80 @@
 
 use std::path::Path;
 
-use anyhow::{Context, Result};
+use anyhow::{anyhow, bail, Context, Result};
+
+/// Checks, before any work, that `path` can take a file of the given kind: its parent folder
+/// exists and takes new files, and it is not a folder itself. Leaves nothing behind.
+pub fn check_writable(path: &Path) -> Result<()> {
+    let name = path.display();
+    if path.is_dir() {
+        bail!("{name}: is a folder, not a file name");
+    }
+    let parent = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if !parent.is_dir() {
+        bail!("{name}: cannot write: folder {} does not exist", parent.display());
+    }
+    let probe = temporary_sibling(path);
+    std::fs::File::create(&probe).map_err(|e| anyhow!("{name}: cannot write: {}", crate::mesh::io_reason(&e)))?;
+    let _ = std::fs::remove_file(&probe);
+    Ok(())
+}
+
+/// [`check_writable`] for a PNG: the name must also end in `.png`, the one format written.
+pub fn check_png_path(path: &Path) -> Result<()> {
+    if path.is_dir() {
+        bail!("{}: is a folder, not a file name", path.display());
+    }
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    if ext.as_deref() != Some("png") {
+        let found = match &ext {
+            Some(e) => format!("'.{e}'"),
+            None => "no extension".to_string(),
+        };
+        bail!(
+            "{}: unsupported image format ({found}); gridrt writes PNG, name the file *.png",
+            path.display()
+        );
+    }
+    check_writable(path)
+}
+
+/// A name beside `path` for writing before renaming over it.
+fn temporary_sibling(path: &Path) -> std::path::PathBuf {
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(format!(".gridrt-{}.tmp", std::process::id()));
+    path.with_file_name(name)
+}
+
+/// Writes `bytes` to `path` through a temporary file renamed over it, so that a failure
+/// never leaves a truncated or empty file under the real name.
+pub fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+    let temp = temporary_sibling(path);
+    let result = write(&temp)
+        .and_then(|()| std::fs::rename(&temp, path).with_context(|| format!("{}: cannot write", path.display())));
+    if result.is_err() {
+        let _ = std::fs::remove_file(&temp);
+    }
+    result
+}
 
 /// Writes packed RGBA8 pixels (red in the low byte) as a PNG.
 pub fn write_png(path: &Path, pixels: &[u32], width: u32, height: u32) -> Result<()> {
     let bytes: Vec<u8> = pixels.iter().flat_map(|p| p.to_le_bytes()).collect();
-    image::save_buffer(path, &bytes, width, height, image::ColorType::Rgba8)
-        .with_context(|| format!("{}: cannot write PNG", path.display()))
+    write_atomically(path, |temp| {
+        image::save_buffer_with_format(
+            temp,
+            &bytes,
+            width,
+            height,
+            image::ColorType::Rgba8,
+            image::ImageFormat::Png,
+        )
+        .map_err(|e| anyhow!("{}: cannot write PNG: {e}", path.display()))
+    })
 }
 
 /// Largest per-channel difference of two pixels.

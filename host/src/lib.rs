@@ -10,9 +10,12 @@ pub mod bvh;
 pub mod camera;
 pub mod chart;
 pub mod cli;
+pub mod device;
+#[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod grid;
 pub mod image_io;
+pub mod limits;
 pub mod mesh;
 pub mod quantize;
 pub mod rays;

@@ -62,10 +62,30 @@ impl Scene {
     }
 }
 
+/// How far apart two correct closest hits of `ray` may lie (as `t`), given the normals of
+/// the triangles they are on: what two traversals of the same triangles (the grids and the
+/// baseline, or either and a brute-force loop) can disagree by.
+///
+/// Hit or miss never differs: the triangle test is watertight and every box, sphere and
+/// footprint test conservative. But of triangles within the triangle test's rounding of each
+/// other along the ray (slivers at a grazing angle), a traversal may keep another than the
+/// one a brute-force loop keeps: a triangle's computed `t` can fall before its box's or
+/// sphere's entry, and whatever is entered beyond the closest hit so far is skipped. A vertex
+/// off by `delta` moves a hit by `delta / |cos|` along the ray (`cos` between the ray and the
+/// normal: unbounded for a ray in the triangle's plane); in the unit-sized local frame
+/// (`crate::mesh::frame`) `delta` is taken as 1e-5, about a hundred units in the last place.
+pub fn closest_hit_slack(ray: &Ray, normals: [Vec3; 2]) -> f32 {
+    let cos = normals
+        .iter()
+        .map(|n| n.normalize_or_zero().dot(ray.dir).abs())
+        .fold(1.0f32, f32::min);
+    1e-5 / cos
+}
+
 /// Renders on the CPU, rows in parallel: packed RGBA8, row-major, top row first.
 pub fn render_cpu(scene: &Scene, frame: &FrameParams) -> Vec<u32> {
     let (w, h) = (frame.camera.width, frame.camera.height);
-    let mut image = vec![0u32; (w * h) as usize];
+    let mut image = vec![0u32; w as usize * h as usize];
     image.par_chunks_mut(w as usize).enumerate().for_each(|(y, row)| {
         for (x, px) in row.iter_mut().enumerate() {
             let ray = primary_ray(&frame.camera, x as u32, y as u32);

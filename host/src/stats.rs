@@ -3,17 +3,24 @@
 use std::time::Instant;
 
 use anyhow::Result;
+use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 use serde_json::{Map, Value};
 
 use crate::cli::{self, BuildArgs, StatsArgs};
 use crate::grid::{self, GridScene};
+use crate::limits;
 use crate::mesh::Mesh;
 use crate::subdiv::Subdivided;
 use crate::triangles::{self, TriangleScene};
 
-/// Builds timed per representation; the median is reported.
+/// Builds timed per representation at most; the median is reported.
 pub const BUILD_REPEATS: usize = 7;
+
+/// Once the timed runs of one measurement have taken this long together, no more are
+/// started: a large mesh is built once or twice instead of seven times, so a measurement
+/// takes time in proportion to its work.
+pub const REPEAT_BUDGET_SECONDS: f64 = 3.0;
 
 #[derive(Serialize, Debug, Clone)]
 pub struct Representation {
@@ -35,17 +42,32 @@ pub struct Stats {
     pub construction_gain: f64,
 }
 
-/// Median wall time of `repeats` runs of `f`, and the last result.
+/// Median wall time of up to `repeats` runs of `f` (fewer once they exceed
+/// [`REPEAT_BUDGET_SECONDS`]), and the last result.
 pub fn median_time<T>(repeats: usize, mut f: impl FnMut() -> T) -> (f64, T) {
     median_time_of(repeats, || (), |_| f())
 }
 
 /// [`median_time`] of `f` on a fresh input from `input` each time. Made and freed outside
 /// the timer: the input, and the previous run's result.
-pub fn median_time_of<I, T>(repeats: usize, mut input: impl FnMut() -> I, mut f: impl FnMut(&mut I) -> T) -> (f64, T) {
+pub fn median_time_of<I, T>(repeats: usize, input: impl FnMut() -> I, f: impl FnMut(&mut I) -> T) -> (f64, T) {
+    median_time_within(repeats, REPEAT_BUDGET_SECONDS, input, f)
+}
+
+/// [`median_time_of`] with its time budget given: no run starts once the runs so far took
+/// more than `budget` seconds together (the first always runs).
+fn median_time_within<I, T>(
+    repeats: usize,
+    budget: f64,
+    mut input: impl FnMut() -> I,
+    mut f: impl FnMut(&mut I) -> T,
+) -> (f64, T) {
     let mut times = Vec::with_capacity(repeats);
     let mut last = None;
     for _ in 0..repeats.max(1) {
+        if times.iter().sum::<f64>() > budget {
+            break;
+        }
         let mut x = input();
         drop(last.take());
         // Every worker thread awake before the clock starts: a build that follows a pause
@@ -85,10 +107,13 @@ pub fn measure(
     sub: &Subdivided,
     build: &BuildArgs,
     repeats: usize,
+    progress: &dyn Fn(&str),
 ) -> Result<(Stats, GridScene, TriangleScene)> {
     let micro_list = sub.micro_triangles(sub.levels);
     let layout = grid::layout(mesh, sub, &build.grid_options())?;
+    progress(&format!("building the grids (up to {repeats} times)"));
     let (grid_s, grids) = median_time_of(repeats, || layout.clone(), grid::build_from_layout);
+    progress(&format!("building the baseline (up to {repeats} times)"));
     let (tri_s, tris) = median_time(repeats, || triangles::build(&sub.positions, &micro_list));
     let micro = micro_list.len();
     let grid = representation(grids.memory(), micro, grid_s);
@@ -106,10 +131,36 @@ pub fn measure(
     Ok((stats, grids, tris))
 }
 
+/// Refuses to measure a mesh whose two representations would not fit in memory together.
+pub fn check_memory(name: &str, mesh: &Mesh, levels: u32, extra: u64) -> Result<()> {
+    let micro = limits::micro_triangles(mesh.triangles.len(), levels);
+    limits::check_memory(
+        limits::build_bytes(micro, limits::Builds::Both).saturating_add(extra),
+        limits::available_memory()?,
+        &format!("measuring {name} at --levels {levels} ({micro} micro-triangles, both representations)"),
+        "use fewer --levels, or `gridrt render --mode grid` for the grids alone",
+    )
+}
+
+/// A spinner on stderr naming the current step (hidden when stderr is not a terminal).
+pub fn spinner() -> ProgressBar {
+    let bar = ProgressBar::new_spinner();
+    bar.set_style(ProgressStyle::with_template("{spinner} {elapsed} {msg}").expect("valid template"));
+    bar.enable_steady_tick(std::time::Duration::from_millis(200));
+    bar
+}
+
 pub fn run(args: &StatsArgs) -> Result<()> {
+    let bar = spinner();
+    bar.set_message("loading");
     let (name, mesh) = cli::load(args.mesh.as_deref())?;
+    check_memory(&name, &mesh, args.build.levels, 0)?;
+    bar.set_message(format!("{name}: subdividing"));
     let sub = cli::subdivide(&mesh, &args.build);
-    let (s, _, _) = measure(&name, &mesh, &sub, &args.build, BUILD_REPEATS)?;
+    let (s, _, _) = measure(&name, &mesh, &sub, &args.build, BUILD_REPEATS, &|step| {
+        bar.set_message(format!("{name}: {step}"))
+    })?;
+    bar.finish_and_clear();
     if args.json {
         println!("{}", serde_json::to_string(&s)?);
         return Ok(());
@@ -132,4 +183,28 @@ pub fn run(args: &StatsArgs) -> Result<()> {
         s.compression_gain, s.construction_gain
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn repeats_stop_once_the_budget_is_spent() {
+        let mut runs = 0;
+        let (_, last) = median_time_within(
+            7,
+            0.0,
+            || (),
+            |_| {
+                runs += 1;
+                std::thread::sleep(std::time::Duration::from_millis(1));
+                runs
+            },
+        );
+        assert_eq!((runs, last), (1, 1));
+        let mut runs = 0;
+        median_time_within(7, f64::INFINITY, || (), |_| runs += 1);
+        assert_eq!(runs, 7);
+    }
 }

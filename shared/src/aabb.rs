@@ -15,11 +15,29 @@ pub fn intersect_aabb(min: Vec3, max: Vec3, ray: &Ray, t_max: f32) -> f32 {
     let near = t0.min(t1);
     let far = t0.max(t1);
     let t_enter = near.x.max(near.y).max(near.z).max(0.0);
-    let t_exit = (far.x.min(far.y).min(far.z) * EXIT_SCALE).min(t_max);
+    // A zero direction component has the reciprocal `1 / tiny` (see `Ray::inv_dir`); with
+    // the origin exactly on one of that axis's faces the face's distance is `0 * 1 / tiny`,
+    // an exit at 0 from a slab the ray never leaves, and a ray through a vertex on such a
+    // face would slip past every triangle around it. A slab exit of exactly 0 is therefore
+    // read as no exit: conservative, since a box merely touching the origin is then entered.
+    let t_exit = (no_exit_at_zero(far.x)
+        .min(no_exit_at_zero(far.y))
+        .min(no_exit_at_zero(far.z))
+        * EXIT_SCALE)
+        .min(t_max);
     if t_enter <= t_exit {
         t_enter
     } else {
         T_FAR
+    }
+}
+
+#[inline]
+fn no_exit_at_zero(t: f32) -> f32 {
+    if t == 0.0 {
+        T_FAR
+    } else {
+        t
     }
 }
 
@@ -50,6 +68,23 @@ mod tests {
         // face must not turn into NaNs that accept or reject everything.
         assert_eq!(test([0.0, 0.5, -1.0], [0.0, 0.0, 1.0], T_FAR), 1.0);
         assert_eq!(test([-0.1, 0.5, -1.0], [0.0, 0.0, 1.0], T_FAR), T_FAR);
+        // The far faces too, with either sign of the zero component.
+        assert_eq!(test([1.0, 0.5, -1.0], [0.0, 0.0, 1.0], T_FAR), 1.0);
+        assert_eq!(test([1.0, 1.0, -1.0], [-0.0, 0.0, 1.0], T_FAR), 1.0);
+        assert_eq!(test([0.5, 1.0, 2.0], [0.0, -0.0, -1.0], T_FAR), 1.0);
+        assert_eq!(test([1.1, 0.5, -1.0], [0.0, 0.0, 1.0], T_FAR), T_FAR);
+        // A flat box seen along its own plane, from outside it and from a corner.
+        let flat = |o: [f32; 3], d: [f32; 3]| {
+            intersect_aabb(
+                Vec3::new(0.0, 0.0, 0.5),
+                Vec3::new(1.0, 1.0, 0.5),
+                &Ray::new(Vec3::from(o), Vec3::from(d)),
+                T_FAR,
+            )
+        };
+        assert_eq!(flat([-1.0, 0.5, 0.5], [1.0, 0.0, 0.0]), 1.0);
+        assert_eq!(flat([2.0, 1.0, 0.5], [-1.0, 0.0, 0.0]), 1.0);
+        assert_eq!(flat([2.0, 1.0, 0.6], [-1.0, 0.0, 0.0]), T_FAR);
     }
 
     #[test]

@@ -92,15 +92,20 @@ impl GridHeader {
     }
 }
 
-/// Pinhole camera: the ray through pixel centre `(x + 0.5, y + 0.5)` leaves `origin` towards
-/// `top_left + (x + 0.5) / width * horizontal + (y + 0.5) / height * vertical`.
+/// Pinhole camera: the ray through pixel centre `(x + 0.5, y + 0.5)` leaves `origin` along
+/// `to_top_left + (x + 0.5) / width * horizontal + (y + 0.5) / height * vertical`.
+///
+/// Every vector but `origin` is relative to the eye, with the image plane one unit away:
+/// a pixel's direction is then exact to `f32` rounding of unit-sized numbers wherever the eye
+/// is. (A point on the image plane minus the eye would lose the per-pixel offsets once the
+/// eye's coordinates are large next to one unit.)
 #[repr(C)]
 #[derive(Copy, Clone, Default)]
 #[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable, Debug, PartialEq))]
 pub struct Camera {
     pub origin: [f32; 3],
     pub width: u32,
-    pub top_left: [f32; 3],
+    pub to_top_left: [f32; 3],
     pub height: u32,
     pub horizontal: [f32; 3],
     pub _pad0: u32,

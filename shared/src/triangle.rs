@@ -1,5 +1,8 @@
 use crate::glam::Vec3;
 use crate::ray::Ray;
+// On the GPU, float methods come from a trait (GLSL.std.450 underneath); natively from core.
+#[cfg(target_arch = "spirv")]
+use spirv_std::num_traits::Float;
 
 /// A vertex moved into the ray's sheared frame: the ray runs from the origin along +z, and
 /// `z` is already scaled by the shear. Splitting this from [`intersect_sheared`] lets a grid
@@ -30,9 +33,20 @@ pub fn intersect_triangle(v0: Vec3, v1: Vec3, v2: Vec3, ray: &Ray, t_max: f32) -
 /// [`intersect_triangle`] on vertices already passed through [`shear`].
 #[inline]
 pub fn intersect_sheared(a: Vec3, b: Vec3, c: Vec3, t_max: f32) -> Option<(f32, f32, f32)> {
-    let u = c.x * b.y - c.y * b.x;
-    let v = a.x * c.y - a.y * c.x;
-    let w = b.x * a.y - b.y * a.x;
+    let mut u = c.x * b.y - c.y * b.x;
+    let mut v = a.x * c.y - a.y * c.x;
+    let mut w = b.x * a.y - b.y * a.x;
+    // An edge function that rounds to exactly zero says the ray grazes that edge's line,
+    // which counts as inside. For a triangle far smaller than its distance from the ray the
+    // two products cancel to zero by rounding alone, and a ray nowhere near it would hit it.
+    // As Woop et al. do, such a zero is recomputed more precisely (here exactly in sign,
+    // see `edge_function_exact`). Only the zero ones: each edge's value still depends on
+    // that edge alone, so the two triangles sharing it still see it alike (watertight).
+    if u == 0.0 || v == 0.0 || w == 0.0 {
+        u = if u == 0.0 { edge_function_exact(c, b) } else { u };
+        v = if v == 0.0 { edge_function_exact(a, c) } else { v };
+        w = if w == 0.0 { edge_function_exact(b, a) } else { w };
+    }
     if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
         return None;
     }
@@ -51,6 +65,16 @@ pub fn intersect_sheared(a: Vec3, b: Vec3, c: Vec3, t_max: f32) -> Option<(f32, 
     }
     let inv_det = 1.0 / det;
     Some((t_scaled * inv_det, v * inv_det, w * inv_det))
+}
+
+/// `p.x q.y - p.y q.x` with the sign of the exact value (zero only when that is zero):
+/// Kahan's difference of products, whose fused multiply-adds recover the rounding error of
+/// one product exactly (relative error at most two units in the last place).
+#[inline]
+fn edge_function_exact(p: Vec3, q: Vec3) -> f32 {
+    let w = p.y * q.x;
+    let error = (-p.y).mul_add(q.x, w);
+    p.x.mul_add(q.y, -w) + error
 }
 
 /// Unnormalised geometric normal, `(v1 - v0) x (v2 - v0)`.
@@ -144,6 +168,42 @@ mod tests {
         let r = ray([1.0, 0.0, 1.0], [0.0, 0.0, -1.0]);
         let (t, u, v) = intersect_triangle(A, B, C, &r, T_FAR).unwrap();
         assert!((t - 1.0).abs() < 1e-6 && (u - 1.0).abs() < 1e-6 && v.abs() < 1e-6);
+    }
+
+    /// A triangle a million times smaller than its distance from the ray: its edge
+    /// functions cancel to zero in plain `f32`, yet the ray passes far from it.
+    #[test]
+    fn a_tiny_far_triangle_is_not_hit_by_rounding() {
+        let (a, b, c) = (
+            Vec3::new(0.0, -1.8179996e-7, -0.767864),
+            Vec3::new(0.0, -1.2119997e-7, -0.7678629),
+            Vec3::new(0.0, -1.2119997e-7, -0.7678641),
+        );
+        let o = Vec3::new(-0.6224639, 0.8039437, 1.8971152);
+        let r = Ray::new(o, (Vec3::new(0.7985193, -0.50139976, 0.0) - o).normalize());
+        assert_eq!(intersect_triangle(a, b, c, &r, T_FAR), None);
+        // The same triangle is still hit by a ray through it from close by (from 3.8 units
+        // away its 6e-8 width is below the resolution of the ray's coordinates).
+        let centre = (a + b + c) / 3.0;
+        let through = Ray::new(centre - r.dir * 1e-6, r.dir);
+        assert!(intersect_triangle(a, b, c, &through, T_FAR).is_some());
+    }
+
+    #[test]
+    fn exact_edge_functions_have_the_true_sign() {
+        // 1 + 2^-23 squared: the products differ from their roundings in the last bits.
+        let e = f32::EPSILON;
+        let p = Vec3::new(1.0 + e, 1.0, 0.0);
+        let q = Vec3::new(1.0, 1.0 + e, 0.0);
+        assert_eq!(p.x * q.y - p.y * q.x, (1.0 + e) * (1.0 + e) - 1.0);
+        assert!(edge_function_exact(p, q) > 0.0);
+        assert!(edge_function_exact(q, p) < 0.0);
+        assert_eq!(edge_function_exact(p, p), 0.0);
+        let big = Vec3::new(3.0e7, 3.0e7 + 2.0, 0.0);
+        let near = Vec3::new(3.0e7 + 2.0, 3.0e7 + 4.0, 0.0);
+        // Exactly 3e7 * (3e7 + 4) - (3e7 + 2)^2 = -4, lost entirely in plain products.
+        assert_eq!(big.x * near.y - big.y * near.x, 0.0);
+        assert!(edge_function_exact(big, near) < 0.0);
     }
 
     #[test]

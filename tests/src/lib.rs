@@ -36,20 +36,40 @@ pub fn meshes_dir() -> Option<PathBuf> {
     dir.is_dir().then_some(dir)
 }
 
-/// The `gridrt` binary that `cargo test --workspace` builds into the profile directory, found
-/// from the test executable, which lives somewhere below that directory.
+/// The `gridrt` binary, built first: `cargo test` builds the test programs of this crate but
+/// not other packages' binaries, so without this the CLI tests would find no binary on a
+/// fresh checkout, or a stale one after a change. The build runs once per test program,
+/// through the same cargo, profile and target folder as the tests (a no-op when up to date),
+/// and the binary is found beside the test executable's profile folder.
 pub fn gridrt_exe() -> PathBuf {
-    let test_exe = std::env::current_exe().expect("test executable path");
-    test_exe
-        .ancestors()
-        .map(|dir| dir.join("gridrt"))
-        .find(|exe| exe.is_file())
-        .unwrap_or_else(|| {
-            panic!(
-                "no gridrt binary above {}: run `cargo test --workspace`",
-                test_exe.display()
-            )
+    static BUILT: std::sync::OnceLock<PathBuf> = std::sync::OnceLock::new();
+    BUILT
+        .get_or_init(|| {
+            let manifest = concat!(env!("CARGO_MANIFEST_DIR"), "/../Cargo.toml");
+            let mut build = std::process::Command::new(env!("CARGO"));
+            build.args([
+                "build",
+                "--quiet",
+                "--manifest-path",
+                manifest,
+                "-p",
+                "gridrt",
+                "--bin",
+                "gridrt",
+            ]);
+            if !cfg!(debug_assertions) {
+                build.arg("--release");
+            }
+            let status = build.status().expect("run cargo to build gridrt");
+            assert!(status.success(), "cargo could not build the gridrt binary");
+            let test_exe = std::env::current_exe().expect("test executable path");
+            test_exe
+                .ancestors()
+                .map(|dir| dir.join("gridrt"))
+                .find(|exe| exe.is_file())
+                .unwrap_or_else(|| panic!("no gridrt binary above {}", test_exe.display()))
         })
+        .clone()
 }
 
 /// Both representations of `mesh` subdivided `levels` times, rendered at depth `lod`.

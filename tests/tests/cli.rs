@@ -126,7 +126,7 @@ fn broken_inputs_give_one_line_errors() {
             "--backend",
             "cpu",
             "--output",
-            "/dev/null",
+            dir.join("broken.png").to_str().unwrap(),
         ]);
         let err = stderr(&o);
         assert!(!o.status.success(), "{}: accepted", path.display());
@@ -221,4 +221,166 @@ fn no_adapter_is_a_clear_error() {
     assert!(auto.status.success(), "{}", stderr(&auto));
     assert!(stderr(&auto).contains("rendering on the CPU"));
     check_png(&out, 64, 48);
+}
+
+/// Runs gridrt with extra environment variables; expects a failure with exactly one line
+/// starting with `error`, containing every one of `needles`, and no panic. Returns stderr.
+fn fails_with(args: &[&str], env: &[(&str, &str)], needles: &[&str]) -> String {
+    let o = Command::new(gridrt_exe())
+        .args(args)
+        .envs(env.iter().copied())
+        .output()
+        .expect("run gridrt");
+    let err = stderr(&o);
+    assert!(!o.status.success(), "gridrt {args:?} succeeded: {err}");
+    assert!(!err.contains("panicked"), "gridrt {args:?} panicked: {err}");
+    let lines: Vec<&str> = err.lines().filter(|l| l.starts_with("error")).collect();
+    assert_eq!(lines.len(), 1, "gridrt {args:?}: expected one error line, got {err}");
+    for needle in needles {
+        assert!(
+            lines[0].contains(needle),
+            "gridrt {args:?}: error lacks {needle:?}: {err}"
+        );
+    }
+    // Refused before any work: nothing was built.
+    assert!(!err.contains("built in"), "gridrt {args:?} built before failing: {err}");
+    err
+}
+
+#[test]
+fn huge_images_are_refused_before_any_work() {
+    let dir = scratch("huge_image");
+    let out = dir.join("huge.png");
+    let out = out.to_str().unwrap();
+    let limit = [("GRIDRT_MEMORY_LIMIT", "8G")];
+    for size in ["65536", "100000", "4294967295"] {
+        let args = [
+            "render",
+            "--backend",
+            "cpu",
+            "--width",
+            size,
+            "--height",
+            size,
+            "-o",
+            out,
+        ];
+        fails_with(&args, &limit, &[&format!("{size}x{size} image"), "memory"]);
+    }
+    assert!(!Path::new(out).exists(), "a refused render left a file");
+    if gpu_or_skip("huge_images_are_refused_before_any_work").is_some() {
+        let args = [
+            "render",
+            "--backend",
+            "gpu",
+            "--width",
+            "16384",
+            "--height",
+            "16384",
+            "-o",
+            out,
+        ];
+        fails_with(&args, &[], &["16384x16384 image", "GPU", "--backend cpu"]);
+    }
+}
+
+#[test]
+fn bad_output_paths_are_refused_before_any_work() {
+    let dir = scratch("bad_output");
+    let jpg = dir.join("x.jpg");
+    fails_with(
+        &["render", "--backend", "cpu", "-o", jpg.to_str().unwrap()],
+        &[],
+        &["x.jpg", "unsupported image format ('.jpg')", "PNG"],
+    );
+    assert!(!jpg.exists(), "a refused render left {}", jpg.display());
+    let nowhere = dir.join("no/such/folder/x.png");
+    fails_with(
+        &["render", "--backend", "cpu", "-o", nowhere.to_str().unwrap()],
+        &[],
+        &["x.png", "does not exist"],
+    );
+    fails_with(
+        &["render", "--backend", "cpu", "-o", dir.to_str().unwrap()],
+        &[],
+        &["is a folder"],
+    );
+    fails_with(
+        &["bench", "x.obj", "--chart", jpg.to_str().unwrap()],
+        &[],
+        &["unsupported image format"],
+    );
+}
+
+#[test]
+fn counts_below_one_are_refused() {
+    for flag in [
+        "--repeats",
+        "--views",
+        "--build-repeats",
+        "--ao-samples",
+        "--width",
+        "--height",
+    ] {
+        fails_with(&["bench", "x.obj", flag, "0"], &[], &[flag, "0"]);
+    }
+    fails_with(&["render", "--width", "0"], &[], &["--width", "0"]);
+}
+
+#[test]
+fn builds_beyond_memory_are_refused_before_any_work() {
+    let limit = [("GRIDRT_MEMORY_LIMIT", "100M")];
+    fails_with(
+        &["stats", "--levels", "6"],
+        &limit,
+        &["--levels 6", "2293760 micro-triangles", "memory", "GRIDRT_MEMORY_LIMIT"],
+    );
+    fails_with(
+        &[
+            "render",
+            "--levels",
+            "6",
+            "--mode",
+            "triangles",
+            "--backend",
+            "cpu",
+            "-o",
+            "x.png",
+        ],
+        &limit,
+        &["triangles mode at --levels 6", "memory", "fewer --levels"],
+    );
+    fails_with(
+        &["stats"],
+        &[("GRIDRT_MEMORY_LIMIT", "lots")],
+        &["GRIDRT_MEMORY_LIMIT=\"lots\""],
+    );
+    if let Some(meshes) = meshes_dir() {
+        let dragon = meshes.join("dragon_res3.ply");
+        fails_with(
+            &["stats", dragon.to_str().unwrap(), "--levels", "5"],
+            &[("GRIDRT_MEMORY_LIMIT", "4G")],
+            &["dragon_res3.ply", "--levels 5", "48941056 micro-triangles"],
+        );
+    }
+}
+
+/// A successful GPU run prints no line starting with "error" (the Vulkan layers' complaints
+/// about a missing desktop session included).
+#[test]
+fn a_successful_gpu_run_prints_no_error() {
+    if gpu_or_skip("a_successful_gpu_run_prints_no_error").is_none() {
+        return;
+    }
+    let dir = scratch("quiet_gpu");
+    let out = dir.join("quiet.png");
+    let o = Command::new(gridrt_exe())
+        .args(["render", "--backend", "gpu", "--width", "64", "--height", "48", "-o"])
+        .arg(&out)
+        .env_remove("XDG_RUNTIME_DIR")
+        .output()
+        .expect("run gridrt");
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(!err.lines().any(|l| l.to_lowercase().contains("error")), "{err}");
 }

@@ -5,6 +5,7 @@ use std::path::Path;
 use anyhow::{anyhow, bail};
 use gridrt_shared::glam::Vec3;
 
+pub mod frame;
 pub mod obj;
 pub mod ply;
 pub mod scene;
@@ -28,8 +29,12 @@ impl Mesh {
     }
 
     /// Checks and cleans a freshly loaded mesh: error if any position is not finite (name the first offending
-    /// vertex index), if any index is out of range (name triangle and index), or if no triangle is left; triangles
-    /// that repeat a vertex index are dropped and their count returned. `source` is the file name used in messages.
+    /// vertex index), if any index is out of range (name triangle and index), or if no triangle is left.
+    /// Dropped, and their count returned: triangles that repeat a vertex index, and triangles with the same three
+    /// vertices as an earlier one (in any order: a double-sided export's back faces). Such a duplicate adds nothing
+    /// to the surface, and would share its inner subdivision vertices with the first (Loop subdivision names new
+    /// vertices by the edges they split), where the grids need each inner vertex to belong to one grid.
+    /// `source` is the file name used in messages.
     pub fn validate(mut self, source: &str) -> anyhow::Result<(Mesh, usize)> {
         if let Some(i) = self.positions.iter().position(|p| !p.is_finite()) {
             let p = self.positions[i];
@@ -47,11 +52,16 @@ impl Mesh {
             }
         }
         let before = self.triangles.len();
-        self.triangles.retain(|&[a, b, c]| a != b && b != c && c != a);
+        let mut seen = std::collections::HashSet::with_capacity(before);
+        self.triangles.retain(|&[a, b, c]| {
+            let mut key = [a, b, c];
+            key.sort_unstable();
+            a != b && b != c && c != a && seen.insert(key)
+        });
         let dropped = before - self.triangles.len();
         if self.triangles.is_empty() {
             if dropped > 0 {
-                bail!("{source}: no triangles left after dropping {dropped} degenerate triangles (repeated vertex)");
+                bail!("{source}: no triangles left after dropping {dropped} degenerate triangles ({DEGENERATE})");
             }
             bail!("{source}: no triangles");
         }
@@ -59,13 +69,16 @@ impl Mesh {
     }
 }
 
+/// What a dropped triangle is, for messages.
+const DEGENERATE: &str = "a repeated vertex, or the same three vertices as an earlier triangle";
+
 /// Loads .obj or .ply (case-insensitive extension) and validates it. Every error is one line that starts with the
 /// file path. Dropped degenerate triangles are reported as one warning line on stderr.
 pub fn load_mesh(path: &Path) -> anyhow::Result<Mesh> {
     let (mesh, dropped) = load_mesh_quiet(path)?;
     if dropped > 0 {
         eprintln!(
-            "warning: {}: dropped {dropped} degenerate triangles (repeated vertex)",
+            "warning: {}: dropped {dropped} degenerate triangles ({DEGENERATE})",
             path.display()
         );
     }
@@ -91,7 +104,7 @@ pub fn load_mesh_quiet(path: &Path) -> anyhow::Result<(Mesh, usize)> {
 }
 
 /// The OS reason without Rust's " (os error 2)" suffix: `No such file or directory`.
-fn io_reason(e: &std::io::Error) -> String {
+pub(crate) fn io_reason(e: &std::io::Error) -> String {
     let s = e.to_string();
     match s.rfind(" (os error ") {
         Some(i) => s[..i].to_string(),
@@ -184,10 +197,10 @@ mod tests {
         let p = vec![Vec3::ZERO, Vec3::X, Vec3::Y];
         let mesh = Mesh {
             positions: p.clone(),
-            triangles: vec![[0, 1, 2], [0, 0, 1], [2, 1, 2]],
+            triangles: vec![[0, 1, 2], [0, 0, 1], [2, 1, 2], [2, 1, 0], [1, 2, 0], [0, 1, 2]],
         };
         let (clean, dropped) = mesh.validate("m").unwrap();
-        assert_eq!((clean.triangles, dropped), (vec![[0, 1, 2]], 2));
+        assert_eq!((clean.triangles, dropped), (vec![[0, 1, 2]], 5));
 
         let oob = Mesh {
             positions: p.clone(),

@@ -17,8 +17,10 @@ use super::{quote, Mesh};
 pub fn parse_obj(bytes: &[u8]) -> anyhow::Result<Mesh> {
     // Lossy, so that stray Latin-1 in comments or names does not reject a file; a damaged number still fails.
     let text = String::from_utf8_lossy(bytes);
-    let total = check_vertices(&text)?;
-    let canonical = canonicalize(&text, total)?;
+    // A byte-order mark would otherwise glue itself to the first line's keyword.
+    let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
+    let total = check_vertices(text)?;
+    let canonical = canonicalize(text, total)?;
     // Spelled out in full today; the update stays for the fields tobj's `merging`/`reordering` features add.
     #[allow(clippy::needless_update)]
     let options = tobj::LoadOptions {
@@ -53,25 +55,28 @@ fn check_vertices(text: &str) -> anyhow::Result<usize> {
             continue;
         }
         count += 1;
-        let mut xyz = [0.0f32; 3];
-        for (axis, c) in ["x", "y", "z"].into_iter().zip(&mut xyz) {
+        for axis in ["x", "y", "z"] {
             let word = words
                 .next()
                 .ok_or_else(|| anyhow!("line {line_no}: vertex {count} has no {axis} coordinate"))?;
-            *c = word.parse().map_err(|_| {
+            let value: f64 = word.parse().map_err(|_| {
                 anyhow!(
                     "line {line_no}: vertex {count} has a non-numeric {axis} coordinate {}",
                     quote(word)
                 )
             })?;
-        }
-        if !xyz.iter().all(|c| c.is_finite()) {
-            bail!(
-                "line {line_no}: vertex {count} has a non-finite coordinate ({}, {}, {})",
-                xyz[0],
-                xyz[1],
-                xyz[2]
-            );
+            if !value.is_finite() {
+                bail!(
+                    "line {line_no}: vertex {count} has a non-finite {axis} coordinate {}",
+                    quote(word)
+                );
+            }
+            if value.abs() > f32::MAX as f64 {
+                bail!(
+                    "line {line_no}: vertex {count}: {axis} coordinate {} is beyond the 32-bit float range (+-3.4e38)",
+                    quote(word)
+                );
+            }
         }
     }
     Ok(count)
@@ -118,9 +123,17 @@ fn canonicalize(text: &str, total: usize) -> anyhow::Result<String> {
 /// `before` is the number of vertices defined above the face, which relative indices count back from.
 fn resolve(word: &str, before: usize, total: usize) -> Result<usize, String> {
     let head = word.split('/').next().unwrap_or_default();
-    let raw: i64 = head
-        .parse()
-        .map_err(|_| format!("has a non-numeric vertex reference {}", quote(word)))?;
+    let raw: i64 = match head.parse() {
+        Ok(raw) => raw,
+        // All digits, but beyond 64 bits: a number, just far past any vertex.
+        Err(_) if is_integer(head) => {
+            return Err(format!(
+                "refers to vertex {} but the file has {total} vertices",
+                quote(head)
+            ))
+        }
+        Err(_) => return Err(format!("has a non-numeric vertex reference {}", quote(word))),
+    };
     let index = match raw {
         0 => return Err("refers to vertex 0 but OBJ indices start at 1".into()),
         // OBJ allows positive indices to point below the face; tobj resolves them after reading the whole file.
@@ -137,6 +150,12 @@ fn resolve(word: &str, before: usize, total: usize) -> Result<usize, String> {
         return Err(format!("refers to vertex {raw} but the file has {total} vertices"));
     }
     Ok(index as usize)
+}
+
+/// An optionally signed run of decimal digits.
+fn is_integer(word: &str) -> bool {
+    let digits = word.strip_prefix(['-', '+']).unwrap_or(word);
+    !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit())
 }
 
 #[cfg(test)]
@@ -179,6 +198,13 @@ mod tests {
     }
 
     #[test]
+    fn a_byte_order_mark_is_skipped() {
+        let (m, _) = load_ok("bom.obj", b"\xef\xbb\xbfv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+        assert_eq!(m.positions[0], Vec3::ZERO);
+        assert_eq!(m.triangles, vec![[0, 1, 2]]);
+    }
+
+    #[test]
     fn forward_references_and_crlf_are_accepted() {
         let (m, _) = load_ok("fwd.obj", b"f 1 2 3\r\nv 0 0 0\r\nv 1 0 0\r\nv 0 1 0\r\n");
         assert_eq!(m.triangles, vec![[0, 1, 2]]);
@@ -204,7 +230,15 @@ mod tests {
         expect_err(
             "huge.obj",
             &obj("f 1 2 99999999999999999999\n"),
-            &["face 1", "non-numeric"],
+            &[
+                "face 1 refers to vertex \"99999999999999999999\" but the file has 4 vertices",
+                "line 6",
+            ],
+        );
+        expect_err(
+            "past_u32.obj",
+            &obj("f 1 2 4294967297\n"),
+            &["face 1 refers to vertex 4294967297 but the file has 4 vertices"],
         );
     }
 
@@ -221,7 +255,20 @@ mod tests {
             &obj("v 1 NaN 2\nf 1 2 3\n"),
             &["line 6", "vertex 5", "non-finite", "NaN"],
         );
-        expect_err("inf.obj", &obj("v 1 1e39 2\nf 1 2 3\n"), &["vertex 5", "non-finite"]);
+        expect_err(
+            "big.obj",
+            &obj("v 1 1e39 2\nf 1 2 3\n"),
+            &[
+                "line 6",
+                "vertex 5",
+                "vertex 5: y coordinate \"1e39\" is beyond the 32-bit float range",
+            ],
+        );
+        expect_err(
+            "inf.obj",
+            &obj("v 1 2 -inf\nf 1 2 3\n"),
+            &["line 6", "vertex 5", "non-finite z coordinate \"-inf\""],
+        );
         expect_err(
             "badref.obj",
             &obj("f 1 x/2 3\n"),

@@ -74,6 +74,7 @@ pub fn parse_ply(bytes: &[u8]) -> anyhow::Result<Mesh> {
                 bytes: data,
                 pos: 0,
                 line: header.lines + 1,
+                starts_element: true,
             },
             &header,
             &roles,
@@ -229,24 +230,56 @@ impl Roles {
 
 enum ReadErr {
     Eof,
-    Bad { line: usize, token: String },
+    Bad {
+        line: usize,
+        token: String,
+    },
+    /// An ASCII element's line ended before its last property.
+    LineEnds {
+        line: usize,
+    },
+    /// An ASCII element's line goes on after its last property.
+    Extra {
+        line: usize,
+        token: String,
+    },
 }
 
 trait Source {
     fn read(&mut self, ty: Scalar) -> Result<f64, ReadErr>;
+    /// Called after an element's last property.
+    fn end_element(&mut self) -> Result<(), ReadErr>;
+    /// The line being read, for messages (ASCII only).
+    fn line(&self) -> Option<usize>;
     fn len(&self) -> usize;
 }
 
-/// Whitespace-separated tokens; element boundaries are not tied to line ends, as in most readers.
+/// Whitespace-separated tokens, one element per line as the format has it: a line with a
+/// value too many or too few is reported at that line, not where the shift shows later.
 struct Ascii<'a> {
     bytes: &'a [u8],
     pos: usize,
     line: usize,
+    starts_element: bool,
+}
+
+impl Ascii<'_> {
+    /// Skips blanks within the line; true when the line (or the file) ends there.
+    fn at_line_end(&mut self) -> bool {
+        let b = self.bytes;
+        while self.pos < b.len() && matches!(b[self.pos], b' ' | b'\t' | b'\r') {
+            self.pos += 1;
+        }
+        self.pos >= b.len() || b[self.pos] == b'\n'
+    }
 }
 
 impl Source for Ascii<'_> {
     fn read(&mut self, ty: Scalar) -> Result<f64, ReadErr> {
         let b = self.bytes;
+        if !std::mem::replace(&mut self.starts_element, false) && self.at_line_end() && self.pos < b.len() {
+            return Err(ReadErr::LineEnds { line: self.line });
+        }
         while self.pos < b.len() && b[self.pos].is_ascii_whitespace() {
             self.line += usize::from(b[self.pos] == b'\n');
             self.pos += 1;
@@ -263,12 +296,38 @@ impl Source for Ascii<'_> {
         let value = if ty.is_float() {
             token.parse::<f64>().ok()
         } else {
-            token.parse::<i64>().ok().map(|i| i as f64)
+            // Digits past 64 bits are still a number (far out of range), not a damaged token.
+            let digits = token.strip_prefix(['-', '+']).unwrap_or(token);
+            let integer = !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit());
+            token
+                .parse::<i64>()
+                .ok()
+                .map(|i| i as f64)
+                .or_else(|| integer.then(|| token.parse::<f64>().ok()).flatten())
         };
         value.ok_or_else(|| ReadErr::Bad {
             line: self.line,
             token: String::from_utf8_lossy(&b[start..self.pos]).into(),
         })
+    }
+
+    fn end_element(&mut self) -> Result<(), ReadErr> {
+        self.starts_element = true;
+        if self.at_line_end() {
+            return Ok(());
+        }
+        let start = self.pos;
+        while self.pos < self.bytes.len() && !self.bytes[self.pos].is_ascii_whitespace() {
+            self.pos += 1;
+        }
+        Err(ReadErr::Extra {
+            line: self.line,
+            token: String::from_utf8_lossy(&self.bytes[start..self.pos]).into(),
+        })
+    }
+
+    fn line(&self) -> Option<usize> {
+        Some(self.line)
     }
 
     fn len(&self) -> usize {
@@ -308,6 +367,14 @@ impl Source for Binary<'_> {
         })
     }
 
+    fn end_element(&mut self) -> Result<(), ReadErr> {
+        Ok(())
+    }
+
+    fn line(&self) -> Option<usize> {
+        None
+    }
+
     fn len(&self) -> usize {
         self.bytes.len()
     }
@@ -319,6 +386,36 @@ fn plural(element: &str) -> String {
         "face" => "faces".into(),
         other => format!("'{other}' elements"),
     }
+}
+
+fn read_error(err: ReadErr, element: &Element, i: usize, property: &str) -> anyhow::Error {
+    let (name, count) = (&element.name, element.count);
+    match err {
+        ReadErr::Eof => anyhow!("truncated: expected {count} {}, file ends after {i}", plural(name)),
+        ReadErr::Bad { line, token } => anyhow!(
+            "line {line}: expected a number for property '{property}' of {name} {i}, found {}",
+            quote(&token)
+        ),
+        ReadErr::LineEnds { line } => anyhow!("line {line}: {name} {i} ends before its property '{property}'"),
+        ReadErr::Extra { line, token } => anyhow!(
+            "line {line}: {name} {i} has more values than the header declares, starting at {}",
+            quote(&token)
+        ),
+    }
+}
+
+/// A vertex's coordinates must be finite and fit in `f32`.
+fn check_position(xyz: &[f64; 3], i: usize, line: Option<usize>) -> anyhow::Result<()> {
+    let at = line.map(|l| format!("line {l}: ")).unwrap_or_default();
+    for (axis, &v) in ["x", "y", "z"].into_iter().zip(xyz) {
+        if !v.is_finite() {
+            bail!("{at}vertex {i} has a non-finite {axis} coordinate {v}");
+        }
+        if v.abs() > f32::MAX as f64 {
+            bail!("{at}vertex {i}: {axis} coordinate {v:e} is beyond the 32-bit float range (+-3.4e38)");
+        }
+    }
+    Ok(())
 }
 
 fn read_body(src: &mut impl Source, header: &Header, roles: &Roles) -> anyhow::Result<Mesh> {
@@ -341,21 +438,7 @@ fn read_body(src: &mut impl Source, header: &Header, roles: &Roles) -> anyhow::R
             let mut xyz = [0.0f64; 3];
             polygon.clear();
             for (p, prop) in element.props.iter().enumerate() {
-                let fail = |err| match err {
-                    ReadErr::Eof => {
-                        anyhow!(
-                            "truncated: expected {} {}, file ends after {i}",
-                            element.count,
-                            plural(&element.name)
-                        )
-                    }
-                    ReadErr::Bad { line, token } => anyhow!(
-                        "line {line}: expected a number for property '{}' of {} {i}, found {}",
-                        prop.name,
-                        element.name,
-                        quote(&token)
-                    ),
-                };
+                let fail = |err| read_error(err, element, i, &prop.name);
                 match prop.kind {
                     Kind::Scalar(ty) => {
                         let v = src.read(ty).map_err(fail)?;
@@ -386,7 +469,9 @@ fn read_body(src: &mut impl Source, header: &Header, roles: &Roles) -> anyhow::R
                     }
                 }
             }
+            src.end_element().map_err(|err| read_error(err, element, i, ""))?;
             if is_vertex {
+                check_position(&xyz, i, src.line())?;
                 mesh.positions
                     .push(Vec3::new(xyz[0] as f32, xyz[1] as f32, xyz[2] as f32));
             } else if is_face {

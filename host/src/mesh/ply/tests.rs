@@ -153,7 +153,52 @@ fn bad_indices_and_tokens() {
     let short = ascii.replace("7 4 0 2 3 1", "7 2 0 2");
     expect_err("short.ply", short.as_bytes(), &["face 0 has only 2 vertices"]);
     let nan = ascii.replacen("0 200 0", "0 200 nan", 1);
-    expect_err("nan.ply", nan.as_bytes(), &["vertex 0 has a non-finite coordinate"]);
+    expect_err(
+        "nan.ply",
+        nan.as_bytes(),
+        &["line 17: vertex 0 has a non-finite y coordinate NaN"],
+    );
+    let big = ascii.replacen("0 200 0", "0 200 1e39", 1);
+    expect_err(
+        "big.ply",
+        big.as_bytes(),
+        &["line 17: vertex 0: y coordinate 1e39 is beyond the 32-bit float range"],
+    );
+    let huge = ascii.replace("7 4 0 2 3 1", "7 4 0 2 3 99999999999999999999");
+    expect_err(
+        "hugeidx.ply",
+        huge.as_bytes(),
+        &["face 0 refers to vertex 100000000000000000000 but the file has 8 vertices"],
+    );
+}
+
+#[test]
+fn a_line_with_a_value_too_many_or_too_few_is_reported_there() {
+    let ascii = String::from_utf8(cube("ascii")).unwrap();
+    // Line 18 holds vertex 1.
+    let lines: Vec<&str> = ascii.lines().collect();
+    assert!(lines[17].starts_with("1 200 0"), "{}", lines[17]);
+    let edit = |line: String| {
+        let mut l = lines.clone();
+        l[17] = &line;
+        l.join("\n") + "\n"
+    };
+    expect_err(
+        "long.ply",
+        edit(format!("{} 9", lines[17])).as_bytes(),
+        &["line 18: vertex 1 has more values than the header declares, starting at \"9\""],
+    );
+    let short = lines[17].rsplit_once(' ').unwrap().0.to_string();
+    expect_err(
+        "short_line.ply",
+        edit(short).as_bytes(),
+        &["line 18: vertex 1 ends before its property 'z'"],
+    );
+    // Blank lines between elements and trailing blanks are fine.
+    let airy = ascii
+        .replace("\n1 200", "\n\n  \n1 200")
+        .replace(" -1 0\n", " -1 0 \t\r\n");
+    assert_eq!(load_ok("airy.ply", airy.as_bytes()).0.triangles.len(), 12);
 }
 
 #[test]

@@ -1,0 +1,146 @@
+//! What the fuzz targets check, as plain functions: the targets are one-line wrappers, and the
+//! same checks can run over the committed corpus without libFuzzer.
+
+use gridrt::grid::{self, GridOptions};
+use gridrt::mesh::Mesh;
+use gridrt::scene::{closest_hit_slack, Scene};
+use gridrt::subdiv::{subdivide, Scheme};
+use gridrt::triangles;
+use gridrt_shared::glam::Vec3;
+use gridrt_shared::ray::{Ray, T_FAR};
+
+/// Every error gridrt prints is one line.
+fn assert_one_line(e: &anyhow::Error) {
+    let text = format!("{e:#}");
+    assert!(
+        !text.contains('\n') && !text.contains('\r'),
+        "error on several lines: {text:?}"
+    );
+}
+
+/// A loader's result: an error on one line, or a mesh that validation accepts or refuses on
+/// one line.
+pub fn check_loaded(result: anyhow::Result<Mesh>) {
+    match result {
+        Err(e) => assert_one_line(&e),
+        Ok(mesh) => match mesh.validate("fuzz") {
+            Err(e) => assert_one_line(&e),
+            Ok((mesh, _)) => {
+                let n = mesh.positions.len();
+                assert!(mesh.positions.iter().all(|p| p.is_finite()));
+                assert!(mesh.triangles.iter().flatten().all(|&i| (i as usize) < n));
+            }
+        },
+    }
+}
+
+/// Reads bytes front to back; zeros once they run out.
+struct Bytes<'a>(&'a [u8]);
+
+impl Bytes<'_> {
+    fn u8(&mut self) -> u8 {
+        match self.0.split_first() {
+            Some((&b, rest)) => {
+                self.0 = rest;
+                b
+            }
+            None => 0,
+        }
+    }
+
+    fn i16(&mut self) -> i16 {
+        i16::from_le_bytes([self.u8(), self.u8()])
+    }
+
+    /// A coordinate: 16 bits at a scale from 2^-20 to 2^19, so one mesh mixes huge, tiny,
+    /// sliver and degenerate triangles.
+    fn coordinate(&mut self, exponent: u8) -> f32 {
+        self.i16() as f32 * ((exponent % 40) as f32 - 20.0).exp2()
+    }
+}
+
+/// What a run builds, decoded from the input's first bytes.
+struct Plan {
+    levels: u32,
+    lod: u32,
+    scheme: Scheme,
+    quantized: bool,
+    options: GridOptions,
+}
+
+fn decode(data: &[u8]) -> (Plan, Mesh, Bytes<'_>) {
+    let mut b = Bytes(data);
+    let flags = b.u8();
+    let levels = (flags & 3) as u32;
+    let plan = Plan {
+        levels,
+        lod: b.u8() as u32 % (levels + 1),
+        scheme: if flags & 4 != 0 { Scheme::Flat } else { Scheme::Loop },
+        quantized: flags & 8 != 0,
+        options: GridOptions {
+            half_radii: flags & 16 != 0,
+            leaf_footprint: flags & 32 == 0,
+            excluded_levels: 1 + (flags >> 6) as u32 % 3,
+        },
+    };
+    let vertices = 3 + b.u8() as usize % 13;
+    let positions = (0..vertices)
+        .map(|_| {
+            let e = b.u8();
+            Vec3::new(b.coordinate(e), b.coordinate(e), b.coordinate(e))
+        })
+        .collect();
+    let count = 1 + b.u8() as usize % 24;
+    let triangles = (0..count)
+        .map(|_| [b.u8(), b.u8(), b.u8()].map(|i| i as u32 % vertices as u32))
+        .collect();
+    (plan, Mesh { positions, triangles }, b)
+}
+
+/// Decodes a mesh and options, builds both representations as a render does and traces rays
+/// through both: no panic, errors on one line, and the same closest hits.
+pub fn run_pipeline(data: &[u8]) {
+    let (plan, mesh, mut rest) = decode(data);
+    let mut mesh = match mesh.validate("fuzz") {
+        Ok((mesh, _)) => mesh,
+        Err(e) => return assert_one_line(&e),
+    };
+    mesh.into_local_frame();
+    let mut sub = subdivide(&mesh, plan.levels, plan.scheme);
+    assert!(
+        sub.positions.iter().all(|p| p.is_finite()),
+        "subdivision made a non-finite vertex"
+    );
+    if plan.quantized {
+        sub.quantize_inner();
+    }
+    let mut grids = match grid::build(&mesh, &sub, &plan.options) {
+        Ok(g) => g,
+        Err(e) => return assert_one_line(&e),
+    };
+    grids.set_lod(plan.lod).expect("lod within levels");
+    let grids = Scene::Grids(grids);
+    let tris = Scene::Triangles(triangles::build(&sub.positions, &sub.micro_triangles(plan.lod)));
+    // Rays from points around the unit-sized local frame towards points inside it.
+    for _ in 0..32 {
+        let point =
+            |b: &mut Bytes, reach: f32| Vec3::new(b.i16() as f32, b.i16() as f32, b.i16() as f32) * (reach / 32768.0);
+        let origin = point(&mut rest, 3.0);
+        let dir = point(&mut rest, 1.0) - origin;
+        if dir.length_squared() == 0.0 {
+            continue;
+        }
+        let ray = Ray::new(origin, dir.normalize());
+        let (g, t) = (grids.trace(&ray, T_FAR), tris.trace(&ray, T_FAR));
+        assert_eq!(g.is_hit(), t.is_hit(), "grid hit {g:?}, baseline hit {t:?} for {ray:?}");
+        if g.is_hit() {
+            let slack = closest_hit_slack(&ray, [grids.normal(g.prim), tris.normal(t.prim)]);
+            let close = (g.t - t.t).abs() <= 1e-5 * g.t.abs().max(t.t.abs()) + slack;
+            assert!(
+                close,
+                "grid t {} but baseline t {} (allowed {slack}) for {ray:?}",
+                g.t, t.t
+            );
+        }
+    }
+}
