@@ -134,7 +134,7 @@ pub fn run_pipeline(data: &[u8]) {
         let (g, t) = (grids.trace(&ray, T_FAR), tris.trace(&ray, T_FAR));
         assert_eq!(g.is_hit(), t.is_hit(), "grid hit {g:?}, baseline hit {t:?} for {ray:?}");
         if g.is_hit() {
-            let slack = closest_hit_slack(&ray, [grids.normal(g.prim), tris.normal(t.prim)]);
+            let slack = closest_hit_slack(&ray, [grids.triangle(g.prim), tris.triangle(t.prim)]);
             let close = (g.t - t.t).abs() <= 1e-5 * g.t.abs().max(t.t.abs()) + slack;
             assert!(
                 close,

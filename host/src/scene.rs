@@ -5,6 +5,7 @@ use gridrt_shared::glam::Vec3;
 use gridrt_shared::layout::{Camera, FrameParams, GridParams, Hit};
 use gridrt_shared::ray::{Ray, T_FAR};
 use gridrt_shared::shade::{pack_rgba8, shade};
+use gridrt_shared::triangle::{intersect_triangle, triangle_normal};
 use gridrt_shared::{grid_traverse::trace_grids, traverse::trace_triangles};
 use rayon::prelude::*;
 
@@ -62,24 +63,47 @@ impl Scene {
     }
 }
 
-/// How far apart two correct closest hits of `ray` may lie (as `t`), given the normals of
-/// the triangles they are on: what two traversals of the same triangles (the grids and the
-/// baseline, or either and a brute-force loop) can disagree by.
+/// How far apart two correct closest hits of `ray` may lie (as `t`), given the triangles
+/// they are on: what two traversals of the same triangles (the grids and the baseline, or
+/// either and a brute-force loop) can disagree by. The property tests and the fuzz targets
+/// judge the traversals with it.
 ///
 /// Hit or miss never differs: the triangle test is watertight and every box, sphere and
 /// footprint test conservative. But of triangles within the triangle test's rounding of each
 /// other along the ray (slivers at a grazing angle), a traversal may keep another than the
 /// one a brute-force loop keeps: a triangle's computed `t` can fall before its box's or
-/// sphere's entry, and whatever is entered beyond the closest hit so far is skipped. A vertex
-/// off by `delta` moves a hit by `delta / |cos|` along the ray (`cos` between the ray and the
-/// normal: unbounded for a ray in the triangle's plane); in the unit-sized local frame
-/// (`crate::mesh::frame`) `delta` is taken as 1e-5, about a hundred units in the last place.
-pub fn closest_hit_slack(ray: &Ray, normals: [Vec3; 2]) -> f32 {
-    let cos = normals
+/// sphere's entry, and whatever is entered beyond the closest hit so far is skipped. So the
+/// slack is, for each of the two triangles, the triangle test's own error there (its `t`
+/// against a double-precision reference) plus `1e-5 / |cos|`, `cos` between the ray and the
+/// normal: a vertex off by 1e-5 (a hundred units in the last place of the unit-sized local
+/// frame) moves a hit that far, without bound for a ray in the triangle's plane.
+pub fn closest_hit_slack(ray: &Ray, triangles: [[Vec3; 3]; 2]) -> f32 {
+    triangles
         .iter()
-        .map(|n| n.normalize_or_zero().dot(ray.dir).abs())
-        .fold(1.0f32, f32::min);
-    1e-5 / cos
+        .map(|&[a, b, c]| {
+            let cos = triangle_normal(a, b, c).normalize_or_zero().dot(ray.dir).abs();
+            let rounding = match (intersect_triangle(a, b, c, ray, T_FAR), reference_t(ray, [a, b, c])) {
+                (Some((t, _, _)), Some(exact)) => (t as f64 - exact).abs() as f32,
+                _ => 0.0,
+            };
+            rounding + 1e-5 / cos
+        })
+        .sum()
+}
+
+/// The ray's distance to the plane of a triangle it crosses, in `f64` (Moller and Trumbore),
+/// or `None`.
+fn reference_t(ray: &Ray, [a, b, c]: [Vec3; 3]) -> Option<f64> {
+    let (o, d) = (ray.origin.as_dvec3(), ray.dir.as_dvec3());
+    let (e1, e2) = (b.as_dvec3() - a.as_dvec3(), c.as_dvec3() - a.as_dvec3());
+    let p = d.cross(e2);
+    let det = e1.dot(p);
+    if det == 0.0 {
+        return None;
+    }
+    let s = o - a.as_dvec3();
+    let q = s.cross(e1);
+    Some(e2.dot(q) / det)
 }
 
 /// Renders on the CPU, rows in parallel: packed RGBA8, row-major, top row first.

@@ -9,7 +9,7 @@ use gridrt::subdiv::{subdivide, Scheme};
 use gridrt::triangles;
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::ray::{Ray, T_FAR};
-use gridrt_shared::triangle::{intersect_triangle, triangle_normal};
+use gridrt_shared::triangle::intersect_triangle;
 use proptest::prelude::*;
 use proptest::test_runner::RngSeed;
 
@@ -73,12 +73,13 @@ fn build() -> impl Strategy<Value = Build> {
 }
 
 /// The closest `t` over every triangle, by the same watertight test the traversals use, and
-/// that triangle's normal.
-fn brute_force(positions: &[Vec3], list: &[[u32; 3]], ray: &Ray) -> Option<(f32, Vec3)> {
+/// that triangle.
+fn brute_force(positions: &[Vec3], list: &[[u32; 3]], ray: &Ray) -> Option<(f32, [Vec3; 3])> {
     list.iter()
         .filter_map(|t| {
-            let [a, b, c] = t.map(|i| positions[i as usize]);
-            intersect_triangle(a, b, c, ray, T_FAR).map(|h| (h.0, triangle_normal(a, b, c)))
+            let corners = t.map(|i| positions[i as usize]);
+            let [a, b, c] = corners;
+            intersect_triangle(a, b, c, ray, T_FAR).map(|h| (h.0, corners))
         })
         .min_by(|x, y| x.0.total_cmp(&y.0))
 }
@@ -124,7 +125,7 @@ proptest! {
             prop_assert_eq!(gh.is_hit(), truth.is_some(), "grid vs brute force, {:?}", ray);
             if let Some((t, closest)) = truth {
                 for (name, scene, hit) in [("baseline", &tris, th), ("grid", &grids, gh)] {
-                    let slack = closest_hit_slack(&ray, [closest, scene.normal(hit.prim)]);
+                    let slack = closest_hit_slack(&ray, [closest, scene.triangle(hit.prim)]);
                     let close = (hit.t - t).abs() <= 1e-5 * t + slack;
                     prop_assert!(close, "{} t {} vs {} (allowed {}) for {:?}", name, hit.t, t, slack, ray);
                 }
