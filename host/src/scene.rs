@@ -68,27 +68,29 @@ impl Scene {
 /// either and a brute-force loop) can disagree by. The property tests and the fuzz targets
 /// judge the traversals with it.
 ///
-/// Hit or miss never differs: the triangle test is watertight and every box, sphere and
-/// footprint test conservative. But of triangles within the triangle test's rounding of each
-/// other along the ray (slivers at a grazing angle), a traversal may keep another than the
-/// one a brute-force loop keeps: a triangle's computed `t` can fall before its box's or
-/// sphere's entry, and whatever is entered beyond the closest hit so far is skipped. So the
-/// slack is, for each of the two triangles, the triangle test's own error there (its `t`
-/// against a double-precision reference) plus `1e-5 / |cos|`, `cos` between the ray and the
-/// normal: a vertex off by 1e-5 (a hundred units in the last place of the unit-sized local
-/// frame) moves a hit that far, without bound for a ray in the triangle's plane.
+/// The triangle test is watertight and every box, sphere and footprint test conservative,
+/// but of triangles within the triangle test's rounding of each other along the ray (slivers
+/// at a grazing angle), a traversal may keep another than the one a brute-force loop keeps:
+/// a triangle's computed `t` can fall before its box's or sphere's entry, and whatever is
+/// entered beyond the closest hit so far is skipped. So the slack is the sum of both
+/// triangles' [`hit_uncertainty`].
 pub fn closest_hit_slack(ray: &Ray, triangles: [[Vec3; 3]; 2]) -> f32 {
-    triangles
-        .iter()
-        .map(|&[a, b, c]| {
-            let cos = triangle_normal(a, b, c).normalize_or_zero().dot(ray.dir).abs();
-            let rounding = match (intersect_triangle(a, b, c, ray, T_FAR), reference_t(ray, [a, b, c])) {
-                (Some((t, _, _)), Some(exact)) => (t as f64 - exact).abs() as f32,
-                _ => 0.0,
-            };
-            rounding + 1e-5 / cos
-        })
-        .sum()
+    hit_uncertainty(ray, triangles[0]) + hit_uncertainty(ray, triangles[1])
+}
+
+/// How far the triangle test's `t` for this ray and triangle may be from the truth: its own
+/// error here (against a double-precision reference) plus `1e-5 / |cos|`, `cos` between the
+/// ray and the normal: a vertex off by 1e-5 (a hundred units in the last place of the
+/// unit-sized local frame) moves a hit that far, without bound for a ray in the triangle's
+/// plane. A hit no nearer the ray's origin than this is certain to be in front of it: one
+/// closer may be found by one traversal and culled by another, whose box or sphere lies behind.
+pub fn hit_uncertainty(ray: &Ray, [a, b, c]: [Vec3; 3]) -> f32 {
+    let cos = triangle_normal(a, b, c).normalize_or_zero().dot(ray.dir).abs();
+    let rounding = match (intersect_triangle(a, b, c, ray, T_FAR), reference_t(ray, [a, b, c])) {
+        (Some((t, _, _)), Some(exact)) => (t as f64 - exact).abs() as f32,
+        _ => 0.0,
+    };
+    rounding + 1e-5 / cos
 }
 
 /// The ray's distance to the plane of a triangle it crosses, in `f64` (Moller and Trumbore),
