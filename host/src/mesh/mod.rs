@@ -34,6 +34,8 @@ impl Mesh {
     /// vertices as an earlier one (in any order: a double-sided export's back faces). Such a duplicate adds nothing
     /// to the surface, and would share its inner subdivision vertices with the first (Loop subdivision names new
     /// vertices by the edges they split), where the grids need each inner vertex to belong to one grid.
+    /// Vertices no triangle uses are removed (the others keep their order): a stray point of a
+    /// scan would otherwise count in the bounds that frame the picture.
     /// `source` is the file name used in messages.
     pub fn validate(mut self, source: &str) -> anyhow::Result<(Mesh, usize)> {
         if let Some(i) = self.positions.iter().position(|p| !p.is_finite()) {
@@ -65,7 +67,28 @@ impl Mesh {
             }
             bail!("{source}: no triangles");
         }
+        self.remove_unused_vertices();
         Ok((self, dropped))
+    }
+
+    /// Drops the vertices no triangle refers to, renumbering the rest in their order.
+    fn remove_unused_vertices(&mut self) {
+        let mut new_id = vec![u32::MAX; self.positions.len()];
+        for &i in self.triangles.iter().flatten() {
+            new_id[i as usize] = 0;
+        }
+        let mut kept = 0u32;
+        for (id, p) in new_id.iter_mut().zip(0..) {
+            if *id == 0 {
+                *id = kept;
+                self.positions[kept as usize] = self.positions[p];
+                kept += 1;
+            }
+        }
+        self.positions.truncate(kept as usize);
+        for i in self.triangles.iter_mut().flatten() {
+            *i = new_id[*i as usize];
+        }
     }
 }
 
@@ -202,6 +225,16 @@ mod tests {
         let (clean, dropped) = mesh.validate("m").unwrap();
         assert_eq!((clean.triangles, dropped), (vec![[0, 1, 2]], 5));
 
+        // Unused vertices go, the others keep their order.
+        let far = Vec3::splat(1e30);
+        let sparse = Mesh {
+            positions: vec![far, Vec3::X, far, Vec3::Y, Vec3::Z, far],
+            triangles: vec![[4, 1, 3], [3, 1, 4]],
+        };
+        let (clean, dropped) = sparse.validate("m").unwrap();
+        assert_eq!(clean.positions, vec![Vec3::X, Vec3::Y, Vec3::Z]);
+        assert_eq!((clean.triangles, dropped), (vec![[2, 0, 1]], 1));
+
         let oob = Mesh {
             positions: p.clone(),
             triangles: vec![[0, 1, 2], [0, 1, 7]],
@@ -271,8 +304,9 @@ mod tests {
         for (file, tris, verts) in [
             ("bunny.obj", 3674, 1839),
             ("teapot.obj", 992, 792),
-            ("dragon_res4.ply", 11102, 5205),
-            ("dragon_res3.ply", 47794, 22998),
+            // The dragons' files also hold 2 and 16 vertices no face uses.
+            ("dragon_res4.ply", 11102, 5203),
+            ("dragon_res3.ply", 47794, 22982),
         ] {
             let (m, dropped) = load_mesh_quiet(&dir.join(file)).unwrap_or_else(|e| panic!("{e:#}"));
             let (lo, hi) = m.bounds();
