@@ -50,7 +50,7 @@ fn temporary_sibling(path: &Path) -> std::path::PathBuf {
     path.with_file_name(name)
 }
 
-/// Writes `bytes` to `path` through a temporary file renamed over it, so that a failure
+/// Runs `write` on a temporary file beside `path`, then renames it over `path`: a failure
 /// never leaves a truncated or empty file under the real name.
 pub fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
     let temp = temporary_sibling(path);
