@@ -107,7 +107,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     let rays_per_view = args.width as u64 * args.height as u64 * (1 + args.ao_samples as u64);
     let ray_bytes = (args.views as u64 * rays_per_view).saturating_mul(RAY_BYTES);
     for (name, mesh) in &meshes {
-        stats::check_memory(name, mesh, args.build.levels, ray_bytes)?;
+        stats::check_work(name, mesh, &args.build, ray_bytes)?;
     }
     let device = Device::open(args.backend, "benchmarking")?;
     let (backend, device_name, timing) = (device.kind(), device.describe(), device.timing().to_string());

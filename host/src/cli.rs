@@ -3,12 +3,13 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::{bail, Result};
+use anyhow::{anyhow, bail, Result};
 use clap::{Parser, Subcommand, ValueEnum};
 use gridrt_shared::layout::{SHADE_EYE_LIGHT, SHADE_NORMAL, SHADE_PRIMITIVE};
 
 use crate::bvh::Aabb;
 use crate::device::{Device, DeviceChoice};
+use crate::mesh::frame::LocalFrame;
 use crate::mesh::{self, Mesh};
 use crate::rays::RayOrder;
 use crate::scene::Scene;
@@ -34,6 +35,8 @@ pub enum Command {
     Stats(StatsArgs),
     /// Measure memory, build time and ray throughput of grids against the baseline.
     Bench(BenchArgs),
+    /// Write a mesh subdivided L times as binary PLY, in the input's own units.
+    Export(ExportArgs),
 }
 
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -92,6 +95,12 @@ pub enum InnerVertices {
 }
 
 impl BuildArgs {
+    /// Refuses, before subdividing, a mesh whose grids could not be addressed at these levels.
+    pub fn check_grid_limits(&self, name: &str, mesh: &Mesh) -> Result<()> {
+        let quantized = self.inner_vertices == InnerVertices::Quantized;
+        grid::check_limits(mesh, self.levels, &self.grid_options(), quantized).map_err(|e| anyhow!("{name}: {e}"))
+    }
+
     pub fn grid_options(&self) -> grid::GridOptions {
         grid::GridOptions {
             excluded_levels: self.excluded_levels,
@@ -121,6 +130,19 @@ pub struct RenderArgs {
     #[arg(long, value_enum, default_value_t = Shading::Eye)]
     pub shading: Shading,
     #[arg(long, short, default_value = "render.png")]
+    pub output: PathBuf,
+}
+
+#[derive(clap::Args, Debug)]
+pub struct ExportArgs {
+    /// Mesh to subdivide (.obj or .ply); the built-in scene when absent.
+    pub mesh: Option<PathBuf>,
+    /// Subdivision depth L: every base triangle becomes 4^L micro-triangles.
+    #[arg(long, short = 'L', default_value_t = 3, value_parser = clap::value_parser!(u32).range(0..=6))]
+    pub levels: u32,
+    #[arg(long, value_enum, default_value_t = SubdivisionArg::Loop)]
+    pub subdivision: SubdivisionArg,
+    #[arg(long, short, default_value = "micro.ply")]
     pub output: PathBuf,
 }
 
@@ -190,26 +212,37 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Render(args) => render(&args),
         Command::Stats(args) => stats::run(&args),
         Command::Bench(args) => bench::run(&args),
+        Command::Export(args) => export(&args),
     }
 }
 
 /// The mesh named on the command line, or the built-in scene, with a display name; moved into
 /// its local frame (see [`mesh::frame`]), where everything after loading works.
 pub fn load(path: Option<&Path>) -> Result<(String, Mesh)> {
+    load_in_frame(path).map(|(name, mesh, _)| (name, mesh))
+}
+
+/// [`load`], also returning the frame, which maps the mesh back to the file's units.
+pub fn load_in_frame(path: Option<&Path>) -> Result<(String, Mesh, LocalFrame)> {
     let (name, mut mesh) = match path {
         Some(p) => (p.display().to_string(), mesh::load_mesh(p)?),
         None => ("default scene".to_string(), mesh::scene::default_scene()),
     };
-    mesh.into_local_frame();
-    Ok((name, mesh))
+    let frame = mesh.into_local_frame();
+    Ok((name, mesh, frame))
+}
+
+impl SubdivisionArg {
+    fn scheme(self) -> Scheme {
+        match self {
+            SubdivisionArg::Loop => Scheme::Loop,
+            SubdivisionArg::Flat => Scheme::Flat,
+        }
+    }
 }
 
 pub fn subdivide(mesh: &Mesh, build: &BuildArgs) -> Subdivided {
-    let scheme = match build.subdivision {
-        SubdivisionArg::Loop => Scheme::Loop,
-        SubdivisionArg::Flat => Scheme::Flat,
-    };
-    let mut sub = subdiv::subdivide(mesh, build.levels, scheme);
+    let mut sub = subdiv::subdivide(mesh, build.levels, build.subdivision.scheme());
     if build.inner_vertices == InnerVertices::Quantized {
         sub.quantize_inner();
     }
@@ -224,6 +257,9 @@ fn render(args: &RenderArgs) -> Result<()> {
     image_io::check_png_path(&args.output)?;
     let (name, mesh) = load(args.mesh.as_deref())?;
     check_render_memory(&name, &mesh, args)?;
+    if args.mode == Mode::Grid {
+        args.build.check_grid_limits(&name, &mesh)?;
+    }
     let device = Device::open(args.backend, "rendering")?;
     device.check_image(args.width, args.height)?;
     let started = Instant::now();
@@ -259,6 +295,36 @@ fn render(args: &RenderArgs) -> Result<()> {
         device.describe(),
         started.elapsed().as_secs_f64(),
         args.output.display()
+    );
+    Ok(())
+}
+
+/// Subdivides a mesh and writes the micro-mesh, in the input's units, as binary PLY.
+fn export(args: &ExportArgs) -> Result<()> {
+    image_io::check_output(&args.output, "ply")?;
+    let (name, mesh, frame) = load_in_frame(args.mesh.as_deref())?;
+    let micro = limits::micro_triangles(mesh.triangles.len(), args.levels);
+    limits::check_memory(
+        limits::build_bytes(micro, limits::Builds::Grids),
+        limits::available_memory()?,
+        &format!(
+            "subdividing {name} at --levels {} ({micro} micro-triangles)",
+            args.levels
+        ),
+        "use fewer --levels",
+    )?;
+    let started = Instant::now();
+    let sub = subdiv::subdivide(&mesh, args.levels, args.subdivision.scheme());
+    let positions: Vec<_> = sub.positions.iter().map(|&p| frame.to_world(p).as_vec3()).collect();
+    let triangles = sub.micro_triangles(args.levels);
+    mesh::ply::write_ply(&args.output, &positions, &triangles)?;
+    eprintln!(
+        "{name}: {} micro-triangles, {} vertices at --levels {} -> {} in {:.2} s",
+        triangles.len(),
+        positions.len(),
+        args.levels,
+        args.output.display(),
+        started.elapsed().as_secs_f64()
     );
     Ok(())
 }

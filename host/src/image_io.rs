@@ -24,23 +24,29 @@ pub fn check_writable(path: &Path) -> Result<()> {
     Ok(())
 }
 
-/// [`check_writable`] for a PNG: the name must also end in `.png`, the one format written.
-pub fn check_png_path(path: &Path) -> Result<()> {
+/// [`check_writable`] for a file of one format: the name must also end in `.extension`.
+pub fn check_output(path: &Path, extension: &str) -> Result<()> {
     if path.is_dir() {
         bail!("{}: is a folder, not a file name", path.display());
     }
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-    if ext.as_deref() != Some("png") {
+    if ext.as_deref() != Some(extension) {
         let found = match &ext {
             Some(e) => format!("'.{e}'"),
             None => "no extension".to_string(),
         };
         bail!(
-            "{}: unsupported image format ({found}); gridrt writes PNG, name the file *.png",
-            path.display()
+            "{}: unsupported format ({found}); gridrt writes {} here, name the file *.{extension}",
+            path.display(),
+            extension.to_ascii_uppercase()
         );
     }
     check_writable(path)
+}
+
+/// [`check_output`] for the one image format written, PNG.
+pub fn check_png_path(path: &Path) -> Result<()> {
+    check_output(path, "png")
 }
 
 /// A name beside `path` for writing before renaming over it.

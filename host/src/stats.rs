@@ -131,8 +131,11 @@ pub fn measure(
     Ok((stats, grids, tris))
 }
 
-/// Refuses to measure a mesh whose two representations would not fit in memory together.
-pub fn check_memory(name: &str, mesh: &Mesh, levels: u32, extra: u64) -> Result<()> {
+/// Refuses to measure a mesh whose two representations would not fit in memory together
+/// (`extra`: bytes the caller needs besides), or whose grids could not be addressed.
+pub fn check_work(name: &str, mesh: &Mesh, build: &BuildArgs, extra: u64) -> Result<()> {
+    build.check_grid_limits(name, mesh)?;
+    let levels = build.levels;
     let micro = limits::micro_triangles(mesh.triangles.len(), levels);
     limits::check_memory(
         limits::build_bytes(micro, limits::Builds::Both).saturating_add(extra),
@@ -154,7 +157,7 @@ pub fn run(args: &StatsArgs) -> Result<()> {
     let bar = spinner();
     bar.set_message("loading");
     let (name, mesh) = cli::load(args.mesh.as_deref())?;
-    check_memory(&name, &mesh, args.build.levels, 0)?;
+    check_work(&name, &mesh, &args.build, 0)?;
     bar.set_message(format!("{name}: subdividing"));
     let sub = cli::subdivide(&mesh, &args.build);
     let (s, _, _) = measure(&name, &mesh, &sub, &args.build, BUILD_REPEATS, &|step| {

@@ -166,10 +166,10 @@ impl GridLayout {
     }
 }
 
-/// Lays out the grids of `sub` (subdivided from `base`): shared edge and corner vertices
-/// stored once.
-pub fn layout(base: &Mesh, sub: &Subdivided, options: &GridOptions) -> Result<GridLayout> {
-    let levels = sub.levels;
+/// Refuses, with the reason, a mesh whose grids at `levels` the layout cannot address: sphere
+/// and leaf depths, 32-bit primitive ids, 21-bit base vertex and edge ids in the headers, and
+/// vertex words below 2^30. From counts alone, so it can run before the long subdivision.
+pub fn check_limits(base: &Mesh, levels: u32, options: &GridOptions, quantized: bool) -> Result<()> {
     let leaf_level = levels.saturating_sub(options.excluded_levels);
     if leaf_level > MAX_SPHERE_LEVEL {
         bail!(
@@ -184,20 +184,59 @@ pub fn layout(base: &Mesh, sub: &Subdivided, options: &GridOptions) -> Result<Gr
             triangle_count(levels - leaf_level)
         );
     }
-    let grids = base.triangles.len();
-    if (grids as u64) * (triangle_count(levels) as u64) >= u32::MAX as u64 {
+    let grids = base.triangles.len() as u64;
+    if grids * triangle_count(levels) as u64 >= u32::MAX as u64 {
         bail!(
-            "{grids} grids of {} micro-triangles overflow 32-bit primitive ids",
+            "{grids} grids of {} micro-triangles overflow 32-bit primitive ids; use fewer --levels",
             triangle_count(levels)
         );
     }
-    if base.positions.len() > MAX_HEADER_ID as usize + 1 {
+    let ids = MAX_HEADER_ID as u64 + 1;
+    let vertices = base.positions.len() as u64;
+    if vertices > ids {
+        bail!("{vertices} base vertices are more than a grid header can address ({ids}); use --mode triangles");
+    }
+    let edges = base_edge_count(base);
+    if edges > ids {
+        bail!("{edges} base edges are more than a grid header can address ({ids}); use --mode triangles");
+    }
+    let inner_count = inner_vertex_count(levels) as u64;
+    let inner_words = if quantized {
+        quantize::inner_words(inner_count as u32) as u64
+    } else {
+        3 * inner_count
+    };
+    // The subdivided mesh's vertices: the base ones, those inside base edges, inner ones.
+    let positions = vertices + edges * edge_vertex_count(levels) as u64 + grids * inner_count;
+    // The traversal addresses 16-bit codes in halves below a flag bit (2^31).
+    if grids * inner_words + 3 * positions >= 1 << 30 {
         bail!(
-            "{} base vertices are more than a grid header can address ({})",
-            base.positions.len(),
-            MAX_HEADER_ID + 1
+            "{grids} grids of {} micro-triangles need more than 4 GiB of vertices; use fewer --levels",
+            triangle_count(levels)
         );
     }
+    Ok(())
+}
+
+/// Undirected edges of a triangle mesh.
+fn base_edge_count(base: &Mesh) -> u64 {
+    let mut edges = std::collections::HashSet::with_capacity(base.triangles.len() * 3 / 2 + 16);
+    for t in &base.triangles {
+        for e in 0..3 {
+            let (a, b) = (t[e], t[(e + 1) % 3]);
+            edges.insert((a.min(b), a.max(b)));
+        }
+    }
+    edges.len() as u64
+}
+
+/// Lays out the grids of `sub` (subdivided from `base`): shared edge and corner vertices
+/// stored once.
+pub fn layout(base: &Mesh, sub: &Subdivided, options: &GridOptions) -> Result<GridLayout> {
+    check_limits(base, sub.levels, options, sub.inner_codes.is_some())?;
+    let levels = sub.levels;
+    let leaf_level = levels.saturating_sub(options.excluded_levels);
+    let grids = base.triangles.len();
     let n = grid_size(levels);
 
     // Undirected base edges, each stored once from its lower to its higher vertex id.
@@ -215,26 +254,12 @@ pub fn layout(base: &Mesh, sub: &Subdivided, options: &GridOptions) -> Result<Gr
         }
         headers.push(GridHeader::new(edges, *t));
     }
-    if edge_owner.len() > MAX_HEADER_ID as usize + 1 {
-        bail!(
-            "{} base edges are more than a grid header can address ({})",
-            edge_owner.len(),
-            MAX_HEADER_ID + 1
-        );
-    }
 
     let inner_count = inner_vertex_count(levels);
     let inner_words = match sub.inner_codes {
         Some(_) => quantize::inner_words(inner_count),
         None => 3 * inner_count,
     };
-    // The traversal addresses 16-bit codes in halves below a flag bit (2^31).
-    if (grids as u64) * (inner_words as u64) + 3 * (sub.positions.len() as u64) >= 1 << 30 {
-        bail!(
-            "{grids} grids of {} micro-triangles need more than 4 GiB of vertices",
-            triangle_count(levels)
-        );
-    }
     let edge_offset = grids as u32 * inner_count;
     let corner_offset = edge_offset + edge_owner.len() as u32 * edge_vertex_count(levels);
     let mut vertices: Vec<Vec3> = Vec::with_capacity(corner_offset as usize + base.positions.len());

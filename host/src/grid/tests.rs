@@ -190,3 +190,29 @@ impl GridScene {
         self.clone().set_lod(lod)
     }
 }
+
+/// A mesh whose base edges or vertices exceed the headers' 21-bit ids is refused by a
+/// check that needs no subdivision (the layout used to panic on it, after subdividing).
+#[test]
+fn meshes_beyond_header_ids_are_refused_up_front() {
+    use gridrt_shared::layout::MAX_HEADER_ID;
+    let strip = |triangles: u32| Mesh {
+        positions: vec![Vec3::ZERO; triangles as usize + 2],
+        triangles: (0..triangles).map(|i| [i, i + 1, i + 2]).collect(),
+    };
+    let options = GridOptions::default();
+    // A strip of T triangles has 2T + 1 edges and T + 2 vertices.
+    let ok = strip(MAX_HEADER_ID / 2 - 1);
+    check_limits(&ok, 3, &options, true).unwrap();
+    let e = check_limits(&strip(MAX_HEADER_ID / 2 + 1), 3, &options, true)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("base edges are more than a grid header can address"), "{e}");
+    let mut many_vertices = ok;
+    many_vertices.positions.resize(MAX_HEADER_ID as usize + 2, Vec3::ZERO);
+    let e = check_limits(&many_vertices, 3, &options, true).unwrap_err().to_string();
+    assert!(
+        e.contains("base vertices are more than a grid header can address"),
+        "{e}"
+    );
+}

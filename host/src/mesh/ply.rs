@@ -8,6 +8,9 @@ use gridrt_shared::glam::Vec3;
 
 use super::{quote, Mesh};
 
+mod write;
+pub use write::write_ply;
+
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Scalar {
     I8,
