@@ -303,14 +303,12 @@ fn render(args: &RenderArgs) -> Result<()> {
 fn export(args: &ExportArgs) -> Result<()> {
     image_io::check_output(&args.output, "ply")?;
     let (name, mesh, frame) = load_in_frame(args.mesh.as_deref())?;
-    let micro = limits::micro_triangles(mesh.triangles.len(), args.levels);
-    limits::check_memory(
-        limits::build_bytes(micro, limits::Builds::Grids),
-        limits::available_memory()?,
-        &format!(
-            "subdividing {name} at --levels {} ({micro} micro-triangles)",
-            args.levels
-        ),
+    limits::check_build(
+        &format!("subdividing {name}"),
+        mesh.triangles.len(),
+        args.levels,
+        limits::Builds::Grids,
+        0,
         "use fewer --levels",
     )?;
     let started = Instant::now();
@@ -335,21 +333,20 @@ fn check_render_memory(name: &str, mesh: &Mesh, args: &RenderArgs) -> Result<()>
         Mode::Grid => (limits::Builds::Grids, "grid"),
         Mode::Triangles => (limits::Builds::Triangles, "triangles"),
     };
-    let levels = args.build.levels;
-    let micro = limits::micro_triangles(mesh.triangles.len(), levels);
     let pixels = args.width as u64 * args.height as u64;
     let image = pixels.saturating_mul(limits::IMAGE_BYTES_PER_PIXEL);
-    let available = limits::available_memory()?;
     limits::check_memory(
         image,
-        available,
+        limits::available_memory()?,
         &format!("a {}x{} image", args.width, args.height),
         "render a smaller image",
     )?;
-    limits::check_memory(
-        limits::build_bytes(micro, builds).saturating_add(image),
-        available,
-        &format!("{name} in {mode} mode at --levels {levels} ({micro} micro-triangles)"),
+    limits::check_build(
+        &format!("{name} in {mode} mode"),
+        mesh.triangles.len(),
+        args.build.levels,
+        builds,
+        image,
         "use fewer --levels",
     )
 }

@@ -38,6 +38,25 @@ pub fn build_bytes(micro: u64, builds: Builds) -> u64 {
     micro.saturating_mul(per)
 }
 
+/// Refuses `what` at `levels` (of a mesh of `base_triangles`) when building `builds`, plus
+/// `extra` bytes the caller needs besides, would not fit in the memory available.
+pub fn check_build(
+    what: &str,
+    base_triangles: usize,
+    levels: u32,
+    builds: Builds,
+    extra: u64,
+    advice: &str,
+) -> Result<()> {
+    let micro = micro_triangles(base_triangles, levels);
+    check_memory(
+        build_bytes(micro, builds).saturating_add(extra),
+        available_memory()?,
+        &format!("{what} at --levels {levels} ({micro} micro-triangles)"),
+        advice,
+    )
+}
+
 /// Environment variable that sets a lower ceiling than the machine's free memory, e.g. `8G`
 /// on a machine shared with other work.
 pub const MEMORY_LIMIT_VAR: &str = "GRIDRT_MEMORY_LIMIT";

@@ -135,12 +135,12 @@ pub fn measure(
 /// (`extra`: bytes the caller needs besides), or whose grids could not be addressed.
 pub fn check_work(name: &str, mesh: &Mesh, build: &BuildArgs, extra: u64) -> Result<()> {
     build.check_grid_limits(name, mesh)?;
-    let levels = build.levels;
-    let micro = limits::micro_triangles(mesh.triangles.len(), levels);
-    limits::check_memory(
-        limits::build_bytes(micro, limits::Builds::Both).saturating_add(extra),
-        limits::available_memory()?,
-        &format!("measuring {name} at --levels {levels} ({micro} micro-triangles, both representations)"),
+    limits::check_build(
+        &format!("measuring both representations of {name}"),
+        mesh.triangles.len(),
+        build.levels,
+        limits::Builds::Both,
+        extra,
         "use fewer --levels, or `gridrt render --mode grid` for the grids alone",
     )
 }

@@ -170,6 +170,11 @@ impl GridLayout {
 /// and leaf depths, 32-bit primitive ids, 21-bit base vertex and edge ids in the headers, and
 /// vertex words below 2^30. From counts alone, so it can run before the long subdivision.
 pub fn check_limits(base: &Mesh, levels: u32, options: &GridOptions, quantized: bool) -> Result<()> {
+    check_counts(base, base_edge_count(base), levels, options, quantized)
+}
+
+/// [`check_limits`] with the number of base edges known.
+fn check_counts(base: &Mesh, edges: u64, levels: u32, options: &GridOptions, quantized: bool) -> Result<()> {
     let leaf_level = levels.saturating_sub(options.excluded_levels);
     if leaf_level > MAX_SPHERE_LEVEL {
         bail!(
@@ -196,7 +201,6 @@ pub fn check_limits(base: &Mesh, levels: u32, options: &GridOptions, quantized: 
     if vertices > ids {
         bail!("{vertices} base vertices are more than a grid header can address ({ids}); use --mode triangles");
     }
-    let edges = base_edge_count(base);
     if edges > ids {
         bail!("{edges} base edges are more than a grid header can address ({ids}); use --mode triangles");
     }
@@ -218,14 +222,17 @@ pub fn check_limits(base: &Mesh, levels: u32, options: &GridOptions, quantized: 
     Ok(())
 }
 
+/// Edge `e` of triangle `t`, undirected: from its lower to its higher vertex id.
+fn base_edge(t: &[u32; 3], e: usize) -> (u32, u32) {
+    let (a, b) = (t[e], t[(e + 1) % 3]);
+    (a.min(b), a.max(b))
+}
+
 /// Undirected edges of a triangle mesh.
 fn base_edge_count(base: &Mesh) -> u64 {
     let mut edges = std::collections::HashSet::with_capacity(base.triangles.len() * 3 / 2 + 16);
     for t in &base.triangles {
-        for e in 0..3 {
-            let (a, b) = (t[e], t[(e + 1) % 3]);
-            edges.insert((a.min(b), a.max(b)));
-        }
+        edges.extend((0..3).map(|e| base_edge(t, e)));
     }
     edges.len() as u64
 }
@@ -233,27 +240,40 @@ fn base_edge_count(base: &Mesh) -> u64 {
 /// Lays out the grids of `sub` (subdivided from `base`): shared edge and corner vertices
 /// stored once.
 pub fn layout(base: &Mesh, sub: &Subdivided, options: &GridOptions) -> Result<GridLayout> {
-    check_limits(base, sub.levels, options, sub.inner_codes.is_some())?;
     let levels = sub.levels;
     let leaf_level = levels.saturating_sub(options.excluded_levels);
     let grids = base.triangles.len();
     let n = grid_size(levels);
 
-    // Undirected base edges, each stored once from its lower to its higher vertex id.
+    // Undirected base edges, each stored once from its lower to its higher vertex id; counted
+    // against the headers' ids before any header is packed.
     let mut edge_ids: HashMap<(u32, u32), u32> = HashMap::with_capacity(grids * 3 / 2 + 16);
     let mut edge_owner: Vec<(usize, usize)> = Vec::new(); // (grid, edge within grid)
-    let mut headers = Vec::with_capacity(grids);
-    for (g, t) in base.triangles.iter().enumerate() {
-        let mut edges = [0; 3];
-        for e in 0..3 {
-            let (a, b) = (t[e], t[(e + 1) % 3]);
-            edges[e] = *edge_ids.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                edge_owner.push((g, e));
-                edge_owner.len() as u32 - 1
-            });
-        }
-        headers.push(GridHeader::new(edges, *t));
-    }
+    let grid_edges: Vec<[u32; 3]> = base
+        .triangles
+        .iter()
+        .enumerate()
+        .map(|(g, t)| {
+            std::array::from_fn(|e| {
+                *edge_ids.entry(base_edge(t, e)).or_insert_with(|| {
+                    edge_owner.push((g, e));
+                    edge_owner.len() as u32 - 1
+                })
+            })
+        })
+        .collect();
+    check_counts(
+        base,
+        edge_owner.len() as u64,
+        levels,
+        options,
+        sub.inner_codes.is_some(),
+    )?;
+    let headers = grid_edges
+        .iter()
+        .zip(&base.triangles)
+        .map(|(&e, &t)| GridHeader::new(e, t))
+        .collect();
 
     let inner_count = inner_vertex_count(levels);
     let inner_words = match sub.inner_codes {

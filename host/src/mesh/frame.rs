@@ -54,14 +54,12 @@ impl LocalFrame {
 impl Mesh {
     /// Moves the mesh into its [`LocalFrame`] and returns that frame.
     pub fn into_local_frame(&mut self) -> LocalFrame {
-        let (lo, hi) = self.positions.iter().fold(
-            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-            |(lo, hi), p| (lo.min(p.as_dvec3()), hi.max(p.as_dvec3())),
-        );
         if self.positions.is_empty() {
             return LocalFrame::IDENTITY;
         }
-        let frame = LocalFrame::of_bounds(lo, hi);
+        // Minimum and maximum round nothing: the f32 bounds are exact in f64.
+        let (lo, hi) = self.bounds();
+        let frame = LocalFrame::of_bounds(lo.as_dvec3(), hi.as_dvec3());
         for p in &mut self.positions {
             *p = frame.to_local(p.as_dvec3());
         }

@@ -140,6 +140,12 @@ fn one_line(s: &str) -> String {
     s.replace(['\n', '\r'], " ")
 }
 
+/// An optionally signed run of decimal digits: a number, however far out of range.
+pub(crate) fn is_integer(word: &str) -> bool {
+    let digits = word.strip_prefix(['-', '+']).unwrap_or(word);
+    !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit())
+}
+
 /// Shortens and escapes a token from the file for an error message.
 pub(crate) fn quote(token: &str) -> String {
     const MAX: usize = 32;

@@ -10,7 +10,7 @@ use std::io::Cursor;
 use anyhow::{anyhow, bail};
 use gridrt_shared::glam::Vec3;
 
-use super::{quote, Mesh};
+use super::{is_integer, quote, Mesh};
 
 /// Parses an OBJ file's bytes into positions and counter-clockwise triangles (polygons are fan-triangulated).
 /// Only vertices that some face uses are kept, in order of first use. Errors carry no file name; the caller adds it.
@@ -150,12 +150,6 @@ fn resolve(word: &str, before: usize, total: usize) -> Result<usize, String> {
         return Err(format!("refers to vertex {raw} but the file has {total} vertices"));
     }
     Ok(index as usize)
-}
-
-/// An optionally signed run of decimal digits.
-fn is_integer(word: &str) -> bool {
-    let digits = word.strip_prefix(['-', '+']).unwrap_or(word);
-    !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit())
 }
 
 #[cfg(test)]

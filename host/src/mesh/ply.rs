@@ -6,7 +6,7 @@
 use anyhow::{anyhow, bail};
 use gridrt_shared::glam::Vec3;
 
-use super::{quote, Mesh};
+use super::{is_integer, quote, Mesh};
 
 mod write;
 pub use write::write_ply;
@@ -300,13 +300,11 @@ impl Source for Ascii<'_> {
             token.parse::<f64>().ok()
         } else {
             // Digits past 64 bits are still a number (far out of range), not a damaged token.
-            let digits = token.strip_prefix(['-', '+']).unwrap_or(token);
-            let integer = !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit());
             token
                 .parse::<i64>()
                 .ok()
                 .map(|i| i as f64)
-                .or_else(|| integer.then(|| token.parse::<f64>().ok()).flatten())
+                .or_else(|| is_integer(token).then(|| token.parse::<f64>().ok()).flatten())
         };
         value.ok_or_else(|| ReadErr::Bad {
             line: self.line,
