@@ -261,7 +261,6 @@ fn render(args: &RenderArgs) -> Result<()> {
         args.build.check_grid_limits(&name, &mesh)?;
     }
     let device = Device::open(args.backend, "rendering")?;
-    device.check_image(args.width, args.height)?;
     let started = Instant::now();
     let sub = subdivide(&mesh, &args.build);
     let scene = match args.mode {

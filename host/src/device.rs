@@ -84,17 +84,6 @@ impl Device {
         }
     }
 
-    /// Refuses, before any work, an image the device cannot render. The CPU's one limit is
-    /// memory, which the caller checks with the build's.
-    #[cfg_attr(not(feature = "gpu"), allow(unused_variables))]
-    pub fn check_image(&self, width: u32, height: u32) -> Result<()> {
-        match self {
-            Device::Cpu => Ok(()),
-            #[cfg(feature = "gpu")]
-            Device::Gpu(gpu) => gpu.check_image(width, height),
-        }
-    }
-
     /// Renders one frame: packed RGBA8, row-major, top row first.
     pub fn render(&self, scene: &Scene, frame: &FrameParams) -> Result<Vec<u32>> {
         match self {

@@ -4,11 +4,16 @@
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
+use gridrt_shared::buffer::SPLIT_CHUNKS;
 use gridrt_shared::grid_index::MICRO_TRIANGLES;
-use gridrt_shared::layout::{FrameParams, HitRecord, RayRecord, TraceParams, TRACE_WORKGROUP_SIZE, WORKGROUP_SIZE};
+use gridrt_shared::layout::{
+    FrameParams, HitRecord, RayRecord, SplitParams, TraceParams, TRACE_WORKGROUP_SIZE, WORKGROUP_SIZE,
+};
 use wgpu::util::DeviceExt;
 
+use crate::limits::parse_bytes;
 use crate::scene::Scene;
+use crate::split::{chunk_words, scene_buffers, split};
 
 /// The SPIR-V module of the `kernel` crate.
 pub const KERNEL_SPV: &[u8] = include_bytes!(env!("kernel.spv"));
@@ -19,20 +24,52 @@ struct Pipelines {
     trace: wgpu::ComputePipeline,
 }
 
+/// The pipelines of both representations.
+struct Kernels {
+    triangles: Pipelines,
+    grids: Pipelines,
+}
+
+/// What a dispatch does: render a tile, or trace a list of rays.
+#[derive(Copy, Clone)]
+enum Job {
+    Render,
+    Trace,
+}
+
 pub struct Gpu {
     device: wgpu::Device,
     queue: wgpu::Queue,
     limits: wgpu::Limits,
+    /// Largest buffer a binding takes: the adapter's limit, or a smaller one asked for.
+    binding_limit: u64,
     timestamps: bool,
     pub adapter: wgpu::AdapterInfo,
-    triangles: Pipelines,
-    grids: Pipelines,
+    module: wgpu::ShaderModule,
+    whole: Kernels,
+    /// The kernels for split scenes, each made the first time it runs: they bind more buffers
+    /// than some adapters allow, and take drivers long to compile.
+    split: [std::sync::OnceLock<wgpu::ComputePipeline>; 4],
 }
 
 /// A scene's geometry in GPU buffers, uploaded once and traced many times.
 pub struct GpuScene<'a> {
     scene: &'a Scene,
+    /// The scene's bindings in set 0, after the kernel's own.
     buffers: Vec<wgpu::Buffer>,
+    /// A split scene's chunks (set 1) and where its buffers lie among them.
+    chunks: Option<(Vec<wgpu::Buffer>, SplitParams)>,
+}
+
+impl GpuScene<'_> {
+    /// Whether the scene is split over several bindings per buffer.
+    pub fn is_split(&self) -> bool {
+        self.chunks.is_some()
+    }
+
+    fn split_params(&self) -> SplitParams {
+        self.chunks.as_ref().map(|c| c.1).unwrap_or_default()
+    }
 }
 
 /// wgpu found no adapter at all: the one GPU failure that falling back to the CPU answers.
@@ -60,6 +97,17 @@ pub enum Timing {
     /// Wall time from submission to completion (the adapter has no timestamp queries).
     FenceToFence,
 }
+
+/// Storage buffers a split kernel binds: its chunks and at most four of its own.
+const SPLIT_BINDINGS: u32 = SPLIT_CHUNKS + 4;
+
+/// Environment variable that lowers the largest buffer gridrt binds on the GPU (e.g. `1M`):
+/// to try the split path, and tiled dispatches, on a small scene.
+pub const BINDING_LIMIT_VAR: &str = "GRIDRT_GPU_BINDING_LIMIT";
+
+/// Smallest binding limit that can be asked for: a tile of one row of a wide image and a node
+/// must fit.
+const MIN_BINDING_LIMIT: u64 = 1 << 10;
 
 impl Gpu {
     /// Opens the first adapter wgpu finds (a real GPU before a software one). Fails with a
@@ -95,36 +143,38 @@ impl Gpu {
             label: Some("kernel"),
             source: wgpu::util::make_spirv(KERNEL_SPV),
         });
-        let pipeline = |entry: &str| {
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(entry),
-                layout: None,
-                module: &module,
-                entry_point: Some(entry),
-                compilation_options: Default::default(),
-                cache: None,
-            })
-        };
-        let triangles = Pipelines {
-            render: pipeline("render_triangles"),
-            trace: pipeline("trace_triangles_rays"),
-        };
-        let grids = Pipelines {
-            render: pipeline("render_grids"),
-            trace: pipeline("trace_grids_rays"),
-        };
+        let whole = kernels(&device, &module);
         if let Some(e) = pollster::block_on(device.pop_error_scope()) {
             bail!("the GPU driver rejected the gridrt kernels: {}", error_chain(&e));
         }
-        Ok(Gpu {
+        let mut gpu = Gpu {
             adapter: adapter.get_info(),
+            binding_limit: (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size),
             device,
             queue,
             limits,
             timestamps,
-            triangles,
-            grids,
-        })
+            module,
+            whole,
+            split: Default::default(),
+        };
+        if let Some(value) = std::env::var_os(BINDING_LIMIT_VAR) {
+            let text = value.to_string_lossy();
+            let bytes = parse_bytes(&text)
+                .with_context(|| format!("{BINDING_LIMIT_VAR}={text} is not a size in bytes (such as 64K or 1M)"))?;
+            gpu.limit_bindings(bytes)?;
+        }
+        Ok(gpu)
+    }
+
+    /// Binds no buffer larger than `bytes` (at least 1 KiB), below the adapter's own limit:
+    /// larger scenes are split, images rendered in more tiles and ray lists in more batches.
+    pub fn limit_bindings(&mut self, bytes: u64) -> Result<()> {
+        if bytes < MIN_BINDING_LIMIT {
+            bail!("a binding limit of {bytes} bytes is below the smallest gridrt takes, {MIN_BINDING_LIMIT} bytes");
+        }
+        self.binding_limit = self.binding_limit.min(bytes);
+        Ok(())
     }
 
     /// One line naming the adapter, e.g. `llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan, Cpu)`.
@@ -132,6 +182,14 @@ impl Gpu {
         format!(
             "{} ({:?}, {:?})",
             self.adapter.name, self.adapter.backend, self.adapter.device_type
+        )
+    }
+
+    /// The adapter and the limits that decide how a scene is bound, for messages.
+    fn describe_limits(&self) -> String {
+        format!(
+            "this GPU ({}: at most {} bytes per binding, {} storage buffers per shader stage)",
+            self.adapter.name, self.binding_limit, self.limits.max_storage_buffers_per_shader_stage
         )
     }
 
@@ -144,58 +202,51 @@ impl Gpu {
         }
     }
 
-    /// Refuses, before any work, an image this adapter cannot render in one dispatch: its
-    /// pixels must fit in one storage buffer and its workgroups in the dispatch limits.
-    pub fn check_image(&self, width: u32, height: u32) -> Result<()> {
-        let bytes = width as u64 * height as u64 * 4;
-        let limit = self.buffer_limit();
-        if bytes > limit {
+    /// Refuses a split scene on an adapter that cannot bind one.
+    fn check_split_bindings(&self) -> Result<()> {
+        let allowed = self.limits.max_storage_buffers_per_shader_stage;
+        if allowed < SPLIT_BINDINGS || self.limits.max_bind_groups < 2 {
             bail!(
-                "a {width}x{height} image needs {bytes} bytes on the GPU, more than the {limit} bytes this GPU ({}) \
-                 allows in one storage buffer; render a smaller image or use --backend cpu",
-                self.adapter.name
-            );
-        }
-        let groups = self.limits.max_compute_workgroups_per_dimension as u64 * WORKGROUP_SIZE as u64;
-        if width as u64 > groups || height as u64 > groups {
-            bail!(
-                "a {width}x{height} image is wider or taller than the {groups} pixels this GPU ({}) dispatches at \
-                 once; render a smaller image or use --backend cpu",
-                self.adapter.name
+                "the scene is larger than one binding of {}, and reading it in chunks takes {SPLIT_BINDINGS} storage \
+                 buffers in two bind groups; use fewer levels or --backend cpu",
+                self.describe_limits()
             );
         }
         Ok(())
     }
 
-    fn buffer_limit(&self) -> u64 {
-        (self.limits.max_storage_buffer_binding_size as u64).min(self.limits.max_buffer_size)
-    }
-
-    fn check_size(&self, name: &str, bytes: u64) -> Result<()> {
-        let limit = self.buffer_limit();
-        if bytes > limit {
-            bail!(
-                "the {name} buffer needs {bytes} bytes, more than the {limit} bytes this GPU ({}) allows in one \
-                 storage buffer; use fewer levels, fewer rays or --backend cpu",
-                self.adapter.name
-            );
+    /// The kernel for `job` on a split scene, made on first use.
+    fn split_pipeline(&self, scene: &Scene, job: Job) -> Result<&wgpu::ComputePipeline> {
+        let (index, entry) = match (scene, job) {
+            (Scene::Triangles(_), Job::Render) => (0, "render_triangles_split"),
+            (Scene::Triangles(_), Job::Trace) => (1, "trace_triangles_rays_split"),
+            (Scene::Grids(_), Job::Render) => (2, "render_grids_split"),
+            (Scene::Grids(_), Job::Trace) => (3, "trace_grids_rays_split"),
+        };
+        if let Some(p) = self.split[index].get() {
+            return Ok(p);
         }
-        Ok(())
+        self.check_split_bindings()?;
+        self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let pipeline = compute_pipeline(&self.device, &self.module, entry);
+        if let Some(e) = pollster::block_on(self.device.pop_error_scope()) {
+            bail!("the GPU driver rejected the gridrt kernel {entry}: {}", error_chain(&e));
+        }
+        Ok(self.split[index].get_or_init(|| pipeline))
     }
 
-    fn storage(&self, name: &str, bytes: &[u8]) -> Result<wgpu::Buffer> {
-        self.check_size(name, bytes.len() as u64)?;
+    fn buffer(&self, name: &str, contents: &[u8]) -> wgpu::Buffer {
         // wgpu rejects zero-sized bindings; an empty area still needs a placeholder.
-        let contents: &[u8] = if bytes.is_empty() { &[0; 16] } else { bytes };
-        Ok(self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        let contents: &[u8] = if contents.is_empty() { &[0; 16] } else { contents };
+        self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some(name),
             contents,
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-        }))
+        })
     }
 
-    fn output(&self, name: &str, bytes: u64) -> Result<(wgpu::Buffer, wgpu::Buffer)> {
-        self.check_size(name, bytes)?;
+    /// A storage buffer and the buffer it is read back through.
+    fn output(&self, name: &str, bytes: u64) -> (wgpu::Buffer, wgpu::Buffer) {
         let make = |usage| {
             self.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(name),
@@ -204,84 +255,109 @@ impl Gpu {
                 mapped_at_creation: false,
             })
         };
-        Ok((
+        (
             make(wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC),
             make(wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST),
-        ))
+        )
     }
 
-    /// Uploads a scene's geometry, in the binding order the kernels expect after their
-    /// parameters (binding 0).
+    /// Uploads a scene's geometry: each buffer in one binding when every one fits, otherwise
+    /// all of them in chunks (see [`crate::split`]). What cannot be bound is refused, naming
+    /// the buffers and this adapter's limits, before anything is uploaded.
     pub fn upload<'a>(&self, scene: &'a Scene) -> Result<GpuScene<'a>> {
-        let buffers = match scene {
-            Scene::Triangles(s) => vec![
-                self.storage("BVH", bytemuck::cast_slice(&s.nodes))?,
-                self.storage("vertex", bytemuck::cast_slice(&s.positions))?,
-                self.storage("index", bytemuck::cast_slice(&s.indices))?,
-            ],
-            Scene::Grids(s) => vec![
-                self.storage("top-level BVH", bytemuck::cast_slice(&s.nodes))?,
-                self.storage("grid header", bytemuck::cast_slice(&s.headers))?,
-                self.storage("grid vertex", bytemuck::cast_slice(&s.vertices))?,
-                self.storage("sphere radius", bytemuck::cast_slice(&s.radii))?,
-                self.storage("static index list", bytemuck::cast_slice(&MICRO_TRIANGLES))?,
-            ],
+        let buffers = scene_buffers(scene);
+        let statics = match scene {
+            Scene::Triangles(_) => vec![],
+            Scene::Grids(_) => vec![self.buffer("static index list", bytemuck::cast_slice(&MICRO_TRIANGLES))],
         };
-        Ok(GpuScene { scene, buffers })
-    }
-
-    fn pipelines(&self, scene: &Scene) -> &Pipelines {
-        match scene {
-            Scene::Triangles(_) => &self.triangles,
-            Scene::Grids(_) => &self.grids,
+        if buffers.iter().all(|b| b.words.len() as u64 * 4 <= self.binding_limit) {
+            let mut all = statics;
+            all.extend(
+                buffers
+                    .iter()
+                    .map(|b| self.buffer(b.name, bytemuck::cast_slice(b.words))),
+            );
+            return Ok(GpuScene {
+                scene,
+                buffers: all,
+                chunks: None,
+            });
         }
-    }
-
-    fn bind(&self, pipeline: &wgpu::ComputePipeline, buffers: &[&wgpu::Buffer]) -> wgpu::BindGroup {
-        let entries: Vec<wgpu::BindGroupEntry> = buffers
-            .iter()
-            .enumerate()
-            .map(|(i, b)| wgpu::BindGroupEntry {
-                binding: i as u32,
-                resource: b.as_entire_binding(),
-            })
+        let split = split(scene, chunk_words(self.binding_limit), &self.describe_limits())?;
+        self.check_split_bindings()?;
+        let mut chunks: Vec<wgpu::Buffer> = (split.chunks.iter())
+            .map(|c| self.buffer("scene chunk", bytemuck::cast_slice(c)))
             .collect();
-        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: None,
-            layout: &pipeline.get_bind_group_layout(0),
-            entries: &entries,
+        chunks.resize_with(SPLIT_CHUNKS as usize, || self.buffer("unused chunk", &[]));
+        Ok(GpuScene {
+            scene,
+            buffers: statics,
+            chunks: Some((chunks, split.params)),
         })
     }
 
+    fn pipeline(&self, scene: &GpuScene, job: Job) -> Result<&wgpu::ComputePipeline> {
+        if scene.is_split() {
+            return self.split_pipeline(scene.scene, job);
+        }
+        let kernels = match scene.scene {
+            Scene::Triangles(_) => &self.whole.triangles,
+            Scene::Grids(_) => &self.whole.grids,
+        };
+        Ok(match job {
+            Job::Render => &kernels.render,
+            Job::Trace => &kernels.trace,
+        })
+    }
+
+    /// Bind groups of a dispatch: the kernel's own buffers `own`, then the scene's.
+    fn bind(&self, pipeline: &wgpu::ComputePipeline, own: &[&wgpu::Buffer], scene: &GpuScene) -> Vec<wgpu::BindGroup> {
+        let group = |set: u32, buffers: Vec<&wgpu::Buffer>| {
+            let entries: Vec<wgpu::BindGroupEntry> = (buffers.iter().enumerate())
+                .map(|(i, b)| wgpu::BindGroupEntry {
+                    binding: i as u32,
+                    resource: b.as_entire_binding(),
+                })
+                .collect();
+            self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: None,
+                layout: &pipeline.get_bind_group_layout(set),
+                entries: &entries,
+            })
+        };
+        let mut set0 = own.to_vec();
+        set0.extend(scene.buffers.iter());
+        let mut groups = vec![group(0, set0)];
+        if let Some((chunks, _)) = &scene.chunks {
+            groups.push(group(1, chunks.iter().collect()));
+        }
+        groups
+    }
+
     /// Encodes one dispatch (optionally between two timestamps), submits it and waits.
-    fn dispatch(
-        &self,
-        pipeline: &wgpu::ComputePipeline,
-        bind_group: &wgpu::BindGroup,
-        groups: (u32, u32),
-        copy: Option<(&wgpu::Buffer, &wgpu::Buffer, u64)>,
-        queries: Option<&(wgpu::QuerySet, wgpu::Buffer, wgpu::Buffer)>,
-    ) -> Result<()> {
+    fn dispatch(&self, job: &Dispatch) -> Result<()> {
         self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let mut encoder = self.device.create_command_encoder(&Default::default());
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: None,
-                timestamp_writes: queries.map(|(set, _, _)| wgpu::ComputePassTimestampWrites {
-                    query_set: set,
+                timestamp_writes: job.queries.map(|q| wgpu::ComputePassTimestampWrites {
+                    query_set: &q.set,
                     beginning_of_pass_write_index: Some(0),
                     end_of_pass_write_index: Some(1),
                 }),
             });
-            pass.set_pipeline(pipeline);
-            pass.set_bind_group(0, bind_group, &[]);
-            pass.dispatch_workgroups(groups.0, groups.1, 1);
+            pass.set_pipeline(job.pipeline);
+            for (set, group) in job.bind_groups.iter().enumerate() {
+                pass.set_bind_group(set as u32, group, &[]);
+            }
+            pass.dispatch_workgroups(job.groups.0, job.groups.1, 1);
         }
-        if let Some((set, resolve, readback)) = queries {
-            encoder.resolve_query_set(set, 0..2, resolve, 0);
-            encoder.copy_buffer_to_buffer(resolve, 0, readback, 0, 16);
+        if let Some(q) = job.queries {
+            encoder.resolve_query_set(&q.set, 0..2, &q.resolve, 0);
+            encoder.copy_buffer_to_buffer(&q.resolve, 0, &q.readback, 0, 16);
         }
-        if let Some((from, to, bytes)) = copy {
+        if let Some((from, to, bytes)) = job.copy {
             encoder.copy_buffer_to_buffer(from, 0, to, 0, bytes);
         }
         self.queue.submit([encoder.finish()]);
@@ -300,31 +376,81 @@ impl Gpu {
         self.render_uploaded(&uploaded, frame)
     }
 
+    /// Largest tile (width, height) one dispatch renders: its pixels in one binding, its
+    /// workgroups within the dispatch limits.
+    fn tile_size(&self, width: u32, height: u32) -> (u32, u32) {
+        let side = self.limits.max_compute_workgroups_per_dimension as u64 * WORKGROUP_SIZE as u64;
+        let pixels = self.binding_limit / 4;
+        let w = (width as u64).min(side).min(pixels);
+        let h = (height as u64).min(side).min(pixels / w);
+        (w as u32, h as u32)
+    }
+
+    /// Renders a frame in tiles, each into a buffer of its own read back into the image.
     pub fn render_uploaded(&self, scene: &GpuScene, frame: &FrameParams) -> Result<Vec<u32>> {
-        let (w, h) = (frame.camera.width, frame.camera.height);
-        let bytes = w as u64 * h as u64 * 4;
-        let params = self.storage("frame parameters", bytemuck::bytes_of(frame))?;
-        let (image, readback) = self.output("image", bytes)?;
-        let pipeline = &self.pipelines(scene.scene).render;
-        let mut buffers = vec![&params];
-        buffers.extend(scene.buffers.iter());
-        buffers.push(&image);
-        let bind_group = self.bind(pipeline, &buffers);
-        let groups = (w.div_ceil(WORKGROUP_SIZE), h.div_ceil(WORKGROUP_SIZE));
-        self.dispatch(pipeline, &bind_group, groups, Some((&image, &readback, bytes)), None)?;
-        self.read_back(&readback, bytes)
+        let (width, height) = (frame.camera.width, frame.camera.height);
+        let (tile_w, tile_h) = self.tile_size(width, height);
+        let tile_bytes = tile_w as u64 * tile_h as u64 * 4;
+        let params = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("frame parameters"),
+            size: std::mem::size_of::<FrameParams>() as u64,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let (tile, readback) = self.output("image tile", tile_bytes);
+        let pipeline = self.pipeline(scene, Job::Render)?;
+        let bind_groups = self.bind(pipeline, &[&params, &tile], scene);
+        let mut image = vec![0u32; width as usize * height as usize];
+        for y in (0..height).step_by(tile_h as usize) {
+            for x in (0..width).step_by(tile_w as usize) {
+                let (w, h) = (tile_w.min(width - x), tile_h.min(height - y));
+                let tile_frame = FrameParams {
+                    split: scene.split_params(),
+                    tile_x: x,
+                    tile_y: y,
+                    tile_width: w,
+                    tile_height: h,
+                    ..*frame
+                };
+                self.queue.write_buffer(&params, 0, bytemuck::bytes_of(&tile_frame));
+                let bytes = w as u64 * h as u64 * 4;
+                self.dispatch(&Dispatch {
+                    pipeline,
+                    bind_groups: &bind_groups,
+                    groups: (w.div_ceil(WORKGROUP_SIZE), h.div_ceil(WORKGROUP_SIZE)),
+                    copy: Some((&tile, &readback, bytes)),
+                    queries: None,
+                })?;
+                let pixels = self.read_back(&readback, bytes)?;
+                for (row, line) in pixels.chunks(w as usize).enumerate() {
+                    let at = (y as usize + row) * width as usize + x as usize;
+                    image[at..at + w as usize].copy_from_slice(line);
+                }
+            }
+        }
+        Ok(image)
+    }
+
+    /// Rays one dispatch traces: their records and hits each in one binding, their
+    /// workgroups within the dispatch limits.
+    fn ray_batch(&self) -> usize {
+        let per_binding = self.binding_limit / std::mem::size_of::<RayRecord>() as u64;
+        let groups = self.limits.max_compute_workgroups_per_dimension as u64;
+        let per_dispatch = groups * groups.min(32768) * TRACE_WORKGROUP_SIZE as u64;
+        per_binding.min(per_dispatch).min(u32::MAX as u64) as usize
     }
 
     /// Workgroup grid and parameters for `count` rays.
-    fn trace_params(&self, scene: &Scene, count: u32) -> ((u32, u32), TraceParams) {
+    fn trace_params(&self, scene: &GpuScene, count: u32) -> ((u32, u32), TraceParams) {
         let groups = count.div_ceil(TRACE_WORKGROUP_SIZE).max(1);
         let x = groups.min(self.limits.max_compute_workgroups_per_dimension.min(32768));
         let y = groups.div_ceil(x);
         let params = TraceParams {
-            grid: match scene {
+            grid: match scene.scene {
                 Scene::Triangles(_) => Default::default(),
                 Scene::Grids(s) => s.params,
             },
+            split: scene.split_params(),
             ray_count: count,
             threads_per_row: x * TRACE_WORKGROUP_SIZE,
             _pad: [0; 2],
@@ -338,63 +464,70 @@ impl Gpu {
         Ok(hits)
     }
 
-    /// Traces `rays` `repeats` times; returns the hits and the seconds of each repetition,
-    /// measured as [`Gpu::timing`] says.
+    /// Traces `rays` `repeats` times, in batches within the adapter's limits; returns the hits
+    /// and the seconds of each repetition (all its batches), measured as [`Gpu::timing`] says.
     pub fn time_trace(
         &self,
         scene: &GpuScene,
         rays: &[RayRecord],
         repeats: usize,
     ) -> Result<(Vec<HitRecord>, Vec<f64>)> {
-        let count = u32::try_from(rays.len()).context("too many rays for one dispatch")?;
-        let ((x, y), params) = self.trace_params(scene.scene, count);
-        let params = self.storage("trace parameters", bytemuck::bytes_of(&params))?;
-        let ray_buffer = self.storage("ray", bytemuck::cast_slice(rays))?;
-        let bytes = rays.len() as u64 * std::mem::size_of::<HitRecord>() as u64;
-        let (hits, readback) = self.output("hit", bytes)?;
-        let pipeline = &self.pipelines(scene.scene).trace;
-        let mut buffers = vec![&params];
-        buffers.extend(scene.buffers.iter());
-        buffers.extend([&ray_buffer, &hits]);
-        let bind_group = self.bind(pipeline, &buffers);
-        let queries = self.timestamps.then(|| {
-            let set = self.device.create_query_set(&wgpu::QuerySetDescriptor {
-                label: Some("trace timestamps"),
-                ty: wgpu::QueryType::Timestamp,
-                count: 2,
-            });
-            let make = |usage| {
-                self.device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("timestamps"),
-                    size: 16,
-                    usage,
-                    mapped_at_creation: false,
-                })
-            };
-            (
-                set,
-                make(wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC),
-                make(wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST),
-            )
-        });
+        let pipeline = self.pipeline(scene, Job::Trace)?;
+        let queries = self.timestamps.then(|| self.queries());
         let period = self.queue.get_timestamp_period() as f64 * 1e-9;
-        let mut seconds = Vec::with_capacity(repeats);
-        for k in 0..repeats.max(1) {
-            let last = k + 1 == repeats.max(1);
-            let copy = last.then_some((&hits, &readback, bytes));
-            let start = Instant::now();
-            self.dispatch(pipeline, &bind_group, (x, y), copy, queries.as_ref())?;
-            let wall = start.elapsed().as_secs_f64();
-            seconds.push(match &queries {
-                Some((_, _, ts)) => {
-                    let t: Vec<u64> = bytemuck::cast_slice(&self.read_back_bytes(ts, 16)?).to_vec();
-                    t[1].saturating_sub(t[0]) as f64 * period
-                }
-                None => wall,
-            });
+        let mut seconds = vec![0.0; repeats.max(1)];
+        let mut hits = Vec::with_capacity(rays.len());
+        for batch in rays.chunks(self.ray_batch().max(1)) {
+            let ((x, y), params) = self.trace_params(scene, batch.len() as u32);
+            let params = self.buffer("trace parameters", bytemuck::bytes_of(&params));
+            let ray_buffer = self.buffer("ray", bytemuck::cast_slice(batch));
+            let bytes = batch.len() as u64 * std::mem::size_of::<HitRecord>() as u64;
+            let (hit_buffer, readback) = self.output("hit", bytes);
+            let bind_groups = self.bind(pipeline, &[&params, &ray_buffer, &hit_buffer], scene);
+            for (k, time) in seconds.iter_mut().enumerate() {
+                let last = k + 1 == repeats.max(1);
+                let start = Instant::now();
+                self.dispatch(&Dispatch {
+                    pipeline,
+                    bind_groups: &bind_groups,
+                    groups: (x, y),
+                    copy: last.then_some((&hit_buffer, &readback, bytes)),
+                    queries: queries.as_ref(),
+                })?;
+                let wall = start.elapsed().as_secs_f64();
+                *time += match &queries {
+                    Some(q) => {
+                        let t: Vec<u64> = bytemuck::cast_slice(&self.read_back_bytes(&q.readback, 16)?).to_vec();
+                        t[1].saturating_sub(t[0]) as f64 * period
+                    }
+                    None => wall,
+                };
+            }
+            hits.extend_from_slice(bytemuck::cast_slice(&self.read_back_bytes(&readback, bytes)?));
         }
-        let hits = bytemuck::cast_slice(&self.read_back_bytes(&readback, bytes)?).to_vec();
         Ok((hits, seconds))
+    }
+
+    /// Two timestamps around a compute pass, and the buffers they are read back through.
+    fn queries(&self) -> Queries {
+        let set = self.device.create_query_set(&wgpu::QuerySetDescriptor {
+            label: Some("trace timestamps"),
+            ty: wgpu::QueryType::Timestamp,
+            count: 2,
+        });
+        let make = |usage| {
+            self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("timestamps"),
+                size: 16,
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        Queries {
+            set,
+            resolve: make(wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC),
+            readback: make(wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST),
+        }
     }
 
     fn read_back(&self, buffer: &wgpu::Buffer, bytes: u64) -> Result<Vec<u32>> {
@@ -414,6 +547,50 @@ impl Gpu {
         let data = slice.get_mapped_range().to_vec();
         buffer.unmap();
         Ok(data)
+    }
+}
+
+/// One compute dispatch: what runs, on what, and what is copied or timed after it.
+struct Dispatch<'a> {
+    pipeline: &'a wgpu::ComputePipeline,
+    bind_groups: &'a [wgpu::BindGroup],
+    groups: (u32, u32),
+    /// `bytes` from the first buffer to the second after the pass.
+    copy: Option<(&'a wgpu::Buffer, &'a wgpu::Buffer, u64)>,
+    queries: Option<&'a Queries>,
+}
+
+/// Timestamp queries around a pass.
+struct Queries {
+    set: wgpu::QuerySet,
+    resolve: wgpu::Buffer,
+    readback: wgpu::Buffer,
+}
+
+/// The pipeline of kernel `entry`, its layout taken from the shader.
+fn compute_pipeline(device: &wgpu::Device, module: &wgpu::ShaderModule, entry: &str) -> wgpu::ComputePipeline {
+    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(entry),
+        layout: None,
+        module,
+        entry_point: Some(entry),
+        compilation_options: Default::default(),
+        cache: None,
+    })
+}
+
+/// The pipelines of the kernels that read each scene buffer from one binding.
+fn kernels(device: &wgpu::Device, module: &wgpu::ShaderModule) -> Kernels {
+    let pipeline = |entry| compute_pipeline(device, module, entry);
+    Kernels {
+        triangles: Pipelines {
+            render: pipeline("render_triangles"),
+            trace: pipeline("trace_triangles_rays"),
+        },
+        grids: Pipelines {
+            render: pipeline("render_grids"),
+            trace: pipeline("trace_grids_rays"),
+        },
     }
 }
 

@@ -20,6 +20,7 @@ pub mod mesh;
 pub mod quantize;
 pub mod rays;
 pub mod scene;
+pub mod split;
 pub mod stats;
 pub mod subdiv;
 pub mod triangles;

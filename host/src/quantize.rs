@@ -115,12 +115,12 @@ mod tests {
             write_half(&mut words, h, v);
         }
         for (h, &v) in values.iter().enumerate() {
-            assert_eq!(read_half(&words, h as u32), v);
+            assert_eq!(read_half(words.as_slice(), h as u32), v);
         }
         // Triples starting on either half of a word, the last one ending the array.
         for h in 0..values.len() as u32 - 2 {
-            let want = [0, 1, 2].map(|d| read_half(&words, h + d));
-            assert_eq!(read_half_triple(&words, h), want, "triple at half {h}");
+            let want = [0, 1, 2].map(|d| read_half(words.as_slice(), h + d));
+            assert_eq!(read_half_triple(words.as_slice(), h), want, "triple at half {h}");
         }
     }
 

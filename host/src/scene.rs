@@ -1,15 +1,21 @@
 //! A scene ready to trace, in either representation, and how to trace it on the CPU.
 
-use gridrt_shared::camera::primary_ray;
+use gridrt_shared::buffer::{Chunks, Split};
 use gridrt_shared::glam::Vec3;
-use gridrt_shared::layout::{Camera, FrameParams, GridParams, Hit};
+use gridrt_shared::grid_index::MICRO_TRIANGLES;
+use gridrt_shared::layout::{
+    BvhNode, Camera, FrameParams, GridParams, Hit, GRID_HEADERS, GRID_NODES, GRID_RADII, GRID_VERTICES,
+    TRIANGLE_INDICES, TRIANGLE_NODES, TRIANGLE_POSITIONS,
+};
 use gridrt_shared::ray::{Ray, T_FAR};
-use gridrt_shared::shade::{pack_rgba8, shade};
+use gridrt_shared::shade::render_pixel;
+use gridrt_shared::traverse::TriangleMesh;
 use gridrt_shared::triangle::{intersect_triangle, triangle_normal};
-use gridrt_shared::{grid_traverse::trace_grids, traverse::trace_triangles};
+use gridrt_shared::{grid_traverse, grid_traverse::trace_grids, traverse::trace_triangles};
 use rayon::prelude::*;
 
 use crate::grid::GridScene;
+use crate::split::SplitScene;
 use crate::triangles::TriangleScene;
 
 pub enum Scene {
@@ -21,8 +27,8 @@ impl Scene {
     /// Closest hit, by the same `gridrt_shared` code the kernels run.
     pub fn trace(&self, ray: &Ray, t_max: f32) -> Hit {
         match self {
-            Scene::Triangles(s) => trace_triangles(&s.nodes, &s.view(), ray, t_max),
-            Scene::Grids(s) => trace_grids(&s.nodes, &s.view(), ray, t_max),
+            Scene::Triangles(s) => trace_triangles(s.nodes.as_slice(), &s.view(), ray, t_max),
+            Scene::Grids(s) => trace_grids(s.nodes.as_slice(), &s.view(), ray, t_max),
         }
     }
 
@@ -35,7 +41,9 @@ impl Scene {
                 Scene::Grids(s) => s.params,
             },
             shading,
-            _pad: [0; 3],
+            tile_width: camera.width,
+            tile_height: camera.height,
+            ..Default::default()
         }
     }
 
@@ -110,13 +118,45 @@ fn reference_t(ray: &Ray, [a, b, c]: [Vec3; 3]) -> Option<f64> {
 
 /// Renders on the CPU, rows in parallel: packed RGBA8, row-major, top row first.
 pub fn render_cpu(scene: &Scene, frame: &FrameParams) -> Vec<u32> {
+    match scene {
+        Scene::Triangles(s) => render_rows(frame, |x, y| render_pixel(frame, s.nodes.as_slice(), &s.view(), x, y)),
+        Scene::Grids(s) => render_rows(frame, |x, y| render_pixel(frame, s.nodes.as_slice(), &s.view(), x, y)),
+    }
+}
+
+/// Renders on the CPU from a scene's buffers cut into chunks, read the way the GPU reads a
+/// split scene: the same image as [`render_cpu`], by other addressing.
+pub fn render_cpu_split(scene: &Scene, split: &SplitScene, frame: &FrameParams) -> Vec<u32> {
+    let chunks = Chunks::from_slices(&split.chunks);
+    let nodes = |b| Split::<BvhNode>::new(&chunks, &split.params, b);
+    match scene {
+        Scene::Triangles(_) => {
+            let mesh = TriangleMesh {
+                positions: Split::new(&chunks, &split.params, TRIANGLE_POSITIONS),
+                indices: Split::new(&chunks, &split.params, TRIANGLE_INDICES),
+            };
+            render_rows(frame, |x, y| render_pixel(frame, nodes(TRIANGLE_NODES), &mesh, x, y))
+        }
+        Scene::Grids(s) => {
+            let grids = grid_traverse::GridScene {
+                headers: Split::new(&chunks, &split.params, GRID_HEADERS),
+                vertices: Split::new(&chunks, &split.params, GRID_VERTICES),
+                radii: Split::new(&chunks, &split.params, GRID_RADII),
+                micro_triangles: &MICRO_TRIANGLES,
+                params: s.params,
+            };
+            render_rows(frame, |x, y| render_pixel(frame, nodes(GRID_NODES), &grids, x, y))
+        }
+    }
+}
+
+/// Every pixel of the frame by `pixel(x, y)`, rows in parallel.
+fn render_rows(frame: &FrameParams, pixel: impl Fn(u32, u32) -> u32 + Sync) -> Vec<u32> {
     let (w, h) = (frame.camera.width, frame.camera.height);
     let mut image = vec![0u32; w as usize * h as usize];
     image.par_chunks_mut(w as usize).enumerate().for_each(|(y, row)| {
         for (x, px) in row.iter_mut().enumerate() {
-            let ray = primary_ray(&frame.camera, x as u32, y as u32);
-            let hit = scene.trace(&ray, T_FAR);
-            *px = pack_rgba8(shade(&hit, &ray, frame.shading));
+            *px = pixel(x as u32, y as u32);
         }
     });
     image

@@ -36,10 +36,11 @@ pub fn build(positions: &[Vec3], triangles: &[[u32; 3]]) -> TriangleScene {
 }
 
 impl TriangleScene {
-    pub fn view(&self) -> gridrt_shared::traverse::TriangleMesh<'_> {
+    /// The scene as the traversal reads it.
+    pub fn view(&self) -> gridrt_shared::traverse::TriangleMesh<&[f32], &[u32]> {
         gridrt_shared::traverse::TriangleMesh {
-            positions: &self.positions,
-            indices: &self.indices,
+            positions: self.positions.as_slice(),
+            indices: self.indices.as_slice(),
         }
     }
 

@@ -1,67 +1,31 @@
-//! The GPU entry points: one thread per pixel, each a thin wrapper around `gridrt_shared`.
+//! The GPU entry points, each a thin wrapper around `gridrt_shared`: one thread per pixel of a
+//! tile, or per ray of a list.
+//!
+//! Every kernel exists twice: reading each scene buffer from one binding, and reading a scene
+//! split into chunks (descriptor set 1, see `gridrt_shared::buffer`) when a buffer is larger
+//! than one binding may be. Both run the same traversal.
 #![cfg_attr(target_arch = "spirv", no_std)]
 
-use gridrt_shared::camera::primary_ray;
-use gridrt_shared::glam::UVec3;
-use gridrt_shared::glam::Vec3;
+use gridrt_shared::buffer::{Chunks, Split};
+use gridrt_shared::glam::{UVec3, Vec3};
 use gridrt_shared::grid_traverse::{trace_grids, GridScene};
-use gridrt_shared::layout::Hit;
 use gridrt_shared::layout::{
-    BvhNode, FrameParams, GridHeader, HitRecord, RayRecord, TraceParams, TRACE_WORKGROUP_SIZE, WORKGROUP_SIZE,
+    BvhNode, FrameParams, GridHeader, Hit, HitRecord, RayRecord, SplitParams, TraceParams, GRID_HEADERS, GRID_NODES,
+    GRID_RADII, GRID_VERTICES, TRACE_WORKGROUP_SIZE, TRIANGLE_INDICES, TRIANGLE_NODES, TRIANGLE_POSITIONS,
+    WORKGROUP_SIZE,
 };
 use gridrt_shared::ray::Ray;
-use gridrt_shared::ray::T_FAR;
-use gridrt_shared::shade::{pack_rgba8, shade};
+use gridrt_shared::shade::render_pixel;
 use gridrt_shared::traverse::{trace_triangles, TriangleMesh};
 use spirv_std::spirv;
 
-/// The baseline: a triangle BVH over an indexed triangle list.
-#[spirv(compute(threads(8, 8, 1)))]
-pub fn render_triangles(
-    #[spirv(global_invocation_id)] id: UVec3,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &FrameParams,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] nodes: &[BvhNode],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] positions: &[f32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] indices: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] image: &mut [u32],
-) {
-    let cam = &params.camera;
-    if id.x >= cam.width || id.y >= cam.height {
-        return;
+/// Where this thread's pixel goes in the tile's image buffer, or `None` outside the tile.
+fn tile_index(id: UVec3, frame: &FrameParams) -> Option<usize> {
+    if id.x < frame.tile_width && id.y < frame.tile_height {
+        Some((id.y * frame.tile_width + id.x) as usize)
+    } else {
+        None
     }
-    let ray = primary_ray(cam, id.x, id.y);
-    let mesh = TriangleMesh { positions, indices };
-    let hit = trace_triangles(nodes, &mesh, &ray, T_FAR);
-    image[(id.y * cam.width + id.x) as usize] = pack_rgba8(shade(&hit, &ray, params.shading));
-}
-
-/// Grid primitives: top-level BVH over grids, sphere hierarchy inside each.
-#[allow(clippy::too_many_arguments)] // one per binding
-#[spirv(compute(threads(8, 8, 1)))]
-pub fn render_grids(
-    #[spirv(global_invocation_id)] id: UVec3,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &FrameParams,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] nodes: &[BvhNode],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] headers: &[GridHeader],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] vertices: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] radii: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] micro_triangles: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] image: &mut [u32],
-) {
-    let cam = &params.camera;
-    if id.x >= cam.width || id.y >= cam.height {
-        return;
-    }
-    let ray = primary_ray(cam, id.x, id.y);
-    let scene = GridScene {
-        headers,
-        vertices,
-        radii,
-        micro_triangles,
-        params: params.grid,
-    };
-    let hit = trace_grids(nodes, &scene, &ray, T_FAR);
-    image[(id.y * cam.width + id.x) as usize] = pack_rgba8(shade(&hit, &ray, params.shading));
 }
 
 /// The index of the ray this thread traces, or `None` past the end of the list. (No tuples or
@@ -87,20 +51,68 @@ fn record(hit: &Hit) -> HitRecord {
     }
 }
 
+fn split_triangles<'a>(chunks: &'a Chunks<'a>, split: &SplitParams) -> TriangleMesh<Split<'a, f32>, Split<'a, u32>> {
+    TriangleMesh {
+        positions: Split::new(chunks, split, TRIANGLE_POSITIONS),
+        indices: Split::new(chunks, split, TRIANGLE_INDICES),
+    }
+}
+
+/// The baseline: a triangle BVH over an indexed triangle list.
+#[spirv(compute(threads(8, 8, 1)))]
+pub fn render_triangles(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] image: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] nodes: &[BvhNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] positions: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] indices: &[u32],
+) {
+    if let Some(i) = tile_index(id, frame) {
+        let mesh = TriangleMesh { positions, indices };
+        image[i] = render_pixel(frame, nodes, &mesh, frame.tile_x + id.x, frame.tile_y + id.y);
+    }
+}
+
+/// Grid primitives: top-level BVH over grids, sphere hierarchy inside each.
+#[allow(clippy::too_many_arguments)] // one per binding
+#[spirv(compute(threads(8, 8, 1)))]
+pub fn render_grids(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] image: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] micro_triangles: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[BvhNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] headers: &[GridHeader],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] vertices: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] radii: &[u32],
+) {
+    if let Some(i) = tile_index(id, frame) {
+        let scene = GridScene {
+            headers,
+            vertices,
+            radii,
+            micro_triangles,
+            params: frame.grid,
+        };
+        image[i] = render_pixel(frame, nodes, &scene, frame.tile_x + id.x, frame.tile_y + id.y);
+    }
+}
+
 /// A list of rays against the baseline (benchmarks, and anything that brings its own rays).
 #[spirv(compute(threads(64, 1, 1)))]
 pub fn trace_triangles_rays(
     #[spirv(global_invocation_id)] id: UVec3,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] nodes: &[BvhNode],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] positions: &[f32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] indices: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] rays: &[RayRecord],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] hits: &mut [HitRecord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[RayRecord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] hits: &mut [HitRecord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[BvhNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] positions: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] indices: &[u32],
 ) {
-    if let Some(index) = ray_index(id, params) {
+    if let Some(i) = ray_index(id, params) {
         let mesh = TriangleMesh { positions, indices };
-        hits[index] = record(&trace_triangles(nodes, &mesh, &ray_of(&rays[index]), rays[index].t_max));
+        hits[i] = record(&trace_triangles(nodes, &mesh, &ray_of(&rays[i]), rays[i].t_max));
     }
 }
 
@@ -110,15 +122,15 @@ pub fn trace_triangles_rays(
 pub fn trace_grids_rays(
     #[spirv(global_invocation_id)] id: UVec3,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] nodes: &[BvhNode],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] headers: &[GridHeader],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] vertices: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] radii: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] micro_triangles: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] rays: &[RayRecord],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] hits: &mut [HitRecord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[RayRecord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] hits: &mut [HitRecord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] micro_triangles: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] nodes: &[BvhNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] headers: &[GridHeader],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] vertices: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] radii: &[u32],
 ) {
-    if let Some(index) = ray_index(id, params) {
+    if let Some(i) = ray_index(id, params) {
         let scene = GridScene {
             headers,
             vertices,
@@ -126,7 +138,136 @@ pub fn trace_grids_rays(
             micro_triangles,
             params: params.grid,
         };
-        hits[index] = record(&trace_grids(nodes, &scene, &ray_of(&rays[index]), rays[index].t_max));
+        hits[i] = record(&trace_grids(nodes, &scene, &ray_of(&rays[i]), rays[i].t_max));
+    }
+}
+
+/// Declares a kernel whose scene is split into chunks: its own bindings in set 0, then one
+/// binding per chunk in set 1, gathered into `Chunks` named `$chunks` for the body.
+macro_rules! split_kernel {
+    (
+        $(#[$attr:meta])*
+        fn $name:ident($($arg:tt)*) |$chunks:ident| $body:block
+    ) => {
+        $(#[$attr])*
+        #[allow(clippy::too_many_arguments)] // one per binding
+        pub fn $name(
+            $($arg)*
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 0)] c0: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 1)] c1: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 2)] c2: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 3)] c3: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 4)] c4: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 5)] c5: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 6)] c6: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 7)] c7: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 8)] c8: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 9)] c9: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 10)] c10: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 11)] c11: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 12)] c12: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 13)] c13: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 14)] c14: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 15)] c15: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 16)] c16: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 17)] c17: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 18)] c18: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 19)] c19: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 20)] c20: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 21)] c21: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 22)] c22: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 23)] c23: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 24)] c24: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 25)] c25: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 26)] c26: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 27)] c27: &[u32],
+        ) {
+            let $chunks = Chunks {
+                c0, c1, c2, c3, c4, c5, c6, c7, c8, c9, c10, c11, c12, c13, c14, c15, c16, c17, c18, c19, c20,
+                c21, c22, c23, c24, c25, c26, c27,
+            };
+            $body
+        }
+    };
+}
+
+split_kernel! {
+    /// [`render_triangles`] over a split scene.
+    #[spirv(compute(threads(8, 8, 1)))]
+    fn render_triangles_split(
+        #[spirv(global_invocation_id)] id: UVec3,
+        #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
+        #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] image: &mut [u32],
+    ) |chunks| {
+        if let Some(i) = tile_index(id, frame) {
+            let nodes = Split::<BvhNode>::new(&chunks, &frame.split, TRIANGLE_NODES);
+            let mesh = split_triangles(&chunks, &frame.split);
+            image[i] = render_pixel(frame, nodes, &mesh, frame.tile_x + id.x, frame.tile_y + id.y);
+        }
+    }
+}
+
+split_kernel! {
+    /// [`render_grids`] over a split scene.
+    #[spirv(compute(threads(8, 8, 1)))]
+    fn render_grids_split(
+        #[spirv(global_invocation_id)] id: UVec3,
+        #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
+        #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] image: &mut [u32],
+        #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] micro_triangles: &[u32],
+    ) |chunks| {
+        if let Some(i) = tile_index(id, frame) {
+            let nodes = Split::<BvhNode>::new(&chunks, &frame.split, GRID_NODES);
+            let scene = GridScene {
+                headers: Split::new(&chunks, &frame.split, GRID_HEADERS),
+                vertices: Split::new(&chunks, &frame.split, GRID_VERTICES),
+                radii: Split::new(&chunks, &frame.split, GRID_RADII),
+                micro_triangles,
+                params: frame.grid,
+            };
+            image[i] = render_pixel(frame, nodes, &scene, frame.tile_x + id.x, frame.tile_y + id.y);
+        }
+    }
+}
+
+split_kernel! {
+    /// [`trace_triangles_rays`] over a split scene.
+    #[spirv(compute(threads(64, 1, 1)))]
+    fn trace_triangles_rays_split(
+        #[spirv(global_invocation_id)] id: UVec3,
+        #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
+        #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[RayRecord],
+        #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] hits: &mut [HitRecord],
+    ) |chunks| {
+        if let Some(i) = ray_index(id, params) {
+            let nodes = Split::<BvhNode>::new(&chunks, &params.split, TRIANGLE_NODES);
+            let mesh = split_triangles(&chunks, &params.split);
+            hits[i] = record(&trace_triangles(nodes, &mesh, &ray_of(&rays[i]), rays[i].t_max));
+        }
+    }
+}
+
+split_kernel! {
+    /// [`trace_grids_rays`] over a split scene.
+    #[spirv(compute(threads(64, 1, 1)))]
+    fn trace_grids_rays_split(
+        #[spirv(global_invocation_id)] id: UVec3,
+        #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
+        #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[RayRecord],
+        #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] hits: &mut [HitRecord],
+        #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] micro_triangles: &[u32],
+    ) |chunks| {
+        if let Some(i) = ray_index(id, params) {
+            let nodes = Split::<BvhNode>::new(&chunks, &params.split, GRID_NODES);
+            let scene = GridScene {
+                headers: Split::new(&chunks, &params.split, GRID_HEADERS),
+                vertices: Split::new(&chunks, &params.split, GRID_VERTICES),
+                radii: Split::new(&chunks, &params.split, GRID_RADII),
+                micro_triangles,
+                params: params.grid,
+            };
+            hits[i] = record(&trace_grids(nodes, &scene, &ray_of(&rays[i]), rays[i].t_max));
+        }
     }
 }
 

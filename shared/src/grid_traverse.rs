@@ -2,6 +2,7 @@
 //! sphere first, down to leaves whose micro-triangles the static index list names; under the
 //! top-level BVH of [`crate::traverse`].
 
+use crate::buffer::Buffer;
 use crate::footprint::FootprintFrame;
 use crate::glam::Vec3;
 use crate::grid_index::{
@@ -20,15 +21,16 @@ pub const MAX_SPHERE_LEVEL: u32 = 6;
 /// A 4-ary depth-first search pushes at most three siblings per level plus one.
 const GRID_STACK: usize = 3 * MAX_SPHERE_LEVEL as usize + 4;
 
-/// Grid primitives: headers, the three vertex areas in one buffer, and the sphere radii.
-pub struct GridScene<'a> {
-    pub headers: &'a [GridHeader],
+/// Grid primitives: headers, the three vertex areas in one buffer, and the sphere radii;
+/// plain slices, or split buffers (see [`crate::buffer`]).
+pub struct GridScene<'a, H, W> {
+    pub headers: H,
     /// Each grid's inner area (`GridParams::inner_words` words: `f32` triples or 16-bit
     /// codes), then the edge and corner areas as `f32` triples.
-    pub vertices: &'a [u32],
+    pub vertices: W,
     /// Sphere radii in breadth-first order per grid: `f32` bits, or half floats two to a
     /// word (see `GridParams::half_radii`).
-    pub radii: &'a [u32],
+    pub radii: W,
     /// The static index list, [`crate::grid_index::MICRO_TRIANGLES`]: read where it lives
     /// (a storage buffer on the GPU) rather than copied per ray, which costs a GPU thread 85
     /// private words.
@@ -85,7 +87,7 @@ pub fn sphere_center(a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
     (a + b + c) * (1.0 / 3.0)
 }
 
-impl GridScene<'_> {
+impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     /// Grid `grid` resolved for reading, once per visit: where its vertices live, and the
     /// frame its inner vertices are decoded in.
     #[inline]
@@ -102,14 +104,7 @@ impl GridScene<'_> {
             inner_word
         };
         let corner_word = g.edge_word + 3 * (g.corner_offset - g.edge_offset);
-        let slots = GridSlots::addressed(
-            &self.headers[grid as usize],
-            n,
-            inner_first,
-            g.edge_word,
-            corner_word,
-            3,
-        );
+        let slots = GridSlots::addressed(&self.headers.load(grid), n, inner_first, g.edge_word, corner_word, 3);
         let corners = [
             load_vec3_bits(self.vertices, slots.slot([0, 0])),
             load_vec3_bits(self.vertices, slots.slot([n, 0])),
@@ -146,9 +141,9 @@ impl GridScene<'_> {
     pub fn radius(&self, grid: u32, node: u32) -> f32 {
         let k = grid * self.params.sphere_count + node;
         if self.params.half_radii == 0 {
-            return f32::from_bits(self.radii[k as usize]);
+            return f32::from_bits(self.radii.load(k));
         }
-        let half = (self.radii[(k / 2) as usize] >> (16 * (k & 1))) & 0xffff;
+        let half = (self.radii.load(k / 2) >> (16 * (k & 1))) & 0xffff;
         decode_radius(half, self.params.radius_scale)
     }
 
@@ -157,7 +152,9 @@ impl GridScene<'_> {
     #[inline]
     pub fn thickness(&self, grid: u32, leaf: u32, radius: f32) -> f32 {
         let words_per_grid = triangle_count(self.params.leaf_level).div_ceil(4);
-        let word = self.radii[(self.params.thickness_word + grid * words_per_grid + leaf / 4) as usize];
+        let word = self
+            .radii
+            .load(self.params.thickness_word + grid * words_per_grid + leaf / 4);
         let code = (word >> (8 * (leaf & 3))) & 0xff;
         radius * (code as f32 * (1.0 / 255.0))
     }
@@ -538,7 +535,7 @@ fn sort_descending(x: &mut Entry, y: &mut Entry) {
     }
 }
 
-impl LeafPrimitives for GridScene<'_> {
+impl<H: Buffer<GridHeader>, W: Buffer<u32>> LeafPrimitives for GridScene<'_, H, W> {
     type Scratch = GridScratch;
 
     fn scratch(&self, ray: &Ray) -> GridScratch {
@@ -568,6 +565,11 @@ impl LeafPrimitives for GridScene<'_> {
 }
 
 /// Closest hit among grid primitives under a top-level BVH.
-pub fn trace_grids(nodes: &[BvhNode], scene: &GridScene, ray: &Ray, t_max: f32) -> Hit {
+pub fn trace_grids<N: Buffer<BvhNode>, H: Buffer<GridHeader>, W: Buffer<u32>>(
+    nodes: N,
+    scene: &GridScene<H, W>,
+    ray: &Ray,
+    t_max: f32,
+) -> Hit {
     trace(nodes, scene, ray, t_max)
 }

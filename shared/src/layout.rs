@@ -157,14 +157,46 @@ pub struct GridParams {
     pub _pad: [u32; 2],
 }
 
-/// Everything one dispatch needs besides geometry.
+/// Where a split scene's buffers lie among its chunks (see [`crate::buffer`]): buffer `b`
+/// starts at chunk `first_chunk[b]` and holds `len[b]` elements; every chunk but a buffer's
+/// last holds `2^chunk_shift` words. Buffers of a grid scene: [`GRID_NODES`],
+/// [`GRID_HEADERS`], [`GRID_VERTICES`], [`GRID_RADII`]; of a triangle scene: [`TRIANGLE_NODES`],
+/// [`TRIANGLE_POSITIONS`], [`TRIANGLE_INDICES`]. Unused (all zero) when the scene is not split.
+#[repr(C)]
+#[derive(Copy, Clone, Default)]
+#[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable, Debug, PartialEq))]
+pub struct SplitParams {
+    pub chunk_shift: u32,
+    /// Chunks in use.
+    pub chunk_count: u32,
+    pub first_chunk: [u32; 4],
+    pub len: [u32; 4],
+    pub _pad: [u32; 2],
+}
+
+pub const GRID_NODES: usize = 0;
+pub const GRID_HEADERS: usize = 1;
+pub const GRID_VERTICES: usize = 2;
+pub const GRID_RADII: usize = 3;
+pub const TRIANGLE_NODES: usize = 0;
+pub const TRIANGLE_POSITIONS: usize = 1;
+pub const TRIANGLE_INDICES: usize = 2;
+
+/// Everything one dispatch needs besides geometry. A frame is rendered in tiles (each within
+/// the GPU's limits on one dispatch and one output buffer): this dispatch renders the
+/// `tile_width x tile_height` pixels from `(tile_x, tile_y)` into a buffer of its own.
 #[repr(C)]
 #[derive(Copy, Clone, Default)]
 #[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable, Debug, PartialEq))]
 pub struct FrameParams {
     pub camera: Camera,
     pub grid: GridParams,
+    pub split: SplitParams,
     pub shading: u32,
+    pub tile_x: u32,
+    pub tile_y: u32,
+    pub tile_width: u32,
+    pub tile_height: u32,
     pub _pad: [u32; 3],
 }
 
@@ -236,6 +268,7 @@ pub struct HitRecord {
 #[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable, Debug, PartialEq))]
 pub struct TraceParams {
     pub grid: GridParams,
+    pub split: SplitParams,
     pub ray_count: u32,
     pub threads_per_row: u32,
     pub _pad: [u32; 2],

@@ -8,6 +8,7 @@
 pub use spirv_std::glam;
 
 pub mod aabb;
+pub mod buffer;
 pub mod camera;
 pub mod footprint;
 pub mod grid_index;

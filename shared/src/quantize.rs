@@ -15,6 +15,7 @@
 //! exponent of the unit (as in an `f32`), then x, y, z of each inner vertex in
 //! [`crate::grid_index::inner_index`] order.
 
+use crate::buffer::Buffer;
 use crate::glam::Vec3;
 
 /// Largest magnitude of a code.
@@ -32,17 +33,17 @@ pub const fn inner_words(inner_count: u32) -> u32 {
 
 /// Signed 16-bit half `h` of a packed word array.
 #[inline]
-pub fn read_half(words: &[u32], h: u32) -> i32 {
-    let w = words[(h / 2) as usize] >> (16 * (h & 1));
+pub fn read_half<W: Buffer<u32>>(words: W, h: u32) -> i32 {
+    let w = words.load(h / 2) >> (16 * (h & 1));
     ((w << 16) as i32) >> 16
 }
 
 /// The three signed 16-bit halves `h, h + 1, h + 2` of a packed word array, from the two
 /// words that hold them.
 #[inline]
-pub fn read_half_triple(words: &[u32], h: u32) -> [i32; 3] {
-    let w0 = words[(h / 2) as usize];
-    let w1 = words[(h / 2 + 1) as usize];
+pub fn read_half_triple<W: Buffer<u32>>(words: W, h: u32) -> [i32; 3] {
+    let w0 = words.load(h / 2);
+    let w1 = words.load(h / 2 + 1);
     let odd = h & 1 != 0;
     let s = 16 * (h & 1);
     let sext = |w: u32| ((w << 16) as i32) >> 16;

@@ -1,6 +1,9 @@
+use crate::buffer::Buffer;
+use crate::camera::primary_ray;
 use crate::glam::Vec3;
-use crate::layout::{Hit, SHADE_NORMAL, SHADE_PRIMITIVE};
-use crate::ray::Ray;
+use crate::layout::{BvhNode, FrameParams, Hit, SHADE_NORMAL, SHADE_PRIMITIVE};
+use crate::ray::{Ray, T_FAR};
+use crate::traverse::{trace, LeafPrimitives};
 // On the GPU, float methods come from a trait (GLSL.std.450 underneath); natively from core.
 #[cfg(target_arch = "spirv")]
 use spirv_std::num_traits::Float;
@@ -55,4 +58,19 @@ pub fn pack_rgba8(color: Vec3) -> u32 {
     let g = (c.y.powf(1.0 / 2.2) * 255.0 + 0.5) as u32;
     let b = (c.z.powf(1.0 / 2.2) * 255.0 + 0.5) as u32;
     r | (g << 8) | (b << 16) | (255 << 24)
+}
+
+/// One pixel of a frame, packed RGBA8: its primary ray, the closest hit under `nodes` among
+/// `prims`, shaded. The render kernels and the CPU backend both run exactly this.
+#[inline]
+pub fn render_pixel<N: Buffer<BvhNode>, P: LeafPrimitives>(
+    frame: &FrameParams,
+    nodes: N,
+    prims: &P,
+    x: u32,
+    y: u32,
+) -> u32 {
+    let ray = primary_ray(&frame.camera, x, y);
+    let hit = trace(nodes, prims, &ray, T_FAR);
+    pack_rgba8(shade(&hit, &ray, frame.shading))
 }

@@ -3,6 +3,7 @@
 //! bottom-level loop over its sphere hierarchy, [`crate::grid_traverse`]).
 
 use crate::aabb::intersect_aabb;
+use crate::buffer::Buffer;
 use crate::glam::Vec3;
 use crate::layout::{BvhNode, Hit};
 use crate::ray::{Ray, T_FAR};
@@ -26,7 +27,7 @@ pub trait LeafPrimitives {
 
 /// Closest hit along `ray` within `t_max`, with its triangle's normal: found once, after the
 /// traversal, from the closest triangle's corners loaded again.
-pub fn trace<P: LeafPrimitives>(nodes: &[BvhNode], prims: &P, ray: &Ray, t_max: f32) -> Hit {
+pub fn trace<N: Buffer<BvhNode>, P: LeafPrimitives>(nodes: N, prims: &P, ray: &Ray, t_max: f32) -> Hit {
     let mut hit = Hit::miss(t_max);
     traverse_bvh(nodes, prims, ray, &mut hit);
     if hit.is_hit() {
@@ -48,11 +49,11 @@ const NO_NODE: u32 = u32::MAX;
 /// step. On SIMD hardware a group's rays then test their leaves together, and some targets
 /// (lavapipe) run the code under a branch even when none of the group's rays takes it: with
 /// the leaf test inside the node loop, every node step paid for a grid's whole bottom level.
-pub fn traverse_bvh<P: LeafPrimitives>(nodes: &[BvhNode], prims: &P, ray: &Ray, hit: &mut Hit) {
+pub fn traverse_bvh<N: Buffer<BvhNode>, P: LeafPrimitives>(nodes: N, prims: &P, ray: &Ray, hit: &mut Hit) {
     if nodes.is_empty() {
         return;
     }
-    let root = nodes[0];
+    let root = nodes.load(0);
     if intersect_aabb(Vec3::from(root.min), Vec3::from(root.max), ray, hit.t) == T_FAR {
         // Before any working memory is made: clearing it would cost a missing ray more than
         // the box test.
@@ -66,11 +67,11 @@ pub fn traverse_bvh<P: LeafPrimitives>(nodes: &[BvhNode], prims: &P, ray: &Ray, 
     while node != NO_NODE {
         // Down to the next leaf: dead ends (both children missed) pop and go on here, so every
         // round of the outer loop tests a leaf for each ray still going.
-        let mut n = nodes[node as usize];
+        let mut n = nodes.load(node);
         let mut at_leaf = n.is_leaf();
         while !at_leaf {
-            let left = nodes[n.first as usize];
-            let right = nodes[n.first as usize + 1];
+            let left = nodes.load(n.first);
+            let right = nodes.load(n.first + 1);
             let tl = intersect_aabb(Vec3::from(left.min), Vec3::from(left.max), ray, hit.t);
             let tr = intersect_aabb(Vec3::from(right.min), Vec3::from(right.max), ray, hit.t);
             let next = if tl == T_FAR && tr == T_FAR {
@@ -91,7 +92,7 @@ pub fn traverse_bvh<P: LeafPrimitives>(nodes: &[BvhNode], prims: &P, ray: &Ray, 
             if next == NO_NODE {
                 break;
             }
-            n = nodes[next as usize];
+            n = nodes.load(next);
             at_leaf = n.is_leaf();
         }
         if !at_leaf {
@@ -116,20 +117,15 @@ fn pop_closer(stack: &[u32; MAX_BVH_DEPTH], stack_t: &[f32; MAX_BVH_DEPTH], sp: 
 
 /// Vertex `index` of a flat xyz array.
 #[inline]
-pub fn load_vec3(data: &[f32], index: u32) -> Vec3 {
-    let i = 3 * index as usize;
-    Vec3::new(data[i], data[i + 1], data[i + 2])
+pub fn load_vec3<F: Buffer<f32>>(data: F, index: u32) -> Vec3 {
+    Vec3::from(data.load3(3 * index))
 }
 
 /// The `f32` triple stored as bits at `words[word ..]`.
 #[inline]
-pub(crate) fn load_vec3_bits(words: &[u32], word: u32) -> Vec3 {
-    let i = word as usize;
-    Vec3::new(
-        f32::from_bits(words[i]),
-        f32::from_bits(words[i + 1]),
-        f32::from_bits(words[i + 2]),
-    )
+pub(crate) fn load_vec3_bits<W: Buffer<u32>>(words: W, word: u32) -> Vec3 {
+    let [x, y, z] = words.load3(word);
+    Vec3::new(f32::from_bits(x), f32::from_bits(y), f32::from_bits(z))
 }
 
 /// Takes a closer hit `found` (`t` and barycentrics) on primitive `prim`; the normal is
@@ -143,27 +139,28 @@ pub(crate) fn record_hit(hit: &mut Hit, found: (f32, f32, f32), prim: u32) {
 }
 
 /// The baseline: an indexed triangle list (`positions` xyz per vertex, `indices` three per
-/// triangle) whose triangles the BVH leaves name by index.
-pub struct TriangleMesh<'a> {
-    pub positions: &'a [f32],
-    pub indices: &'a [u32],
+/// triangle) whose triangles the BVH leaves name by index; plain slices, or split buffers
+/// (see [`crate::buffer`]).
+pub struct TriangleMesh<F, I> {
+    pub positions: F,
+    pub indices: I,
 }
 
-impl TriangleMesh<'_> {
+impl<F: Buffer<f32>, I: Buffer<u32>> TriangleMesh<F, I> {
     /// The three corners of triangle `tri`. (Always inlined: as a call it costs the baseline's
     /// CPU traversal 2% more instructions.)
     #[inline(always)]
     pub fn corners(&self, tri: u32) -> [Vec3; 3] {
-        let base = 3 * tri as usize;
+        let [a, b, c] = self.indices.load3(3 * tri);
         [
-            load_vec3(self.positions, self.indices[base]),
-            load_vec3(self.positions, self.indices[base + 1]),
-            load_vec3(self.positions, self.indices[base + 2]),
+            load_vec3(self.positions, a),
+            load_vec3(self.positions, b),
+            load_vec3(self.positions, c),
         ]
     }
 }
 
-impl LeafPrimitives for TriangleMesh<'_> {
+impl<F: Buffer<f32>, I: Buffer<u32>> LeafPrimitives for TriangleMesh<F, I> {
     type Scratch = ();
 
     fn scratch(&self, _ray: &Ray) {}
@@ -193,6 +190,11 @@ impl LeafPrimitives for TriangleMesh<'_> {
 }
 
 /// Closest hit in a triangle mesh.
-pub fn trace_triangles(nodes: &[BvhNode], mesh: &TriangleMesh, ray: &Ray, t_max: f32) -> Hit {
+pub fn trace_triangles<N: Buffer<BvhNode>, F: Buffer<f32>, I: Buffer<u32>>(
+    nodes: N,
+    mesh: &TriangleMesh<F, I>,
+    ray: &Ray,
+    t_max: f32,
+) -> Hit {
     trace(nodes, mesh, ray, t_max)
 }

@@ -128,7 +128,7 @@ fn traversal_equals_brute_force() {
             let dir = (Vec3::new(next(), next(), next()) - 0.5).normalize();
             let ray = Ray::new(origin, dir);
             let expect = brute_force(&positions, &tris, &ray);
-            let got = gridrt_shared::traverse::trace_triangles(&scene.nodes, &scene.view(), &ray, T_FAR);
+            let got = gridrt_shared::traverse::trace_triangles(scene.nodes.as_slice(), &scene.view(), &ray, T_FAR);
             assert_eq!(got.is_hit(), expect.is_hit());
             if expect.is_hit() {
                 assert!((got.t - expect.t).abs() <= 1e-5 * expect.t.abs().max(1e-3));

@@ -66,11 +66,12 @@ pub struct GridScene {
 }
 
 impl GridScene {
-    pub fn view(&self) -> gridrt_shared::grid_traverse::GridScene<'_> {
+    /// The scene as the traversal reads it.
+    pub fn view(&self) -> gridrt_shared::grid_traverse::GridScene<'_, &[GridHeader], &[u32]> {
         gridrt_shared::grid_traverse::GridScene {
-            headers: &self.headers,
-            vertices: &self.vertices,
-            radii: &self.radii,
+            headers: self.headers.as_slice(),
+            vertices: self.vertices.as_slice(),
+            radii: self.radii.as_slice(),
             micro_triangles: &gridrt_shared::grid_index::MICRO_TRIANGLES,
             params: self.params,
         }

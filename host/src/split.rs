@@ -1,0 +1,118 @@
+//! A scene's buffers cut into chunks for a device whose bindings are smaller than the buffers
+//! (see `gridrt_shared::buffer`): each buffer starts a chunk of its own, every chunk but a
+//! buffer's last is `chunk_words` words, and the chunks are slices of the scene's own
+//! buffers, so nothing is copied on the host. The GPU binds them side by side; the CPU reads
+//! them through the same shared code to check it.
+
+use anyhow::{bail, Result};
+use gridrt_shared::buffer::SPLIT_CHUNKS;
+use gridrt_shared::layout::SplitParams;
+
+use crate::scene::Scene;
+
+/// One of a scene's large buffers, as words.
+pub struct SceneBuffer<'a> {
+    pub name: &'static str,
+    pub words: &'a [u32],
+    /// Elements (nodes, headers, words or floats): what the traversal indexes.
+    pub len: u32,
+}
+
+/// A scene's large buffers in the order of `gridrt_shared::layout::SplitParams` (the grids'
+/// static index list is not among them: it is small, and bound on its own).
+pub fn scene_buffers(scene: &Scene) -> Vec<SceneBuffer<'_>> {
+    fn buffer<'a, T: bytemuck::Pod>(name: &'static str, items: &'a [T]) -> SceneBuffer<'a> {
+        SceneBuffer {
+            name,
+            words: bytemuck::cast_slice(items),
+            len: items.len() as u32,
+        }
+    }
+    match scene {
+        Scene::Triangles(s) => vec![
+            buffer("BVH", &s.nodes),
+            buffer("vertex", &s.positions),
+            buffer("index", &s.indices),
+        ],
+        Scene::Grids(s) => vec![
+            buffer("top-level BVH", &s.nodes),
+            buffer("grid header", &s.headers),
+            buffer("grid vertex", &s.vertices),
+            buffer("sphere radius", &s.radii),
+        ],
+    }
+}
+
+/// A scene's buffers in chunks.
+pub struct SplitScene<'a> {
+    pub params: SplitParams,
+    pub chunks: Vec<&'a [u32]>,
+}
+
+/// The largest power-of-two chunk (in words) that a binding of `limit` bytes holds.
+pub fn chunk_words(limit: u64) -> u32 {
+    let words = (limit / 4).clamp(8, 1 << 31);
+    1 << (63 - words.leading_zeros())
+}
+
+/// Cuts `scene`'s buffers into chunks of `chunk_words` words (a power of two, at least 8, so
+/// that no node or header straddles two). Fails, naming every buffer and its size, when they
+/// need more than [`SPLIT_CHUNKS`] chunks; `device` names where that limit comes from.
+pub fn split<'a>(scene: &'a Scene, chunk_words: u32, device: &str) -> Result<SplitScene<'a>> {
+    assert!(
+        chunk_words.is_power_of_two() && chunk_words >= 8,
+        "chunks of {chunk_words} words"
+    );
+    let buffers = scene_buffers(scene);
+    let mut params = SplitParams {
+        chunk_shift: chunk_words.trailing_zeros(),
+        ..Default::default()
+    };
+    let mut chunks = Vec::new();
+    for (b, buffer) in buffers.iter().enumerate() {
+        params.first_chunk[b] = chunks.len() as u32;
+        params.len[b] = buffer.len;
+        // Addresses within a buffer are 32-bit words.
+        if buffer.words.len() as u64 > u32::MAX as u64 {
+            bail!(
+                "the {} buffer needs {} bytes, more than the 16 GiB a buffer can address; use fewer levels",
+                buffer.name,
+                buffer.words.len() as u64 * 4
+            );
+        }
+        chunks.extend(buffer.words.chunks(chunk_words as usize));
+        if buffer.words.is_empty() {
+            // A chunk of its own all the same, so every buffer has a binding.
+            chunks.push(&[]);
+        }
+    }
+    if chunks.len() > SPLIT_CHUNKS as usize {
+        let sizes: Vec<String> = buffers
+            .iter()
+            .map(|b| format!("{} {} bytes", b.name, b.words.len() as u64 * 4))
+            .collect();
+        bail!(
+            "the scene's buffers ({}) need {} bindings of {} bytes, more than the {SPLIT_CHUNKS} that gridrt binds \
+             on {device}; use fewer levels or --backend cpu",
+            sizes.join(", "),
+            chunks.len(),
+            chunk_words as u64 * 4,
+        );
+    }
+    params.chunk_count = chunks.len() as u32;
+    Ok(SplitScene { params, chunks })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn chunks_are_the_largest_power_of_two_that_fits() {
+        assert_eq!(chunk_words(128 << 20), 1 << 25);
+        assert_eq!(chunk_words((128 << 20) - 4), 1 << 24);
+        assert_eq!(chunk_words(100), 16);
+        assert_eq!(chunk_words(4), 8);
+        assert_eq!(chunk_words(u64::MAX), 1 << 31);
+    }
+}

@@ -1,0 +1,185 @@
+//! How the traversal reads a scene's buffers: each one a plain slice (one storage buffer on
+//! the GPU), or split into equal power-of-two chunks bound side by side, when a buffer is
+//! larger than one binding may be.
+//!
+//! The traversal is generic over [`Buffer`], so both forms run the same code: a plain slice
+//! compiles to the indexing it always was, and a [`Split`] buffer finds the chunk of each
+//! element. Every buffer of a split scene starts at a chunk of its own, so an element's
+//! address within its buffer stays a `u32` and a struct (8-word nodes, 4-word headers) never
+//! straddles two chunks. The CPU can read a scene split the same way, through the same chunks
+//! taken as slices of its own buffers: that is how the split path is tested against the GPU.
+
+use core::marker::PhantomData;
+
+use crate::layout::{BvhNode, GridHeader, SplitParams};
+
+/// Random read access to the elements of a buffer.
+pub trait Buffer<T>: Copy {
+    fn load(self, index: u32) -> T;
+    fn is_empty(self) -> bool;
+
+    /// Elements `first .. first + 3`.
+    #[inline(always)]
+    fn load3(self, first: u32) -> [T; 3] {
+        [self.load(first), self.load(first + 1), self.load(first + 2)]
+    }
+}
+
+impl<T: Copy> Buffer<T> for &[T] {
+    #[inline(always)]
+    fn load(self, index: u32) -> T {
+        self[index as usize]
+    }
+
+    /// Indexed in `usize`, so that the compiler sees three neighbours (one bounds check).
+    #[inline(always)]
+    fn load3(self, first: u32) -> [T; 3] {
+        let i = first as usize;
+        [self[i], self[i + 1], self[i + 2]]
+    }
+
+    #[inline(always)]
+    fn is_empty(self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// Most chunks a split scene may use. Their bindings come after a kernel's own (parameters,
+/// static list, rays and hits, or image), in a set of their own: lavapipe allows 32 storage
+/// buffers per stage, and a ray-list kernel over grids binds four others.
+pub const SPLIT_CHUNKS: u32 = 28;
+
+/// Declares [`Chunks`] with one field per chunk, and the match that reads word `offset` of
+/// chunk `chunk`: a shader cannot index an array of buffer references, so each chunk is its
+/// own field and its own arm.
+macro_rules! declare_chunks {
+    ($($field:ident = $k:literal),* ; $last:ident) => {
+        /// The chunks of a split scene, each a run of words (unused ones empty).
+        #[derive(Copy, Clone)]
+        pub struct Chunks<'a> {
+            $(pub $field: &'a [u32],)*
+            pub $last: &'a [u32],
+        }
+
+        impl<'a> Chunks<'a> {
+            /// Word `offset` of chunk `chunk`.
+            #[inline(always)]
+            pub fn word(&self, chunk: u32, offset: u32) -> u32 {
+                let o = offset as usize;
+                match chunk {
+                    $($k => self.$field[o],)*
+                    _ => self.$last[o],
+                }
+            }
+
+            /// Chunks from a list of at most [`SPLIT_CHUNKS`] slices; the rest are empty.
+            #[cfg(not(target_arch = "spirv"))]
+            pub fn from_slices(parts: &[&'a [u32]]) -> Self {
+                assert!(parts.len() <= SPLIT_CHUNKS as usize, "more chunks than a split scene has");
+                let part = |k: usize| parts.get(k).copied().unwrap_or(&[]);
+                Chunks {
+                    $($field: part($k),)*
+                    $last: part(SPLIT_CHUNKS as usize - 1),
+                }
+            }
+        }
+    };
+}
+
+declare_chunks!(
+    c0 = 0, c1 = 1, c2 = 2, c3 = 3, c4 = 4, c5 = 5, c6 = 6, c7 = 7, c8 = 8, c9 = 9, c10 = 10, c11 = 11,
+    c12 = 12, c13 = 13, c14 = 14, c15 = 15, c16 = 16, c17 = 17, c18 = 18, c19 = 19, c20 = 20, c21 = 21,
+    c22 = 22, c23 = 23, c24 = 24, c25 = 25, c26 = 26; c27
+);
+
+/// Buffer `buffer` of a split scene (its index in [`SplitParams`]), read as elements of `T`.
+#[derive(Copy, Clone)]
+pub struct Split<'a, T> {
+    /// By value: a reference to the caller's `Chunks` would be a pointer to a function
+    /// variable inside a struct, which shaders cannot hold.
+    chunks: Chunks<'a>,
+    first_chunk: u32,
+    shift: u32,
+    len: u32,
+    item: PhantomData<T>,
+}
+
+impl<'a, T> Split<'a, T> {
+    #[inline(always)]
+    pub fn new(chunks: &Chunks<'a>, params: &SplitParams, buffer: usize) -> Self {
+        Split {
+            chunks: *chunks,
+            first_chunk: params.first_chunk[buffer],
+            shift: params.chunk_shift,
+            len: params.len[buffer],
+            item: PhantomData,
+        }
+    }
+
+    /// Word `offset` of the element that starts at word `word` of the buffer.
+    #[inline(always)]
+    fn word(&self, word: u32, offset: u32) -> u32 {
+        let mask = (1u32 << self.shift) - 1;
+        self.chunks
+            .word(self.first_chunk + (word >> self.shift), (word & mask) + offset)
+    }
+}
+
+impl Buffer<u32> for Split<'_, u32> {
+    #[inline(always)]
+    fn load(self, index: u32) -> u32 {
+        self.word(index, 0)
+    }
+
+    #[inline(always)]
+    fn is_empty(self) -> bool {
+        self.len == 0
+    }
+}
+
+impl Buffer<f32> for Split<'_, f32> {
+    #[inline(always)]
+    fn load(self, index: u32) -> f32 {
+        f32::from_bits(self.word(index, 0))
+    }
+
+    #[inline(always)]
+    fn is_empty(self) -> bool {
+        self.len == 0
+    }
+}
+
+impl Buffer<BvhNode> for Split<'_, BvhNode> {
+    #[inline(always)]
+    fn load(self, index: u32) -> BvhNode {
+        let at = 8 * index;
+        let f = |k: u32| f32::from_bits(self.word(at, k));
+        BvhNode {
+            min: [f(0), f(1), f(2)],
+            first: self.word(at, 3),
+            max: [f(4), f(5), f(6)],
+            count: self.word(at, 7),
+        }
+    }
+
+    #[inline(always)]
+    fn is_empty(self) -> bool {
+        self.len == 0
+    }
+}
+
+impl Buffer<GridHeader> for Split<'_, GridHeader> {
+    #[inline(always)]
+    fn load(self, index: u32) -> GridHeader {
+        let at = 4 * index;
+        GridHeader {
+            edges: [self.word(at, 0), self.word(at, 1)],
+            corners: [self.word(at, 2), self.word(at, 3)],
+        }
+    }
+
+    #[inline(always)]
+    fn is_empty(self) -> bool {
+        self.len == 0
+    }
+}

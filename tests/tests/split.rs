@@ -1,0 +1,150 @@
+//! Scenes larger than one GPU binding: their buffers are cut into chunks and read through the
+//! same shared traversal (see `gridrt_shared::buffer`). Forced here by a small binding limit,
+//! so the scenes stay small: the split reads must give exactly what the whole reads give, on
+//! the CPU and on the GPU, and what cannot be bound must be refused with its sizes.
+
+use gridrt::camera;
+use gridrt::image_io::fraction_within;
+use gridrt::mesh::scene::default_scene;
+use gridrt::rays::{primary_rays, trace_cpu};
+use gridrt::scene::{render_cpu, render_cpu_split, Scene};
+use gridrt::split::{scene_buffers, split};
+use gridrt::subdiv::Scheme;
+use gridrt_shared::buffer::SPLIT_CHUNKS;
+use gridrt_shared::layout::SHADE_NORMAL;
+use gridrt_tests::{build_pair, gpu_or_skip, Pair};
+
+/// The smallest power-of-two chunk (at least 1 KiB) that holds `scene` in at most
+/// [`SPLIT_CHUNKS`] chunks; the tests check that it still cuts every buffer larger than 1 KiB.
+fn smallest_chunk_bytes(scene: &Scene) -> u64 {
+    let mut bytes = 1024;
+    while split(scene, (bytes / 4) as u32, "test").is_err() {
+        bytes *= 2;
+    }
+    bytes
+}
+
+fn pair() -> Pair {
+    build_pair(&default_scene(), 2, 2, Scheme::Loop)
+}
+
+#[test]
+fn cpu_reads_split_scenes_as_whole_ones() {
+    let pair = pair();
+    for (name, scene) in [("grids", &pair.grids), ("triangles", &pair.triangles)] {
+        let bytes = smallest_chunk_bytes(scene);
+        let cut = split(scene, (bytes / 4) as u32, "test").unwrap();
+        let buffers = scene_buffers(scene);
+        eprintln!(
+            "{name}: {} chunks of {bytes} bytes for {:?}",
+            cut.chunks.len(),
+            buffers.iter().map(|b| b.words.len() * 4).collect::<Vec<_>>()
+        );
+        // Every buffer larger than a chunk is cut, so each is read across chunk boundaries.
+        assert!(buffers.iter().filter(|b| b.words.len() * 4 > bytes as usize).count() >= 2);
+        let frame = scene.frame(camera::frame(&pair.bounds, 96, 72), SHADE_NORMAL);
+        assert_eq!(
+            render_cpu(scene, &frame),
+            render_cpu_split(scene, &cut, &frame),
+            "{name}"
+        );
+    }
+}
+
+#[test]
+fn too_many_chunks_are_refused_with_the_sizes() {
+    let pair = pair();
+    let err = split(&pair.grids, 8, "a small GPU").err().expect("refused").to_string();
+    for part in [
+        "grid vertex",
+        "bytes",
+        &format!("{SPLIT_CHUNKS}"),
+        "a small GPU",
+        "--backend cpu",
+    ] {
+        assert!(err.contains(part), "{err:?} lacks {part:?}");
+    }
+    assert!(!err.contains('\n'), "{err:?} is not one line");
+}
+
+/// The GPU with a small binding limit: split scenes, tiled images and batched ray lists give
+/// the GPU's own whole-scene results exactly, and the CPU's within the usual tolerance.
+#[test]
+fn split_scenes_on_the_gpu_equal_whole_ones() {
+    let Some(whole_gpu) = gpu_or_skip("split_scenes_on_the_gpu_equal_whole_ones") else {
+        return;
+    };
+    let pair = pair();
+    let rays = primary_rays(&pair.bounds, 1, 64, 48);
+    for (name, scene) in [("grids", &pair.grids), ("triangles", &pair.triangles)] {
+        let mut gpu = gpu_or_skip("split_scenes_on_the_gpu_equal_whole_ones").unwrap();
+        gpu.limit_bindings(smallest_chunk_bytes(scene)).unwrap();
+        let frame = scene.frame(camera::frame(&pair.bounds, 96, 72), SHADE_NORMAL);
+        let uploaded = gpu.upload(scene).unwrap();
+        assert!(uploaded.is_split(), "{name}: not split");
+        let image = gpu.render_uploaded(&uploaded, &frame).unwrap();
+        assert_eq!(image, whole_gpu.render(scene, &frame).unwrap(), "{name}: split image");
+        let within = fraction_within(&image, &render_cpu(scene, &frame), 2);
+        assert!(
+            within >= 0.995,
+            "{name}: {:.3}% of pixels agree with the CPU",
+            100.0 * within
+        );
+        let hits = gpu.trace(&uploaded, &rays).unwrap();
+        let whole_hits = whole_gpu.trace(&whole_gpu.upload(scene).unwrap(), &rays).unwrap();
+        assert_eq!(hits, whole_hits, "{name}: split hits");
+        let cpu = trace_cpu(scene, &rays);
+        let same = cpu.iter().zip(&hits).filter(|(a, b)| a.prim == b.prim).count();
+        assert!(
+            same as f64 >= 0.999 * cpu.len() as f64,
+            "{name}: {same} of {} hits agree",
+            cpu.len()
+        );
+    }
+}
+
+/// The same through the binary, as a user forces it: and a scene that cannot be bound at all
+/// is refused before anything is uploaded, naming its buffers and the adapter's limits.
+#[test]
+fn binding_limit_from_the_environment() {
+    if gpu_or_skip("binding_limit_from_the_environment").is_none() {
+        return;
+    }
+    let dir = std::env::temp_dir().join(format!("gridrt-split-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let run = |limit: &str, out: &str| {
+        std::process::Command::new(gridrt_tests::gridrt_exe())
+            .args([
+                "render",
+                "--backend",
+                "gpu",
+                "--levels",
+                "2",
+                "--width",
+                "96",
+                "--height",
+                "72",
+                "-o",
+            ])
+            .arg(dir.join(out))
+            .env("GRIDRT_GPU_BINDING_LIMIT", limit)
+            .output()
+            .unwrap()
+    };
+    let whole = run("1G", "whole.png");
+    assert!(whole.status.success(), "{}", String::from_utf8_lossy(&whole.stderr));
+    let cut = run("16K", "split.png");
+    assert!(cut.status.success(), "{}", String::from_utf8_lossy(&cut.stderr));
+    let read = |f: &str| image::open(dir.join(f)).unwrap().to_rgba8().into_raw();
+    assert_eq!(read("whole.png"), read("split.png"), "the split render differs");
+    let refused = run("1K", "refused.png");
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success());
+    for part in ["grid vertex", "bytes per binding", "storage buffers per shader stage"] {
+        assert!(stderr.contains(part), "{stderr:?} lacks {part:?}");
+    }
+    assert!(!dir.join("refused.png").exists());
+    let bad = run("lots", "bad.png");
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("GRIDRT_GPU_BINDING_LIMIT=lots"));
+    let _ = std::fs::remove_dir_all(&dir);
+}
