@@ -3,10 +3,7 @@
 use gridrt_shared::buffer::{Chunks, Split};
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::grid_index::MICRO_TRIANGLES;
-use gridrt_shared::layout::{
-    BvhNode, Camera, FrameParams, GridParams, Hit, GRID_HEADERS, GRID_NODES, GRID_RADII, GRID_VERTICES,
-    TRIANGLE_INDICES, TRIANGLE_NODES, TRIANGLE_POSITIONS,
-};
+use gridrt_shared::layout::{BvhNode, Camera, FrameParams, GridParams, Hit, GRID_NODES, TRIANGLE_NODES};
 use gridrt_shared::ray::{Ray, T_FAR};
 use gridrt_shared::shade::render_pixel;
 use gridrt_shared::traverse::TriangleMesh;
@@ -131,20 +128,11 @@ pub fn render_cpu_split(scene: &Scene, split: &SplitScene, frame: &FrameParams) 
     let nodes = |b| Split::<BvhNode>::new(&chunks, &split.params, b);
     match scene {
         Scene::Triangles(_) => {
-            let mesh = TriangleMesh {
-                positions: Split::new(&chunks, &split.params, TRIANGLE_POSITIONS),
-                indices: Split::new(&chunks, &split.params, TRIANGLE_INDICES),
-            };
+            let mesh = TriangleMesh::split(&chunks, &split.params);
             render_rows(frame, |x, y| render_pixel(frame, nodes(TRIANGLE_NODES), &mesh, x, y))
         }
         Scene::Grids(s) => {
-            let grids = grid_traverse::GridScene {
-                headers: Split::new(&chunks, &split.params, GRID_HEADERS),
-                vertices: Split::new(&chunks, &split.params, GRID_VERTICES),
-                radii: Split::new(&chunks, &split.params, GRID_RADII),
-                micro_triangles: &MICRO_TRIANGLES,
-                params: s.params,
-            };
+            let grids = grid_traverse::GridScene::split(&chunks, &split.params, &MICRO_TRIANGLES, s.params);
             render_rows(frame, |x, y| render_pixel(frame, nodes(GRID_NODES), &grids, x, y))
         }
     }

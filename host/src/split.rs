@@ -99,7 +99,6 @@ pub fn split<'a>(scene: &'a Scene, chunk_words: u32, device: &str) -> Result<Spl
             chunk_words as u64 * 4,
         );
     }
-    params.chunk_count = chunks.len() as u32;
     Ok(SplitScene { params, chunks })
 }
 

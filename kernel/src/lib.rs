@@ -10,9 +10,8 @@ use gridrt_shared::buffer::{Chunks, Split};
 use gridrt_shared::glam::{UVec3, Vec3};
 use gridrt_shared::grid_traverse::{trace_grids, GridScene};
 use gridrt_shared::layout::{
-    BvhNode, FrameParams, GridHeader, Hit, HitRecord, RayRecord, SplitParams, TraceParams, GRID_HEADERS, GRID_NODES,
-    GRID_RADII, GRID_VERTICES, TRACE_WORKGROUP_SIZE, TRIANGLE_INDICES, TRIANGLE_NODES, TRIANGLE_POSITIONS,
-    WORKGROUP_SIZE,
+    BvhNode, FrameParams, GridHeader, Hit, HitRecord, RayRecord, TraceParams, GRID_NODES, TRACE_WORKGROUP_SIZE,
+    TRIANGLE_NODES, WORKGROUP_SIZE,
 };
 use gridrt_shared::ray::Ray;
 use gridrt_shared::shade::render_pixel;
@@ -48,13 +47,6 @@ fn record(hit: &Hit) -> HitRecord {
     HitRecord {
         t: hit.t,
         prim: hit.prim,
-    }
-}
-
-fn split_triangles<'a>(chunks: &'a Chunks<'a>, split: &SplitParams) -> TriangleMesh<Split<'a, f32>, Split<'a, u32>> {
-    TriangleMesh {
-        positions: Split::new(chunks, split, TRIANGLE_POSITIONS),
-        indices: Split::new(chunks, split, TRIANGLE_INDICES),
     }
 }
 
@@ -201,7 +193,7 @@ split_kernel! {
     ) |chunks| {
         if let Some(i) = tile_index(id, frame) {
             let nodes = Split::<BvhNode>::new(&chunks, &frame.split, TRIANGLE_NODES);
-            let mesh = split_triangles(&chunks, &frame.split);
+            let mesh = TriangleMesh::split(&chunks, &frame.split);
             image[i] = render_pixel(frame, nodes, &mesh, frame.tile_x + id.x, frame.tile_y + id.y);
         }
     }
@@ -218,13 +210,7 @@ split_kernel! {
     ) |chunks| {
         if let Some(i) = tile_index(id, frame) {
             let nodes = Split::<BvhNode>::new(&chunks, &frame.split, GRID_NODES);
-            let scene = GridScene {
-                headers: Split::new(&chunks, &frame.split, GRID_HEADERS),
-                vertices: Split::new(&chunks, &frame.split, GRID_VERTICES),
-                radii: Split::new(&chunks, &frame.split, GRID_RADII),
-                micro_triangles,
-                params: frame.grid,
-            };
+            let scene = GridScene::split(&chunks, &frame.split, micro_triangles, frame.grid);
             image[i] = render_pixel(frame, nodes, &scene, frame.tile_x + id.x, frame.tile_y + id.y);
         }
     }
@@ -241,7 +227,7 @@ split_kernel! {
     ) |chunks| {
         if let Some(i) = ray_index(id, params) {
             let nodes = Split::<BvhNode>::new(&chunks, &params.split, TRIANGLE_NODES);
-            let mesh = split_triangles(&chunks, &params.split);
+            let mesh = TriangleMesh::split(&chunks, &params.split);
             hits[i] = record(&trace_triangles(nodes, &mesh, &ray_of(&rays[i]), rays[i].t_max));
         }
     }
@@ -259,13 +245,7 @@ split_kernel! {
     ) |chunks| {
         if let Some(i) = ray_index(id, params) {
             let nodes = Split::<BvhNode>::new(&chunks, &params.split, GRID_NODES);
-            let scene = GridScene {
-                headers: Split::new(&chunks, &params.split, GRID_HEADERS),
-                vertices: Split::new(&chunks, &params.split, GRID_VERTICES),
-                radii: Split::new(&chunks, &params.split, GRID_RADII),
-                micro_triangles,
-                params: params.grid,
-            };
+            let scene = GridScene::split(&chunks, &params.split, micro_triangles, params.grid);
             hits[i] = record(&trace_grids(nodes, &scene, &ray_of(&rays[i]), rays[i].t_max));
         }
     }

@@ -2,14 +2,14 @@
 //! sphere first, down to leaves whose micro-triangles the static index list names; under the
 //! top-level BVH of [`crate::traverse`].
 
-use crate::buffer::Buffer;
+use crate::buffer::{Buffer, Chunks, Split};
 use crate::footprint::FootprintFrame;
 use crate::glam::Vec3;
 use crate::grid_index::{
     lattice_index, level_start, micro_cell_offset, sub_triangle, triangle_count, vertex_count, GridSlots, Lattice,
     MAX_LEAF_DEPTH,
 };
-use crate::layout::{BvhNode, GridHeader, GridParams, Hit};
+use crate::layout::{BvhNode, GridHeader, GridParams, Hit, SplitParams, GRID_HEADERS, GRID_RADII, GRID_VERTICES};
 use crate::quantize::{dequantize, read_half, read_half_triple, unit_from_exponent};
 use crate::ray::{Ray, T_FAR};
 use crate::sphere::{decode_radius, intersect_sphere_scaled};
@@ -85,6 +85,20 @@ fn corner_slot(packed: u32, v: u32) -> usize {
 #[inline]
 pub fn sphere_center(a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
     (a + b + c) * (1.0 / 3.0)
+}
+
+impl<'a> GridScene<'a, Split<'a, GridHeader>, Split<'a, u32>> {
+    /// The grid buffers of a split scene (its BVH is `Split::new(chunks, split, GRID_NODES)`).
+    #[inline(always)]
+    pub fn split(chunks: &Chunks<'a>, split: &SplitParams, micro_triangles: &'a [u32], params: GridParams) -> Self {
+        GridScene {
+            headers: Split::new(chunks, split, GRID_HEADERS),
+            vertices: Split::new(chunks, split, GRID_VERTICES),
+            radii: Split::new(chunks, split, GRID_RADII),
+            micro_triangles,
+            params,
+        }
+    }
 }
 
 impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {

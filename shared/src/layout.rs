@@ -167,11 +167,9 @@ pub struct GridParams {
 #[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable, Debug, PartialEq))]
 pub struct SplitParams {
     pub chunk_shift: u32,
-    /// Chunks in use.
-    pub chunk_count: u32,
     pub first_chunk: [u32; 4],
     pub len: [u32; 4],
-    pub _pad: [u32; 2],
+    pub _pad: [u32; 3],
 }
 
 pub const GRID_NODES: usize = 0;

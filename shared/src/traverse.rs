@@ -3,9 +3,9 @@
 //! bottom-level loop over its sphere hierarchy, [`crate::grid_traverse`]).
 
 use crate::aabb::intersect_aabb;
-use crate::buffer::Buffer;
+use crate::buffer::{Buffer, Chunks, Split};
 use crate::glam::Vec3;
-use crate::layout::{BvhNode, Hit};
+use crate::layout::{BvhNode, Hit, SplitParams, TRIANGLE_INDICES, TRIANGLE_POSITIONS};
 use crate::ray::{Ray, T_FAR};
 use crate::triangle::{intersect_triangle, triangle_normal};
 
@@ -144,6 +144,17 @@ pub(crate) fn record_hit(hit: &mut Hit, found: (f32, f32, f32), prim: u32) {
 pub struct TriangleMesh<F, I> {
     pub positions: F,
     pub indices: I,
+}
+
+impl<'a> TriangleMesh<Split<'a, f32>, Split<'a, u32>> {
+    /// The triangle list of a split scene (its BVH is `Split::new(chunks, split, TRIANGLE_NODES)`).
+    #[inline(always)]
+    pub fn split(chunks: &Chunks<'a>, split: &SplitParams) -> Self {
+        TriangleMesh {
+            positions: Split::new(chunks, split, TRIANGLE_POSITIONS),
+            indices: Split::new(chunks, split, TRIANGLE_INDICES),
+        }
+    }
 }
 
 impl<F: Buffer<f32>, I: Buffer<u32>> TriangleMesh<F, I> {
