@@ -98,7 +98,8 @@ fn decode(data: &[u8]) -> (Plan, Mesh, Bytes<'_>) {
 }
 
 /// Decodes a mesh and options, builds both representations as a render does and traces rays
-/// through both: no panic, errors on one line, and the same closest hits.
+/// through both: no panic, errors on one line, the lean grid build equal to the whole-mesh
+/// one, and the same closest hits.
 pub fn run_pipeline(data: &[u8]) {
     let (plan, mesh, mut rest) = decode(data);
     let mut mesh = match mesh.validate("fuzz") {
@@ -118,6 +119,10 @@ pub fn run_pipeline(data: &[u8]) {
         Ok(g) => g,
         Err(e) => return assert_one_line(&e),
     };
+    // The lean build, as `render` runs it, gives the same scene bit for bit.
+    let lean = grid::build_lean(&mesh, plan.levels, plan.scheme, &plan.options, plan.quantized)
+        .expect("the lean build refuses what the whole-mesh build takes");
+    assert!(lean == grids, "the lean build differs from the whole-mesh build");
     grids.set_lod(plan.lod).expect("lod within levels");
     let grids = Scene::Grids(grids);
     let tris = Scene::Triangles(triangles::build(&sub.positions, &sub.micro_triangles(plan.lod)));

@@ -7,7 +7,6 @@ use anyhow::{anyhow, bail, Result};
 use clap::{Parser, Subcommand, ValueEnum};
 use gridrt_shared::layout::{SHADE_EYE_LIGHT, SHADE_NORMAL, SHADE_PRIMITIVE};
 
-use crate::bvh::Aabb;
 use crate::device::{Device, DeviceChoice};
 use crate::mesh::frame::LocalFrame;
 use crate::mesh::{self, Mesh};
@@ -262,22 +261,34 @@ fn render(args: &RenderArgs) -> Result<()> {
     }
     let device = Device::open(args.backend, "rendering")?;
     let started = Instant::now();
-    let sub = subdivide(&mesh, &args.build);
     let scene = match args.mode {
         Mode::Grid => {
-            let mut g = grid::build(&mesh, &sub, &args.build.grid_options())?;
+            let b = &args.build;
+            let quantized = b.inner_vertices == InnerVertices::Quantized;
+            let mut g = grid::build_lean(&mesh, b.levels, b.subdivision.scheme(), &b.grid_options(), quantized)?;
             g.set_lod(lod)?;
             Scene::Grids(g)
         }
-        Mode::Triangles => Scene::Triangles(triangles::build(&sub.positions, &sub.micro_triangles(lod))),
+        Mode::Triangles => {
+            let sub = subdivide(&mesh, &args.build);
+            Scene::Triangles(triangles::build(&sub.positions, &sub.micro_triangles(lod)))
+        }
+    };
+    let micro = limits::micro_triangles(mesh.triangles.len(), lod);
+    // Grids hold every level built, whatever depth renders.
+    let stored = match scene {
+        Scene::Grids(_) => limits::micro_triangles(mesh.triangles.len(), args.build.levels),
+        Scene::Triangles(_) => micro,
     };
     eprintln!(
-        "{name}: {} base triangles, {} micro-triangles at depth {lod}, built in {:.2} s",
+        "{name}: {} base triangles, {micro} micro-triangles at depth {lod}, built in {:.2} s ({}, {:.2} B per \
+         micro-triangle)",
         mesh.triangles.len(),
-        mesh.triangles.len() as u64 * 4u64.pow(lod),
-        started.elapsed().as_secs_f64()
+        started.elapsed().as_secs_f64(),
+        limits::human(scene.memory() as u64),
+        scene.memory() as f64 / stored as f64
     );
-    let bounds = Aabb::from_points(sub.positions.iter().copied());
+    let bounds = scene.bounds();
     let shading = match args.shading {
         Shading::Eye => SHADE_EYE_LIGHT,
         Shading::Normal => SHADE_NORMAL,
@@ -329,6 +340,7 @@ fn export(args: &ExportArgs) -> Result<()> {
 /// Refuses a render whose build and image would not fit in memory, before building.
 fn check_render_memory(name: &str, mesh: &Mesh, args: &RenderArgs) -> Result<()> {
     let (builds, mode) = match args.mode {
+        Mode::Grid if grid::lean_build_applies(mesh) => (limits::Builds::LeanGrids, "grid"),
         Mode::Grid => (limits::Builds::Grids, "grid"),
         Mode::Triangles => (limits::Builds::Triangles, "triangles"),
     };

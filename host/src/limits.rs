@@ -4,11 +4,16 @@
 
 use anyhow::{bail, Result};
 
-/// Peak host bytes per micro-triangle of subdividing and building each representation,
-/// measured (peak resident size over micro-triangles at several depths, see
-/// docs/RESULTS.md "Peak host memory") and rounded up.
+/// Peak host bytes per micro-triangle of subdividing the whole mesh and building each
+/// representation from it, measured (peak resident size over micro-triangles at several
+/// depths, see docs/RESULTS.md "Peak host memory") and rounded up.
 pub const GRID_BYTES_PER_MICRO_TRIANGLE: u64 = 72;
 pub const TRIANGLES_BYTES_PER_MICRO_TRIANGLE: u64 = 168;
+
+/// Peak host bytes of the lean grid build (`grid::build_lean`), per micro-triangle and per
+/// base triangle: measured the same way (docs/RESULTS.md "Scale") and rounded up.
+pub const LEAN_GRID_BYTES_PER_MICRO_TRIANGLE: u64 = 6;
+pub const LEAN_GRID_BYTES_PER_BASE_TRIANGLE: u64 = 400;
 
 /// Host bytes per pixel of an image being rendered and written: the packed pixels and the
 /// byte copy the PNG encoder reads.
@@ -17,25 +22,34 @@ pub const IMAGE_BYTES_PER_PIXEL: u64 = 8;
 /// Which representations a run builds.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum Builds {
+    /// Grids, each subdivided on its own (`grid::build_lean`).
+    LeanGrids,
+    /// The whole mesh subdivided, then grids.
     Grids,
+    /// The whole mesh subdivided, then the baseline.
     Triangles,
+    /// The whole mesh subdivided, then both.
     Both,
 }
 
 /// Micro-triangles of `base_triangles` subdivided `levels` times.
 pub fn micro_triangles(base_triangles: usize, levels: u32) -> u64 {
-    base_triangles as u64 * 4u64.pow(levels)
+    (base_triangles as u64).saturating_mul(4u64.saturating_pow(levels))
 }
 
-/// Estimated peak host bytes of building `builds` for `micro` micro-triangles.
-pub fn build_bytes(micro: u64, builds: Builds) -> u64 {
-    let per = match builds {
-        Builds::Grids => GRID_BYTES_PER_MICRO_TRIANGLE,
-        Builds::Triangles => TRIANGLES_BYTES_PER_MICRO_TRIANGLE,
+/// Estimated peak host bytes of building `builds` for `base_triangles` subdivided `levels`
+/// times.
+pub fn build_bytes(base_triangles: usize, levels: u32, builds: Builds) -> u64 {
+    let micro = micro_triangles(base_triangles, levels);
+    let per = |bytes: u64| micro.saturating_mul(bytes);
+    match builds {
+        Builds::LeanGrids => per(LEAN_GRID_BYTES_PER_MICRO_TRIANGLE)
+            .saturating_add((base_triangles as u64).saturating_mul(LEAN_GRID_BYTES_PER_BASE_TRIANGLE)),
+        Builds::Grids => per(GRID_BYTES_PER_MICRO_TRIANGLE),
+        Builds::Triangles => per(TRIANGLES_BYTES_PER_MICRO_TRIANGLE),
         // Both are alive at once in `stats` and `bench`.
-        Builds::Both => GRID_BYTES_PER_MICRO_TRIANGLE + TRIANGLES_BYTES_PER_MICRO_TRIANGLE,
-    };
-    micro.saturating_mul(per)
+        Builds::Both => per(GRID_BYTES_PER_MICRO_TRIANGLE + TRIANGLES_BYTES_PER_MICRO_TRIANGLE),
+    }
 }
 
 /// Refuses `what` at `levels` (of a mesh of `base_triangles`) when building `builds`, plus
@@ -50,7 +64,7 @@ pub fn check_build(
 ) -> Result<()> {
     let micro = micro_triangles(base_triangles, levels);
     check_memory(
-        build_bytes(micro, builds).saturating_add(extra),
+        build_bytes(base_triangles, levels, builds).saturating_add(extra),
         available_memory()?,
         &format!("{what} at --levels {levels} ({micro} micro-triangles)"),
         advice,
@@ -144,8 +158,11 @@ mod tests {
     #[test]
     fn estimates_grow_with_the_work_and_never_wrap() {
         assert_eq!(micro_triangles(47_794, 5), 48_941_056);
-        assert!(build_bytes(1_000, Builds::Both) > build_bytes(1_000, Builds::Grids));
-        assert_eq!(build_bytes(u64::MAX, Builds::Both), u64::MAX);
+        assert!(build_bytes(1_000, 3, Builds::Both) > build_bytes(1_000, 3, Builds::Grids));
+        assert!(build_bytes(1_000, 3, Builds::Grids) > build_bytes(1_000, 3, Builds::LeanGrids));
+        assert!(build_bytes(1_000, 4, Builds::LeanGrids) > build_bytes(1_000, 3, Builds::LeanGrids));
+        assert_eq!(build_bytes(usize::MAX, 9, Builds::Both), u64::MAX);
+        assert_eq!(build_bytes(usize::MAX, 9, Builds::LeanGrids), u64::MAX);
     }
 
     #[test]

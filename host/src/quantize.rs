@@ -55,7 +55,7 @@ impl Subdivided {
 
 /// Codes one grid's inner vertices around `origin` into `words` (the exponent first), and
 /// their decoded positions into `snapped`.
-fn quantize_grid(origin: Vec3, inner: &[Vec3], words: &mut [u32], snapped: &mut [Vec3]) {
+pub(crate) fn quantize_grid(origin: Vec3, inner: &[Vec3], words: &mut [u32], snapped: &mut [Vec3]) {
     let reach = inner
         .iter()
         .map(|&p| (p - origin).abs().max_element())

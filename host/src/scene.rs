@@ -11,6 +11,7 @@ use gridrt_shared::triangle::{intersect_triangle, triangle_normal};
 use gridrt_shared::{grid_traverse, grid_traverse::trace_grids, traverse::trace_triangles};
 use rayon::prelude::*;
 
+use crate::bvh::Aabb;
 use crate::grid::GridScene;
 use crate::split::SplitScene;
 use crate::triangles::TriangleScene;
@@ -41,6 +42,27 @@ impl Scene {
             tile_width: camera.width,
             tile_height: camera.height,
             ..Default::default()
+        }
+    }
+
+    /// Bytes of everything the traversal reads.
+    pub fn memory(&self) -> usize {
+        let parts = match self {
+            Scene::Triangles(s) => s.memory(),
+            Scene::Grids(s) => s.memory(),
+        };
+        parts.iter().map(|(_, bytes)| bytes).sum()
+    }
+
+    /// The box around every micro-triangle: the root of the scene's BVH.
+    pub fn bounds(&self) -> Aabb {
+        let root = match self {
+            Scene::Triangles(s) => s.nodes[0],
+            Scene::Grids(s) => s.nodes[0],
+        };
+        Aabb {
+            min: root.min.into(),
+            max: root.max.into(),
         }
     }
 

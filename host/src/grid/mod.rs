@@ -16,11 +16,13 @@ use rayon::prelude::*;
 
 use crate::bvh::{self, Aabb, BuildParams};
 
+mod lean;
 mod spheres;
 #[cfg(test)]
 mod tests;
 use crate::mesh::Mesh;
 use crate::subdiv::Subdivided;
+pub use lean::{build_lean, lean_build_applies};
 pub use spheres::encode_radius;
 use spheres::{grid_bounds_and_radii, radius_scale, SphereTable};
 
@@ -50,7 +52,7 @@ impl Default for GridOptions {
 }
 
 /// Everything the grid traversal reads, as uploaded.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct GridScene {
     pub nodes: Vec<BvhNode>,
     pub headers: Vec<GridHeader>,
@@ -128,23 +130,68 @@ pub fn top_level_params() -> BuildParams {
     }
 }
 
-/// The grids as subdivision hands them over, in base-triangle order: headers and the three
-/// vertex areas, but no acceleration structure yet.
-#[derive(Clone, Debug)]
-pub struct GridLayout {
+/// What both builds settle before any vertex is computed: depths, vertex areas and formats.
+#[derive(Copy, Clone, Debug)]
+pub struct GridShape {
     pub levels: u32,
     pub leaf_level: u32,
     pub half_radii: bool,
     pub leaf_footprint: bool,
-    pub headers: Vec<GridHeader>,
-    /// Inner area (grid after grid), edge area, corner area: every position, decoded.
-    pub vertices: Vec<Vec3>,
     pub edge_offset: u32,
     pub corner_offset: u32,
     /// Inner vertices as 16-bit codes (`gridrt_shared::quantize`) rather than `f32` triples.
     pub quantized_inner: bool,
     /// Words of one grid's inner area.
     pub inner_words: u32,
+}
+
+impl GridShape {
+    fn new(grids: usize, edges: usize, levels: u32, options: &GridOptions, quantized: bool) -> GridShape {
+        let inner_count = inner_vertex_count(levels);
+        let edge_offset = grids as u32 * inner_count;
+        GridShape {
+            levels,
+            leaf_level: levels.saturating_sub(options.excluded_levels),
+            half_radii: options.half_radii,
+            leaf_footprint: options.leaf_footprint,
+            edge_offset,
+            corner_offset: edge_offset + edges as u32 * edge_vertex_count(levels),
+            quantized_inner: quantized,
+            inner_words: match quantized {
+                true => quantize::inner_words(inner_count),
+                false => 3 * inner_count,
+            },
+        }
+    }
+
+    /// Words of the vertex buffer as uploaded, for `corners` base vertices: the inner areas,
+    /// then the edge and corner areas as `f32` triples.
+    fn buffer_words(&self, grids: usize, corners: usize) -> usize {
+        grids * self.inner_words as usize + 3 * (self.corner_offset - self.edge_offset) as usize + 3 * corners
+    }
+
+    /// Where grid `g` with header `header` finds its vertices, as the GPU resolves it.
+    #[inline]
+    fn slots(&self, header: &GridHeader, g: usize) -> GridSlots {
+        GridSlots::new(
+            header,
+            g as u32,
+            grid_size(self.levels),
+            inner_vertex_count(self.levels),
+            self.edge_offset,
+            self.corner_offset,
+        )
+    }
+}
+
+/// The grids as subdivision hands them over, in base-triangle order: headers and the three
+/// vertex areas, but no acceleration structure yet.
+#[derive(Clone, Debug)]
+pub struct GridLayout {
+    pub shape: GridShape,
+    pub headers: Vec<GridHeader>,
+    /// Inner area (grid after grid), edge area, corner area: every position, decoded.
+    pub vertices: Vec<Vec3>,
     /// Each grid's inner area as stored, grid after grid in base-triangle order.
     pub inner_by_grid: Vec<u32>,
     /// The vertex buffer as uploaded: room for the inner areas (filled in leaf order by the
@@ -156,14 +203,46 @@ impl GridLayout {
     /// Where grid `g` finds its vertices, resolved from its header as the GPU resolves it.
     #[inline]
     fn slots(&self, g: usize) -> GridSlots {
-        GridSlots::new(
-            &self.headers[g],
-            g as u32,
-            grid_size(self.levels),
-            inner_vertex_count(self.levels),
-            self.edge_offset,
-            self.corner_offset,
-        )
+        self.shape.slots(&self.headers[g], g)
+    }
+}
+
+/// The base mesh's edges as the grids share them: each undirected edge gets an id (in the
+/// order the triangles first use them), and the first grid to use it owns it, which is the
+/// grid that stores its vertices.
+struct BaseEdges {
+    /// Each grid's three edge ids, edge `e` running from corner `e` to corner `e + 1`.
+    of_grid: Vec<[u32; 3]>,
+    /// `(grid, edge within grid)` of each edge's owner, by edge id; owners never decrease.
+    owner: Vec<(usize, usize)>,
+}
+
+impl BaseEdges {
+    fn new(base: &Mesh) -> BaseEdges {
+        let mut ids: HashMap<(u32, u32), u32> = HashMap::with_capacity(base.triangles.len() * 3 / 2 + 16);
+        let mut owner = Vec::new();
+        let of_grid = base
+            .triangles
+            .iter()
+            .enumerate()
+            .map(|(g, t)| {
+                std::array::from_fn(|e| {
+                    *ids.entry(base_edge(t, e)).or_insert_with(|| {
+                        owner.push((g, e));
+                        owner.len() as u32 - 1
+                    })
+                })
+            })
+            .collect();
+        BaseEdges { of_grid, owner }
+    }
+
+    fn headers(&self, base: &Mesh) -> Vec<GridHeader> {
+        self.of_grid
+            .iter()
+            .zip(&base.triangles)
+            .map(|(&e, &t)| GridHeader::new(e, t))
+            .collect()
     }
 }
 
@@ -211,13 +290,17 @@ fn check_counts(base: &Mesh, edges: u64, levels: u32, options: &GridOptions, qua
     } else {
         3 * inner_count
     };
-    // The subdivided mesh's vertices: the base ones, those inside base edges, inner ones.
-    let positions = vertices + edges * edge_vertex_count(levels) as u64 + grids * inner_count;
-    // The traversal addresses 16-bit codes in halves below a flag bit (2^31).
-    if grids * inner_words + 3 * positions >= 1 << 30 {
+    // The vertex buffer: the inner areas, then the base vertices and those inside base edges
+    // as `f32` triples. Its word addresses sit below a flag bit (2^31), which marks the half
+    // addresses of 16-bit inner codes.
+    let inner_area = grids * inner_words;
+    let words = inner_area + 3 * (vertices + edges * edge_vertex_count(levels) as u64);
+    if words >= 1 << 31 || (quantized && 2 * inner_area >= 1 << 31) {
         bail!(
-            "{grids} grids of {} micro-triangles need more than 4 GiB of vertices; use fewer --levels",
-            triangle_count(levels)
+            "{grids} grids of {} micro-triangles need {} of vertices, more than a grid scene can \
+             address (8 GiB, of which 4 GiB of 16-bit inner codes); use fewer --levels",
+            triangle_count(levels),
+            crate::limits::human(4 * words)
         );
     }
     Ok(())
@@ -242,85 +325,43 @@ fn base_edge_count(base: &Mesh) -> u64 {
 /// stored once.
 pub fn layout(base: &Mesh, sub: &Subdivided, options: &GridOptions) -> Result<GridLayout> {
     let levels = sub.levels;
-    let leaf_level = levels.saturating_sub(options.excluded_levels);
     let grids = base.triangles.len();
     let n = grid_size(levels);
+    // Counted against the headers' ids before any header is packed.
+    let edges = BaseEdges::new(base);
+    let quantized = sub.inner_codes.is_some();
+    check_counts(base, edges.owner.len() as u64, levels, options, quantized)?;
+    let shape = GridShape::new(grids, edges.owner.len(), levels, options, quantized);
 
-    // Undirected base edges, each stored once from its lower to its higher vertex id; counted
-    // against the headers' ids before any header is packed.
-    let mut edge_ids: HashMap<(u32, u32), u32> = HashMap::with_capacity(grids * 3 / 2 + 16);
-    let mut edge_owner: Vec<(usize, usize)> = Vec::new(); // (grid, edge within grid)
-    let grid_edges: Vec<[u32; 3]> = base
-        .triangles
-        .iter()
-        .enumerate()
-        .map(|(g, t)| {
-            std::array::from_fn(|e| {
-                *edge_ids.entry(base_edge(t, e)).or_insert_with(|| {
-                    edge_owner.push((g, e));
-                    edge_owner.len() as u32 - 1
-                })
-            })
-        })
-        .collect();
-    check_counts(
-        base,
-        edge_owner.len() as u64,
-        levels,
-        options,
-        sub.inner_codes.is_some(),
-    )?;
-    let headers = grid_edges
-        .iter()
-        .zip(&base.triangles)
-        .map(|(&e, &t)| GridHeader::new(e, t))
-        .collect();
-
-    let inner_count = inner_vertex_count(levels);
-    let inner_words = match sub.inner_codes {
-        Some(_) => quantize::inner_words(inner_count),
-        None => 3 * inner_count,
-    };
-    let edge_offset = grids as u32 * inner_count;
-    let corner_offset = edge_offset + edge_owner.len() as u32 * edge_vertex_count(levels);
-    let mut vertices: Vec<Vec3> = Vec::with_capacity(corner_offset as usize + base.positions.len());
+    let mut vertices: Vec<Vec3> = Vec::with_capacity(shape.corner_offset as usize + base.positions.len());
     for g in 0..grids {
         vertices.extend(inner_points(n).map(|p| sub.positions[sub.vertex(g, p) as usize]));
     }
-    for &(g, e) in &edge_owner {
+    for &(g, e) in &edges.owner {
         let t = base.triangles[g];
-        let reversed = t[e] > t[(e + 1) % 3];
-        for s in 1..n {
-            // Walk from the lower base vertex to the higher one.
-            let step = if reversed { n - s } else { s };
-            vertices.push(sub.positions[sub.vertex(g, edge_point(e, step, n)) as usize]);
-        }
+        vertices.extend(edge_points(&t, e, n).map(|p| sub.positions[sub.vertex(g, p) as usize]));
     }
     // Base vertex v stays vertex v through subdivision (at its moved position).
     vertices.extend_from_slice(&sub.positions[..base.positions.len()]);
     let inner_by_grid = match &sub.inner_codes {
         Some(codes) => codes.clone(),
-        None => vertices[..edge_offset as usize]
+        None => vertices[..shape.edge_offset as usize]
             .iter()
             .flat_map(|v| v.to_array().map(f32::to_bits))
             .collect(),
     };
-    let inner_end = grids * inner_words as usize;
-    let mut buffer = vec![0u32; inner_end + 3 * (vertices.len() - edge_offset as usize)];
-    for (d, v) in buffer[inner_end..].chunks_mut(3).zip(&vertices[edge_offset as usize..]) {
+    let inner_end = grids * shape.inner_words as usize;
+    let mut buffer = vec![0u32; shape.buffer_words(grids, base.positions.len())];
+    for (d, v) in buffer[inner_end..]
+        .chunks_mut(3)
+        .zip(&vertices[shape.edge_offset as usize..])
+    {
         d.copy_from_slice(&v.to_array().map(f32::to_bits));
     }
     Ok(GridLayout {
-        levels,
-        leaf_level,
-        half_radii: options.half_radii,
-        leaf_footprint: options.leaf_footprint,
-        headers,
+        shape,
+        headers: edges.headers(base),
         vertices,
-        edge_offset,
-        corner_offset,
-        quantized_inner: sub.inner_codes.is_some(),
-        inner_words,
         inner_by_grid,
         buffer,
     })
@@ -343,79 +384,146 @@ const GRIDS_PER_TASK: usize = 128;
 /// the rest of it is left to the caller, so freeing it is not part of the build.
 pub fn build_from_layout(layout: &mut GridLayout) -> GridScene {
     let grids = layout.headers.len();
-    let spheres = sphere_count(layout.leaf_level) as usize;
     let mut vertices = std::mem::take(&mut layout.buffer);
     let layout = &*layout;
     // One pass over each grid's vertices gives its box, its radii and its leaves' thicknesses.
-    let table = SphereTable::new(layout.levels, layout.leaf_level);
-    let mut boxes = vec![Aabb::EMPTY; grids];
-    let mut radii_by_base = vec![0f32; grids * spheres];
-    let leaves = match layout.leaf_footprint {
-        true => triangle_count(layout.leaf_level) as usize,
-        false => 0,
-    };
-    // Thickness codes, a byte per leaf, in whole words per grid.
-    let leaf_words = leaves.div_ceil(4);
-    // (A byte per grid even without any, since chunks cannot be empty.)
-    let leaf_bytes = (leaf_words * 4).max(1);
-    let mut thickness_by_base = vec![0u8; grids * leaf_bytes];
-    boxes
-        .par_iter_mut()
-        .zip(radii_by_base.par_chunks_mut(spheres))
-        .zip(thickness_by_base.par_chunks_mut(leaf_bytes))
-        .enumerate()
-        .with_min_len(GRIDS_PER_TASK)
-        .for_each_init(Vec::new, |points, (g, ((bounds, radii), thickness))| {
-            *bounds = grid_bounds_and_radii(layout, &table, g, radii, &mut thickness[..leaves], points)
+    let table = SphereTable::new(layout.shape.levels, layout.shape.leaf_level);
+    let mut per_grid = PerGrid::new(grids, &layout.shape);
+    per_grid
+        .tasks()
+        .into_par_iter()
+        .for_each_init(Vec::new, |points, mut task| {
+            for (i, g) in task.grids.clone().enumerate() {
+                let (bounds, radii, thickness) = task.grid(i);
+                *bounds = grid_bounds_and_radii(layout, &table, g, radii, thickness, points);
+            }
         });
-    let top = bvh::build(&boxes, &top_level_params());
+    vertices[..layout.inner_by_grid.len()].copy_from_slice(&layout.inner_by_grid);
+    assemble(&layout.shape, &layout.headers, &per_grid, vertices)
+}
 
-    // Store grids in leaf order, so leaves name contiguous ranges and need no indirection: one
-    // parallel pass over every per-grid part (each pass wakes the workers again).
-    let words = layout.inner_words as usize;
-    let sphere_words = if layout.half_radii { 0 } else { spheres };
-    let mut headers = vec![GridHeader::default(); grids];
+/// Per grid, in base-triangle order: its box, its spheres' radii and its leaves' thickness
+/// codes, as the pass over its vertices finds them.
+struct PerGrid {
+    boxes: Vec<Aabb>,
+    radii: Vec<f32>,
+    thickness: Vec<u8>,
+    spheres: usize,
+    /// Leaves with a thickness code (none without footprints).
+    leaves: usize,
+    /// Bytes of thickness codes per grid: whole words, and at least one byte, since chunks
+    /// cannot be empty.
+    leaf_bytes: usize,
+}
+
+/// `GRIDS_PER_TASK` grids' part of a [`PerGrid`], for one parallel task.
+struct PerGridTask<'a> {
+    grids: std::ops::Range<usize>,
+    boxes: &'a mut [Aabb],
+    radii: &'a mut [f32],
+    thickness: &'a mut [u8],
+    spheres: usize,
+    leaves: usize,
+    leaf_bytes: usize,
+}
+
+impl PerGrid {
+    fn new(grids: usize, shape: &GridShape) -> PerGrid {
+        let spheres = sphere_count(shape.leaf_level) as usize;
+        let leaves = match shape.leaf_footprint {
+            true => triangle_count(shape.leaf_level) as usize,
+            false => 0,
+        };
+        let leaf_bytes = (leaves.div_ceil(4) * 4).max(1);
+        PerGrid {
+            boxes: vec![Aabb::EMPTY; grids],
+            radii: vec![0f32; grids * spheres],
+            thickness: vec![0u8; grids * leaf_bytes],
+            spheres,
+            leaves,
+            leaf_bytes,
+        }
+    }
+
+    fn tasks(&mut self) -> Vec<PerGridTask<'_>> {
+        let (spheres, leaves, leaf_bytes) = (self.spheres, self.leaves, self.leaf_bytes);
+        self.boxes
+            .chunks_mut(GRIDS_PER_TASK)
+            .zip(self.radii.chunks_mut(GRIDS_PER_TASK * spheres))
+            .zip(self.thickness.chunks_mut(GRIDS_PER_TASK * leaf_bytes))
+            .enumerate()
+            .map(|(k, ((boxes, radii), thickness))| PerGridTask {
+                grids: k * GRIDS_PER_TASK..k * GRIDS_PER_TASK + boxes.len(),
+                boxes,
+                radii,
+                thickness,
+                spheres,
+                leaves,
+                leaf_bytes,
+            })
+            .collect()
+    }
+}
+
+impl PerGridTask<'_> {
+    /// The box, radii and thickness codes of the task's `i`-th grid.
+    fn grid(&mut self, i: usize) -> (&mut Aabb, &mut [f32], &mut [u8]) {
+        (
+            &mut self.boxes[i],
+            &mut self.radii[i * self.spheres..][..self.spheres],
+            &mut self.thickness[i * self.leaf_bytes..][..self.leaves],
+        )
+    }
+}
+
+/// What both builds end with: the top-level BVH over the grids' boxes, then every per-grid
+/// part in its leaf order, so leaves name contiguous ranges and need no indirection.
+/// `vertices` holds the inner areas in base-triangle order, reordered where they lie.
+fn assemble(shape: &GridShape, headers: &[GridHeader], per_grid: &PerGrid, mut vertices: Vec<u32>) -> GridScene {
+    let grids = headers.len();
+    let top = bvh::build(&per_grid.boxes, &top_level_params());
+    let words = shape.inner_words as usize;
+    reorder_records(&mut vertices[..grids * words], words, &top.order);
+
+    let spheres = per_grid.spheres;
+    let leaf_words = per_grid.leaves.div_ceil(4);
+    let sphere_words = if shape.half_radii { 0 } else { spheres };
+    let mut leaf_headers = vec![GridHeader::default(); grids];
     let mut radii = vec![0u32; grids * (sphere_words + leaf_words)];
     let (radius_area, thickness_area) = radii.split_at_mut(grids * sphere_words);
     let tasks: Vec<_> = top
         .order
         .chunks(GRIDS_PER_TASK)
-        .zip(headers.chunks_mut(GRIDS_PER_TASK))
-        .zip(chunks_or_empty(&mut vertices[..grids * words], words))
+        .zip(leaf_headers.chunks_mut(GRIDS_PER_TASK))
         .zip(chunks_or_empty(radius_area, sphere_words))
         .zip(chunks_or_empty(thickness_area, leaf_words))
         .collect();
-    tasks
-        .into_par_iter()
-        .for_each(|((((order, headers), inner), radii), thickness)| {
-            for (i, &g) in order.iter().enumerate() {
-                let g = g as usize;
-                headers[i] = layout.headers[g];
-                if words > 0 {
-                    inner[i * words..][..words].copy_from_slice(&layout.inner_by_grid[g * words..][..words]);
-                }
-                for (r, &from) in radii[i * sphere_words..][..sphere_words]
-                    .iter_mut()
-                    .zip(&radii_by_base[g * spheres..][..sphere_words])
-                {
-                    *r = from.to_bits();
-                }
-                let bytes = &thickness_by_base[g * leaf_bytes..][..leaf_words * 4];
-                for (w, b) in thickness[i * leaf_words..][..leaf_words]
-                    .iter_mut()
-                    .zip(bytes.chunks(4))
-                {
-                    *w = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
-                }
+    tasks.into_par_iter().for_each(|(((order, into), radii), thickness)| {
+        for (i, &g) in order.iter().enumerate() {
+            let g = g as usize;
+            into[i] = headers[g];
+            for (r, &from) in radii[i * sphere_words..][..sphere_words]
+                .iter_mut()
+                .zip(&per_grid.radii[g * spheres..][..sphere_words])
+            {
+                *r = from.to_bits();
             }
-        });
-    let radius_scale = radius_scale(radii_by_base.iter().fold(0f32, |m, &r| m.max(r)));
-    if layout.half_radii {
+            let bytes = &per_grid.thickness[g * per_grid.leaf_bytes..][..leaf_words * 4];
+            for (w, b) in thickness[i * leaf_words..][..leaf_words]
+                .iter_mut()
+                .zip(bytes.chunks(4))
+            {
+                *w = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+            }
+        }
+    });
+    let radius_scale = radius_scale(per_grid.radii.iter().fold(0f32, |m, &r| m.max(r)));
+    if shape.half_radii {
         // Two radii to a word, across grid boundaries: packed in one go, in leaf order.
         let half: Vec<u32> = top
             .order
             .iter()
-            .flat_map(|&g| &radii_by_base[g as usize * spheres..][..spheres])
+            .flat_map(|&g| &per_grid.radii[g as usize * spheres..][..spheres])
             .collect::<Vec<_>>()
             .chunks(2)
             .map(|pair| {
@@ -429,27 +537,54 @@ pub fn build_from_layout(layout: &mut GridLayout) -> GridScene {
     let thickness_word = (radii.len() - grids * leaf_words) as u32;
     GridScene {
         nodes: top.nodes,
-        headers,
+        headers: leaf_headers,
         vertices,
         radii,
         params: GridParams {
-            levels: layout.levels,
-            lod: layout.levels,
-            leaf_level: layout.leaf_level,
+            levels: shape.levels,
+            lod: shape.levels,
+            leaf_level: shape.leaf_level,
             sphere_count: spheres as u32,
-            inner_count: inner_vertex_count(layout.levels),
-            edge_offset: layout.edge_offset,
-            corner_offset: layout.corner_offset,
-            quantized_inner: layout.quantized_inner as u32,
-            inner_words: layout.inner_words,
+            inner_count: inner_vertex_count(shape.levels),
+            edge_offset: shape.edge_offset,
+            corner_offset: shape.corner_offset,
+            quantized_inner: shape.quantized_inner as u32,
+            inner_words: shape.inner_words,
             edge_word: (grids * words) as u32,
-            half_radii: layout.half_radii as u32,
-            leaf_footprint: layout.leaf_footprint as u32,
+            half_radii: shape.half_radii as u32,
+            leaf_footprint: shape.leaf_footprint as u32,
             radius_scale,
             thickness_word,
             _pad: [0; 2],
         },
         base_triangle: top.order,
+    }
+}
+
+/// Puts record `order[i]` at place `i`, records being `words` long, in place: each cycle of
+/// the permutation is walked once, holding one record aside. No second copy of the area.
+fn reorder_records(data: &mut [u32], words: usize, order: &[u32]) {
+    if words == 0 {
+        return;
+    }
+    let mut done = vec![false; order.len()];
+    let mut held = vec![0u32; words];
+    for start in 0..order.len() {
+        if done[start] {
+            continue;
+        }
+        held.copy_from_slice(&data[start * words..][..words]);
+        let mut i = start;
+        loop {
+            done[i] = true;
+            let from = order[i] as usize;
+            if from == start {
+                data[i * words..][..words].copy_from_slice(&held);
+                break;
+            }
+            data.copy_within(from * words..(from + 1) * words, i * words);
+            i = from;
+        }
     }
 }
 
@@ -463,11 +598,17 @@ fn chunks_or_empty<T>(items: &mut [T], per_grid: usize) -> Box<dyn Iterator<Item
     }
 }
 
-/// The point `step` steps along grid edge `e` (from corner `e` towards corner `e + 1`).
-fn edge_point(e: usize, step: u32, n: u32) -> Lattice {
-    match e {
-        0 => [step, 0],
-        1 => [n - step, step],
-        _ => [0, n - step],
-    }
+/// The inner lattice points of edge `e` of a grid over base triangle `t`, in the order the
+/// edge area stores them: from the lower base vertex id towards the higher.
+fn edge_points(t: &[u32; 3], e: usize, n: u32) -> impl Iterator<Item = Lattice> {
+    let reversed = t[e] > t[(e + 1) % 3];
+    (1..n).map(move |s| {
+        // `step` steps from corner `e` towards corner `e + 1`.
+        let step = if reversed { n - s } else { s };
+        match e {
+            0 => [step, 0],
+            1 => [n - step, step],
+            _ => [0, n - step],
+        }
+    })
 }

@@ -91,6 +91,11 @@ pub(super) fn grid_bounds_and_radii(
     for &(p, at) in &table.boundary {
         points[at as usize] = layout.vertices[slots.slot(p) as usize].into();
     }
+    bounds_and_radii(table, points, radii, thickness)
+}
+
+/// [`grid_bounds_and_radii`] of a grid whose vertices `points` are already in lattice order.
+pub(super) fn bounds_and_radii(table: &SphereTable, points: &[Vec3A], radii: &mut [f32], thickness: &mut [u8]) -> Aabb {
     let mut bounds = (points[0], points[0]);
     for &p in points.iter() {
         bounds = (bounds.0.min(p), bounds.1.max(p));

@@ -1,7 +1,7 @@
 //! Grid builds read back: vertices, sphere radii, leaf thicknesses and sizes.
 
 use super::*;
-use crate::mesh::scene::{cube, default_scene};
+use crate::mesh::scene::{cube, default_scene, fins};
 use crate::subdiv::{subdivide, Scheme};
 use gridrt_shared::grid_index::{lattice_points, level_start, sub_triangle};
 use gridrt_shared::grid_traverse::sphere_center;
@@ -194,7 +194,7 @@ impl GridScene {
 /// A mesh whose base edges or vertices exceed the headers' 21-bit ids is refused by a
 /// check that needs no subdivision (the layout used to panic on it, after subdividing).
 #[test]
-fn meshes_beyond_header_ids_are_refused_up_front() {
+fn meshes_beyond_grid_addresses_are_refused_up_front() {
     use gridrt_shared::layout::MAX_HEADER_ID;
     let strip = |triangles: u32| Mesh {
         positions: vec![Vec3::ZERO; triangles as usize + 2],
@@ -208,6 +208,10 @@ fn meshes_beyond_header_ids_are_refused_up_front() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("base edges are more than a grid header can address"), "{e}");
+    // Vertex words: 16-bit inner codes take the buffer past its addresses at L = 6 only.
+    check_limits(&ok, 5, &options, true).unwrap();
+    let e = check_limits(&ok, 6, &options, true).unwrap_err().to_string();
+    assert!(e.contains("more than a grid scene can address"), "{e}");
     let mut many_vertices = ok;
     many_vertices.positions.resize(MAX_HEADER_ID as usize + 2, Vec3::ZERO);
     let e = check_limits(&many_vertices, 3, &options, true).unwrap_err().to_string();
@@ -215,4 +219,59 @@ fn meshes_beyond_header_ids_are_refused_up_front() {
         e.contains("base vertices are more than a grid header can address"),
         "{e}"
     );
+}
+
+/// The lean build (each grid subdivided on its own, written straight into place) gives
+/// exactly the scene of subdividing the whole mesh first: every buffer, bit for bit.
+#[test]
+fn the_lean_build_equals_the_whole_mesh_build() {
+    // A fan of 300 faces: too costly for patches, so the lean build subdivides it whole.
+    let fan = Mesh {
+        positions: std::iter::once(Vec3::Z)
+            .chain((0..300).map(|k| {
+                let a = k as f32 * std::f32::consts::TAU / 300.0;
+                Vec3::new(a.cos(), a.sin(), 0.0)
+            }))
+            .collect(),
+        triangles: (0..300).map(|k| [0, 1 + k, 1 + (k + 1) % 300]).collect(),
+    };
+    assert!(!lean_build_applies(&fan) && lean_build_applies(&fins()));
+    let options = [
+        GridOptions::default(),
+        GridOptions {
+            excluded_levels: 1,
+            half_radii: true,
+            leaf_footprint: false,
+        },
+    ];
+    for (name, mesh) in [
+        ("default scene", default_scene()),
+        ("cube", cube()),
+        ("fins", fins()),
+        ("fan", fan),
+    ] {
+        for levels in 0..=4 {
+            for (scheme, quantized, options) in [
+                (Scheme::Loop, true, options[0]),
+                (Scheme::Loop, false, options[1]),
+                (Scheme::Flat, true, options[1]),
+            ] {
+                let mut sub = subdivide(&mesh, levels, scheme);
+                if quantized {
+                    sub.quantize_inner();
+                }
+                let whole = build(&mesh, &sub, &options).unwrap();
+                let lean = build_lean(&mesh, levels, scheme, &options, quantized).unwrap();
+                assert!(lean == whole, "{name} L={levels} {scheme:?} quantized={quantized}");
+            }
+        }
+    }
+}
+
+#[test]
+fn records_reorder_in_place() {
+    let order = [3u32, 0, 4, 1, 2, 5];
+    let mut data: Vec<u32> = (0..12).collect();
+    reorder_records(&mut data, 2, &order);
+    assert_eq!(data, [6, 7, 0, 1, 8, 9, 2, 3, 4, 5, 10, 11]);
 }

@@ -1,4 +1,5 @@
-//! The built-in default scene and small closed test shapes, generated in code.
+//! The built-in default scene and small closed test shapes, generated in code (and [`fins`],
+//! the one open, non-manifold test mesh).
 //!
 //! Every shape is a closed, manifold, outward-facing (counter-clockwise seen from outside) triangle mesh without
 //! duplicate vertices, so the whole scene, a disjoint union of them, is too. Shapes are coarse on purpose: they
@@ -24,6 +25,24 @@ pub fn default_scene() -> Mesh {
         append(&mut scene, transformed(shape, Quat::IDENTITY, Vec3::new(x, lift, z)));
     }
     scene
+}
+
+/// Not closed, unlike the shapes: three triangles on one edge (0, 1), open boundaries, a base
+/// vertex on four creases, and a vertex (6) no triangle uses. For tests of the crease rules.
+pub fn fins() -> Mesh {
+    Mesh {
+        positions: vec![
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::new(0.5, 1.0, 0.0),
+            Vec3::new(0.5, -1.0, 0.0),
+            Vec3::new(0.5, 0.0, 1.0),
+            Vec3::new(1.5, 0.7, 0.2),
+            Vec3::new(9.0, 9.0, 9.0),
+            Vec3::new(-0.5, 0.3, -0.4),
+        ],
+        triangles: vec![[0, 1, 2], [1, 0, 3], [0, 1, 4], [1, 5, 2], [2, 7, 0], [3, 0, 7]],
+    }
 }
 
 /// A regular tetrahedron inscribed in the cube [-1, 1]^3: 4 vertices, 4 triangles.

@@ -11,6 +11,9 @@ use crate::mesh::Mesh;
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::grid_index::{grid_size, lattice_index, sub_triangle, triangle_count, vertex_count, Lattice};
 
+mod patch;
+pub use patch::{subdivide_triangle, Patch, VertexFaces};
+
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Default)]
 pub enum Scheme {
     /// Loop subdivision: a smooth limit surface.
@@ -72,46 +75,29 @@ struct Face {
     lattice: [Lattice; 3],
 }
 
+impl Face {
+    /// Base triangle `base` itself, with vertices `v`: the whole lattice, one step across.
+    fn base(v: [u32; 3], base: u32) -> Face {
+        Face {
+            v,
+            base,
+            lattice: [[0, 0], [1, 0], [0, 1]],
+        }
+    }
+}
+
 pub fn subdivide(mesh: &Mesh, levels: u32, scheme: Scheme) -> Subdivided {
     let mut positions = mesh.positions.clone();
     let mut faces: Vec<Face> = mesh
         .triangles
         .iter()
         .enumerate()
-        .map(|(b, &v)| Face {
-            v,
-            base: b as u32,
-            lattice: [[0, 0], [1, 0], [0, 1]],
-        })
+        .map(|(b, &v)| Face::base(v, b as u32))
         .collect();
     for _ in 0..levels {
         let (new_positions, mids) = refine(&positions, &faces, scheme);
-        let mut next = Vec::with_capacity(faces.len() * 4);
-        for (f, m) in faces.iter().zip(&mids) {
-            // Lattice coordinates double at each round; midpoints land on the new odd points.
-            let l = f.lattice.map(|p| [2 * p[0], 2 * p[1]]);
-            let corners = [(f.v[0], l[0]), (f.v[1], l[1]), (f.v[2], l[2])];
-            let mid = |e: usize| {
-                let (a, b) = (l[e], l[(e + 1) % 3]);
-                (m[e], [(a[0] + b[0]) / 2, (a[1] + b[1]) / 2])
-            };
-            let (ab, bc, ca) = (mid(0), mid(1), mid(2));
-            // Same child order and corner order as `grid_index::child_corners`.
-            for tri in [
-                [corners[0], ab, ca],
-                [ab, corners[1], bc],
-                [ca, bc, corners[2]],
-                [bc, ca, ab],
-            ] {
-                next.push(Face {
-                    v: tri.map(|c| c.0),
-                    base: f.base,
-                    lattice: tri.map(|c| c.1),
-                });
-            }
-        }
         positions = new_positions;
-        faces = next;
+        faces = children(&faces, &mids);
     }
     let n = grid_size(levels);
     let per_grid = vertex_count(levels) as usize;
@@ -129,6 +115,35 @@ pub fn subdivide(mesh: &Mesh, levels: u32, scheme: Scheme) -> Subdivided {
         grids,
         inner_codes: None,
     }
+}
+
+/// The four faces each face splits into, given the new vertices on its edges (from [`refine`]):
+/// lattice coordinates double at each round and the midpoints land on the new odd points.
+/// Same child order and corner order as `grid_index::child_corners`.
+fn children(faces: &[Face], mids: &[[u32; 3]]) -> Vec<Face> {
+    let mut next = Vec::with_capacity(faces.len() * 4);
+    for (f, m) in faces.iter().zip(mids) {
+        let l = f.lattice.map(|p| [2 * p[0], 2 * p[1]]);
+        let corners = [(f.v[0], l[0]), (f.v[1], l[1]), (f.v[2], l[2])];
+        let mid = |e: usize| {
+            let (a, b) = (l[e], l[(e + 1) % 3]);
+            (m[e], [(a[0] + b[0]) / 2, (a[1] + b[1]) / 2])
+        };
+        let (ab, bc, ca) = (mid(0), mid(1), mid(2));
+        for tri in [
+            [corners[0], ab, ca],
+            [ab, corners[1], bc],
+            [ca, bc, corners[2]],
+            [bc, ca, ab],
+        ] {
+            next.push(Face {
+                v: tri.map(|c| c.0),
+                base: f.base,
+                lattice: tri.map(|c| c.1),
+            });
+        }
+    }
+    next
 }
 
 /// One round: the new positions (old vertices first, then one per edge) and, for every face,
@@ -277,159 +292,4 @@ impl UnionFind {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::mesh::scene::{cube, default_scene, tetrahedron};
-    use std::collections::HashMap;
-
-    /// Undirected edge -> number of faces using it, over the micro-triangles.
-    fn edge_use(tris: &[[u32; 3]]) -> HashMap<(u32, u32), u32> {
-        let mut m = HashMap::new();
-        for t in tris {
-            for e in 0..3 {
-                let (a, b) = (t[e], t[(e + 1) % 3]);
-                *m.entry((a.min(b), a.max(b))).or_insert(0) += 1;
-            }
-        }
-        m
-    }
-
-    fn euler(tris: &[[u32; 3]]) -> i64 {
-        let mut verts: Vec<u32> = tris.iter().flatten().copied().collect();
-        verts.sort();
-        verts.dedup();
-        verts.len() as i64 - edge_use(tris).len() as i64 + tris.len() as i64
-    }
-
-    #[test]
-    fn closed_meshes_stay_closed_with_the_same_euler_characteristic() {
-        for (name, mesh) in [
-            ("tetrahedron", tetrahedron()),
-            ("cube", cube()),
-            ("default scene", default_scene()),
-        ] {
-            let chi = euler(&mesh.triangles);
-            for levels in 1..=3 {
-                for scheme in [Scheme::Loop, Scheme::Flat] {
-                    let sub = subdivide(&mesh, levels, scheme);
-                    let micro = sub.micro_triangles(levels);
-                    assert_eq!(micro.len(), mesh.triangles.len() << (2 * levels));
-                    assert_eq!(euler(&micro), chi, "{name} L={levels}");
-                    assert!(
-                        edge_use(&micro).values().all(|&c| c == 2),
-                        "{name} L={levels}: not closed"
-                    );
-                }
-            }
-        }
-    }
-
-    #[test]
-    fn level_five_is_consistent() {
-        let mesh = tetrahedron();
-        let sub = subdivide(&mesh, 5, Scheme::Loop);
-        let micro = sub.micro_triangles(5);
-        assert_eq!(euler(&micro), 2);
-        assert!(edge_use(&micro).values().all(|&c| c == 2));
-        // V = 2 + F / 2 for a closed genus-0 triangle mesh.
-        assert_eq!(sub.positions.len(), 2 + micro.len() / 2);
-    }
-
-    /// One round reproduces the Loop stencils exactly.
-    #[test]
-    fn one_round_matches_the_loop_stencils() {
-        let mesh = tetrahedron();
-        let sub = subdivide(&mesh, 1, Scheme::Loop);
-        let p = &mesh.positions;
-        let beta = loop_beta(3);
-        for v in 0..4 {
-            let ring: Vec3 = (0..4).filter(|&u| u != v).map(|u| p[u]).sum();
-            let expect = p[v] * (1.0 - 3.0 * beta) + ring * beta;
-            assert!(sub.positions[v].distance(expect) < 1e-6, "vertex {v}");
-        }
-        // Edge (v0 v1) of triangle 0: the two opposite vertices are the remaining two.
-        let [a, b, _] = mesh.triangles[0];
-        let others: Vec3 = (0..4u32).filter(|&u| u != a && u != b).map(|u| p[u as usize]).sum();
-        let expect = (p[a as usize] + p[b as usize]) * 0.375 + others * 0.125;
-        assert!(sub.positions[sub.vertex(0, [1, 0]) as usize].distance(expect) < 1e-6);
-    }
-
-    /// Corners converge to the Loop limit position `v_inf = (3/8 v + beta sum) / (3/8 + n beta)`,
-    /// and exactly as the stencil predicts: `v_k - v_inf = (5/8 - n beta)^k (v_0 - v_inf)`.
-    #[test]
-    fn corners_converge_to_the_limit_positions() {
-        for mesh in [tetrahedron(), cube()] {
-            let mut ring = vec![Vec::new(); mesh.positions.len()];
-            for t in &mesh.triangles {
-                for e in 0..3 {
-                    let (a, b) = (t[e] as usize, t[(e + 1) % 3] as usize);
-                    if !ring[a].contains(&b) {
-                        ring[a].push(b);
-                        ring[b].push(a);
-                    }
-                }
-            }
-            for levels in [1, 3, 5] {
-                let sub = subdivide(&mesh, levels, Scheme::Loop);
-                for (v, neighbours) in ring.iter().enumerate() {
-                    let n = neighbours.len() as f32;
-                    let beta = loop_beta(neighbours.len() as u32);
-                    let sum: Vec3 = neighbours.iter().map(|&u| mesh.positions[u]).sum();
-                    let limit = (mesh.positions[v] * 0.375 + sum * beta) / (0.375 + n * beta);
-                    let shrink = (0.625 - n * beta).powi(levels as i32);
-                    let expect = limit + (mesh.positions[v] - limit) * shrink;
-                    let got = sub.positions[v];
-                    assert!(
-                        got.distance(expect) < 1e-5,
-                        "valence {n}, L={levels}: {got} vs {expect}"
-                    );
-                    if levels == 5 {
-                        assert!(got.distance(limit) < 2e-3, "valence {n}: not near the limit");
-                    }
-                }
-            }
-        }
-    }
-
-    #[test]
-    fn boundaries_and_non_manifold_edges_are_creases() {
-        // Three triangles on one edge (0, 1), plus an open boundary everywhere else.
-        let mesh = Mesh {
-            positions: vec![
-                Vec3::ZERO,
-                Vec3::X,
-                Vec3::new(0.5, 1.0, 0.0),
-                Vec3::new(0.5, -1.0, 0.0),
-                Vec3::new(0.5, 0.0, 1.0),
-            ],
-            triangles: vec![[0, 1, 2], [1, 0, 3], [0, 1, 4]],
-        };
-        let sub = subdivide(&mesh, 2, Scheme::Loop);
-        // The non-manifold edge's midpoint is the plain midpoint, shared by all three grids.
-        let mid = sub.vertex(0, [2, 0]);
-        assert_eq!(sub.positions[mid as usize], Vec3::new(0.5, 0.0, 0.0));
-        assert_eq!(sub.vertex(2, [2, 0]), mid);
-        assert_eq!(sub.vertex(1, [2, 0]), mid);
-        // Vertices 0 and 1 lie on more than two creases: corners, they stay.
-        assert_eq!(sub.positions[0], Vec3::ZERO);
-        assert_eq!(sub.positions[1], Vec3::X);
-        // Every position is finite.
-        assert!(sub.positions.iter().all(|p| p.is_finite()));
-    }
-
-    #[test]
-    fn flat_subdivision_stays_on_the_base_triangles() {
-        let mesh = cube();
-        let sub = subdivide(&mesh, 3, Scheme::Flat);
-        let n = grid_size(3) as f32;
-        for (g, t) in mesh.triangles.iter().enumerate() {
-            let [a, b, c] = t.map(|v| mesh.positions[v as usize]);
-            for j in 0..=8u32 {
-                for i in 0..=8 - j {
-                    let expect = a + (b - a) * (i as f32 / n) + (c - a) * (j as f32 / n);
-                    assert!(sub.positions[sub.vertex(g, [i, j]) as usize].distance(expect) < 1e-5);
-                }
-            }
-        }
-    }
-}
+mod tests;
