@@ -34,7 +34,11 @@ const MAX_PATCH_FACES_PER_TRIANGLE: u64 = 64;
 /// Whether [`build_lean`] subdivides `base` grid by grid (else it subdivides the whole mesh,
 /// needing the memory of [`super::build`]).
 pub fn lean_build_applies(base: &Mesh) -> bool {
-    VertexFaces::new(base).patch_faces() <= MAX_PATCH_FACES_PER_TRIANGLE * base.triangles.len() as u64
+    patches_fit(&VertexFaces::new(base), base)
+}
+
+fn patches_fit(vertex_faces: &VertexFaces, base: &Mesh) -> bool {
+    vertex_faces.patch_faces() <= MAX_PATCH_FACES_PER_TRIANGLE * base.triangles.len() as u64
 }
 
 /// `base` subdivided `levels` times with `scheme` and built as grids, inner vertices
@@ -50,7 +54,7 @@ pub fn build_lean(
     let edges = BaseEdges::new(base);
     check_counts(base, edges.owner.len() as u64, levels, options, quantized)?;
     let vertex_faces = VertexFaces::new(base);
-    if vertex_faces.patch_faces() > MAX_PATCH_FACES_PER_TRIANGLE * base.triangles.len() as u64 {
+    if !patches_fit(&vertex_faces, base) {
         let mut sub = subdivide(base, levels, scheme);
         if quantized {
             sub.quantize_inner();
