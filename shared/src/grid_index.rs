@@ -12,9 +12,9 @@
 //! from the root. In breadth-first order its node id is `(4^l - 1) / 3 + p`, so the children of
 //! node `id` are `4 id + 1 ..= 4 id + 4`.
 
-use crate::layout::GridHeader;
+use crate::layout::GridIds;
 #[cfg(test)]
-use crate::layout::MAX_HEADER_ID;
+use crate::layout::{GridHeader, MAX_HEADER_ID};
 
 /// A lattice point `(i, j)` of a grid.
 pub type Lattice = [u32; 2];
@@ -220,7 +220,7 @@ pub fn leaf_triangle(leaf: [Lattice; 3], k: u32, t: u32) -> [Lattice; 3] {
     out
 }
 
-/// A grid's header resolved, once per visit, into the arithmetic that finds its vertices.
+/// A grid's ids resolved, once per visit, into the arithmetic that finds its vertices.
 /// Addresses count in any unit: vertex slots (one per vertex), or buffer words or halves
 /// (`stride` per vertex), so the traversal gets buffer positions without converting.
 #[derive(Copy, Clone)]
@@ -239,8 +239,8 @@ impl GridSlots {
     /// Vertex slots: the inner area of `grid` at `grid * inner_count`, then the edge area at
     /// `edge_offset`, then the corner area at `corner_offset`.
     #[inline]
-    pub fn new(header: &GridHeader, grid: u32, n: u32, inner_count: u32, edge_offset: u32, corner_offset: u32) -> Self {
-        Self::addressed(header, n, grid * inner_count, edge_offset, corner_offset, 1)
+    pub fn new(ids: &GridIds, grid: u32, n: u32, inner_count: u32, edge_offset: u32, corner_offset: u32) -> Self {
+        Self::addressed(ids, n, grid * inner_count, edge_offset, corner_offset, 1)
     }
 
     /// Addresses of `stride` units per vertex: the grid's first inner vertex at
@@ -248,7 +248,7 @@ impl GridSlots {
     /// corner area at `corner_first`.
     #[inline]
     pub fn addressed(
-        header: &GridHeader,
+        ids: &GridIds,
         n: u32,
         inner_first: u32,
         edge_first: u32,
@@ -256,8 +256,8 @@ impl GridSlots {
         stride: u32,
     ) -> Self {
         let edge = |e: u32| {
-            let base = edge_first + header.edge(e) * (n - 1) * stride;
-            if header.edge_reversed(e) {
+            let base = edge_first + ids.edge(e) * (n - 1) * stride;
+            if ids.edge_reversed(e) {
                 // Step s is stored at n - s - 1.
                 (base + (n - 1) * stride, stride.wrapping_neg())
             } else {
@@ -270,9 +270,9 @@ impl GridSlots {
             inner_first,
             stride,
             corners: [
-                corner_first + header.corner(0) * stride,
-                corner_first + header.corner(1) * stride,
-                corner_first + header.corner(2) * stride,
+                corner_first + ids.corner(0) * stride,
+                corner_first + ids.corner(1) * stride,
+                corner_first + ids.corner(2) * stride,
             ],
             edge_start: [e0.0, e1.0, e2.0],
             edge_step: [e0.1, e1.1, e2.1],
@@ -312,12 +312,12 @@ pub fn vertex_slot(
     p: Lattice,
     n: u32,
     grid: u32,
-    header: &GridHeader,
+    ids: &GridIds,
     inner_count: u32,
     edge_offset: u32,
     corner_offset: u32,
 ) -> u32 {
-    GridSlots::new(header, grid, n, inner_count, edge_offset, corner_offset).slot(p)
+    GridSlots::new(ids, grid, n, inner_count, edge_offset, corner_offset).slot(p)
 }
 
 /// Index of inner vertex `(i, j)` (`i, j >= 1`, `i + j <= n - 1`) within its grid: rows of
@@ -360,7 +360,10 @@ mod tests {
             let edge = edge_vertex_count(levels);
             // Every order of the corner ids, so every edge is walked both ways.
             for corners in [[4u32, 1, 7], [1, 4, 7], [7, 4, 1], [1, 7, 4], [4, 7, 1], [7, 1, 4]] {
-                let header = GridHeader::new([2, 5, 0], corners);
+                let header = GridIds {
+                    edges: [2, 5, 0],
+                    corners,
+                };
                 let (grid, edge_offset, corner_offset) = (3, 1000, 5000);
                 let slots: BTreeSet<u32> = lattice(n)
                     .into_iter()
@@ -383,8 +386,14 @@ mod tests {
     #[test]
     fn reversed_edges_read_backwards() {
         let n = 8;
-        let fwd = GridHeader::new([0, 1, 2], [3, 4, 5]);
-        let back = GridHeader::new([0, 1, 2], [4, 3, 5]);
+        let fwd = GridIds {
+            edges: [0, 1, 2],
+            corners: [3, 4, 5],
+        };
+        let back = GridIds {
+            edges: [0, 1, 2],
+            corners: [4, 3, 5],
+        };
         assert!(!fwd.edge_reversed(0) && back.edge_reversed(0));
         for s in 1..n {
             let a = vertex_slot([s, 0], n, 0, &fwd, 21, 100, 200);
@@ -393,6 +402,7 @@ mod tests {
         }
     }
 
+    /// Ids survive both header forms: packed up to 21 bits, wide up to 32.
     #[test]
     fn header_ids_round_trip() {
         let ids = [
@@ -401,13 +411,20 @@ mod tests {
             [1 << 20, (1 << 11) + 5, 2047],
             [77, 3 << 19, 9],
         ];
-        for e in ids {
-            for c in ids {
-                let h = GridHeader::new(e, c);
-                assert_eq!([h.edge(0), h.edge(1), h.edge(2)], e);
-                assert_eq!([h.corner(0), h.corner(1), h.corner(2)], c);
+        for edges in ids {
+            for corners in ids {
+                let g = GridIds { edges, corners };
+                assert_eq!(g.pack().ids(), g);
+                let [a, b] = g.pack_wide();
+                assert_eq!(GridIds::from_wide(a, b), g);
             }
         }
+        let wide = GridIds {
+            edges: [u32::MAX, 1 << 21, 5],
+            corners: [1 << 30, 0, u32::MAX - 1],
+        };
+        let [a, b] = wide.pack_wide();
+        assert_eq!(GridIds::from_wide(a, b), wide);
     }
 
     /// The level-L sub-triangles are exactly the micro-triangles of the lattice, each once:

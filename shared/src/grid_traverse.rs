@@ -9,7 +9,7 @@ use crate::grid_index::{
     lattice_index, level_start, micro_cell_offset, sub_triangle, triangle_count, vertex_count, GridSlots, Lattice,
     MAX_LEAF_DEPTH,
 };
-use crate::layout::{BvhNode, GridHeader, GridParams, Hit, SplitParams, GRID_HEADERS, GRID_RADII, GRID_VERTICES};
+use crate::layout::{BvhNode, GridHeader, GridIds, GridParams, Hit, SplitParams, GRID_HEADERS, GRID_RADII, GRID_VERTICES};
 use crate::quantize::{dequantize, read_half, read_half_triple, unit_from_exponent};
 use crate::ray::{Ray, T_FAR};
 use crate::sphere::{decode_radius, intersect_sphere_scaled};
@@ -102,6 +102,16 @@ impl<'a> GridScene<'a, Split<'a, GridHeader>, Split<'a, u32>> {
 }
 
 impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
+    /// The base edge and corner ids of grid `grid`, from its packed or wide header.
+    #[inline]
+    pub fn ids(&self, grid: u32) -> GridIds {
+        if self.params.wide_headers != 0 {
+            GridIds::from_wide(self.headers.load(2 * grid), self.headers.load(2 * grid + 1))
+        } else {
+            self.headers.load(grid).ids()
+        }
+    }
+
     /// Grid `grid` resolved for reading, once per visit: where its vertices live, and the
     /// frame its inner vertices are decoded in.
     #[inline]
@@ -118,7 +128,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             inner_word
         };
         let corner_word = g.edge_word + 3 * (g.corner_offset - g.edge_offset);
-        let slots = GridSlots::addressed(&self.headers.load(grid), n, inner_first, g.edge_word, corner_word, 3);
+        let slots = GridSlots::addressed(&self.ids(grid), n, inner_first, g.edge_word, corner_word, 3);
         let corners = [
             load_vec3_bits(self.vertices, slots.slot([0, 0])),
             load_vec3_bits(self.vertices, slots.slot([n, 0])),

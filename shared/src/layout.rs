@@ -26,15 +26,16 @@ impl BvhNode {
     }
 }
 
-/// Where a grid finds the vertices it shares with its neighbours (16 bytes).
+/// Where a grid finds the vertices it shares with its neighbours, as stored (16 bytes).
 ///
 /// Its inner vertices and sphere radii need no pointer: they sit at `grid * inner_count` and
-/// `grid * sphere_count` in their areas. What remains are the ids of its three base edges
-/// (into the edge area, which holds the `2^L - 1` vertices of each base edge once, from its
-/// lower to its higher base vertex id) and of its three corners (base vertex ids, into the
-/// corner area), 21 bits each, three to a 64-bit pair. Edge `e` runs from corner `e` to corner
-/// `(e + 1) % 3`; whether the grid walks it backwards follows from the corner ids, so no flag
-/// is stored.
+/// `grid * sphere_count` in their areas. What remains are the [`GridIds`] of its three base
+/// edges and three corners. Packed, they take 21 bits each, three to a 64-bit pair: one
+/// header per grid. A mesh with more than `2^21` base edges or vertices stores them *wide*
+/// instead (see `GridParams::wide_headers`): two headers per grid holding the six ids as
+/// plain words, `edges[0], edges[1], corners[0]`... in id order (edges, then corners), the
+/// last two words unused. Both are whole 16-byte elements, so a split header buffer never
+/// cuts a grid's ids in two.
 #[repr(C)]
 #[derive(Copy, Clone, Default)]
 #[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable, Debug, PartialEq))]
@@ -43,7 +44,7 @@ pub struct GridHeader {
     pub corners: [u32; 2],
 }
 
-/// Largest base edge or vertex id a header can hold, `2^21 - 1`.
+/// Largest base edge or vertex id a packed header can hold, `2^21 - 1`.
 pub const MAX_HEADER_ID: u32 = (1 << 21) - 1;
 
 #[inline]
@@ -64,24 +65,81 @@ fn pack21(v: [u32; 3]) -> [u32; 2] {
 }
 
 impl GridHeader {
-    #[cfg(not(target_arch = "spirv"))]
-    pub fn new(edges: [u32; 3], corners: [u32; 3]) -> Self {
-        GridHeader {
-            edges: pack21(edges),
-            corners: pack21(corners),
+    /// The ids of a packed header.
+    #[inline]
+    pub fn ids(&self) -> GridIds {
+        GridIds {
+            edges: [
+                unpack21(self.edges, 0),
+                unpack21(self.edges, 1),
+                unpack21(self.edges, 2),
+            ],
+            corners: [
+                unpack21(self.corners, 0),
+                unpack21(self.corners, 1),
+                unpack21(self.corners, 2),
+            ],
         }
+    }
+}
+
+/// A grid's three base edges (ids into the edge area, which holds the `2^L - 1` vertices of
+/// each base edge once, from its lower to its higher base vertex id) and three corners (base
+/// vertex ids, into the corner area). Edge `e` runs from corner `e` to corner `(e + 1) % 3`;
+/// whether the grid walks it backwards follows from the corner ids, so no flag is stored.
+#[derive(Copy, Clone, Default)]
+#[cfg_attr(not(target_arch = "spirv"), derive(Debug, PartialEq, Eq))]
+pub struct GridIds {
+    pub edges: [u32; 3],
+    pub corners: [u32; 3],
+}
+
+impl GridIds {
+    /// The ids of a wide header, its two elements in order.
+    #[inline]
+    pub fn from_wide(first: GridHeader, second: GridHeader) -> Self {
+        GridIds {
+            edges: [first.edges[0], first.edges[1], first.corners[0]],
+            corners: [first.corners[1], second.edges[0], second.edges[1]],
+        }
+    }
+
+    /// One packed header; every id must fit in 21 bits.
+    #[cfg(not(target_arch = "spirv"))]
+    pub fn pack(&self) -> GridHeader {
+        GridHeader {
+            edges: pack21(self.edges),
+            corners: pack21(self.corners),
+        }
+    }
+
+    /// The two elements of a wide header.
+    #[cfg(not(target_arch = "spirv"))]
+    pub fn pack_wide(&self) -> [GridHeader; 2] {
+        let [e0, e1, e2] = self.edges;
+        let [c0, c1, c2] = self.corners;
+        [
+            GridHeader {
+                edges: [e0, e1],
+                corners: [e2, c0],
+            },
+            GridHeader {
+                edges: [c1, c2],
+                corners: [0, 0],
+            },
+        ]
     }
 
     /// Base vertex id of corner `c`.
     #[inline]
     pub fn corner(&self, c: u32) -> u32 {
-        unpack21(self.corners, c)
+        self.corners[c as usize]
     }
 
     /// Id of base edge `e`.
     #[inline]
     pub fn edge(&self, e: u32) -> u32 {
-        unpack21(self.edges, e)
+        self.edges[e as usize]
     }
 
     /// Whether edge `e` runs against its stored direction (from its higher vertex id).
@@ -154,7 +212,10 @@ pub struct GridParams {
     pub thickness_word: u32,
     /// Whether leaf thicknesses are stored and leaves culled by their footprint.
     pub leaf_footprint: u32,
-    pub _pad: [u32; 2],
+    /// Whether each grid's ids take two wide headers rather than one packed header (see
+    /// [`GridHeader`]).
+    pub wide_headers: u32,
+    pub _pad: u32,
 }
 
 /// Where a split scene's buffers lie among its chunks (see [`crate::buffer`]): buffer `b`

@@ -62,8 +62,8 @@ pub fn build_lean(
         return super::build(base, &sub, options);
     }
     let grids = base.triangles.len();
-    let shape = GridShape::new(grids, edges.owner.len(), levels, options, quantized);
-    let headers = edges.headers(base);
+    let shape = GridShape::new(base, edges.owner.len(), levels, options, quantized);
+    let ids = edges.ids(base);
     let mut buffer = vec![0u32; shape.buffer_words(grids, base.positions.len())];
     let mut per_grid = PerGrid::new(grids, &shape);
     let builder = Builder {
@@ -88,7 +88,7 @@ pub fn build_lean(
     // The base mesh's connectivity is done with: freed before the top-level BVH's build, the
     // build's peak.
     drop(builder);
-    Ok(assemble(&shape, &headers, &per_grid, buffer))
+    Ok(assemble(&shape, &ids, &per_grid, buffer))
 }
 
 /// The first grid using each base vertex, which stores its final position.

@@ -10,7 +10,7 @@ use gridrt_shared::grid_index::{
     edge_vertex_count, grid_size, inner_points, inner_vertex_count, sphere_count, triangle_count, GridSlots, Lattice,
 };
 use gridrt_shared::grid_traverse::MAX_SPHERE_LEVEL;
-use gridrt_shared::layout::{BvhNode, GridHeader, GridParams, MAX_HEADER_ID};
+use gridrt_shared::layout::{BvhNode, GridHeader, GridIds, GridParams, MAX_HEADER_ID};
 use gridrt_shared::quantize;
 use rayon::prelude::*;
 
@@ -55,6 +55,7 @@ impl Default for GridOptions {
 #[derive(Clone, Debug, PartialEq)]
 pub struct GridScene {
     pub nodes: Vec<BvhNode>,
+    /// One packed header per grid, or two wide ones (see `GridParams::wide_headers`).
     pub headers: Vec<GridHeader>,
     /// Words: each grid's inner area (`f32` triples or 16-bit codes), then the edge and corner
     /// areas as `f32` triples (see `gridrt_shared::grid_traverse::GridScene`).
@@ -77,6 +78,21 @@ impl GridScene {
             micro_triangles: &gridrt_shared::grid_index::MICRO_TRIANGLES,
             params: self.params,
         }
+    }
+
+    /// Number of grids (base triangles).
+    pub fn grid_count(&self) -> usize {
+        self.base_triangle.len()
+    }
+
+    /// The same scene with every grid's ids in a wide header, the form a mesh with more than
+    /// `2^21` base edges or vertices gets: for trying that form on small meshes.
+    pub fn with_wide_headers(mut self) -> GridScene {
+        if self.params.wide_headers == 0 {
+            self.headers = self.headers.iter().flat_map(|h| h.ids().pack_wide()).collect();
+            self.params.wide_headers = 1;
+        }
+        self
     }
 
     /// Renders depth `lod` instead of the full depth (no rebuild).
@@ -143,10 +159,14 @@ pub struct GridShape {
     pub quantized_inner: bool,
     /// Words of one grid's inner area.
     pub inner_words: u32,
+    /// Ids stored as plain words, two headers per grid (more than `2^21` base edges or
+    /// vertices), rather than packed in one.
+    pub wide_headers: bool,
 }
 
 impl GridShape {
-    fn new(grids: usize, edges: usize, levels: u32, options: &GridOptions, quantized: bool) -> GridShape {
+    fn new(base: &Mesh, edges: usize, levels: u32, options: &GridOptions, quantized: bool) -> GridShape {
+        let grids = base.triangles.len();
         let inner_count = inner_vertex_count(levels);
         let edge_offset = grids as u32 * inner_count;
         GridShape {
@@ -161,6 +181,7 @@ impl GridShape {
                 true => quantize::inner_words(inner_count),
                 false => 3 * inner_count,
             },
+            wide_headers: needs_wide_headers(edges as u64, base.positions.len() as u64),
         }
     }
 
@@ -170,11 +191,11 @@ impl GridShape {
         grids * self.inner_words as usize + 3 * (self.corner_offset - self.edge_offset) as usize + 3 * corners
     }
 
-    /// Where grid `g` with header `header` finds its vertices, as the GPU resolves it.
+    /// Where grid `g` with ids `ids` finds its vertices, as the GPU resolves it.
     #[inline]
-    fn slots(&self, header: &GridHeader, g: usize) -> GridSlots {
+    fn slots(&self, ids: &GridIds, g: usize) -> GridSlots {
         GridSlots::new(
-            header,
+            ids,
             g as u32,
             grid_size(self.levels),
             inner_vertex_count(self.levels),
@@ -184,12 +205,12 @@ impl GridShape {
     }
 }
 
-/// The grids as subdivision hands them over, in base-triangle order: headers and the three
+/// The grids as subdivision hands them over, in base-triangle order: their ids and the three
 /// vertex areas, but no acceleration structure yet.
 #[derive(Clone, Debug)]
 pub struct GridLayout {
     pub shape: GridShape,
-    pub headers: Vec<GridHeader>,
+    pub ids: Vec<GridIds>,
     /// Inner area (grid after grid), edge area, corner area: every position, decoded.
     pub vertices: Vec<Vec3>,
     /// Each grid's inner area as stored, grid after grid in base-triangle order.
@@ -200,10 +221,10 @@ pub struct GridLayout {
 }
 
 impl GridLayout {
-    /// Where grid `g` finds its vertices, resolved from its header as the GPU resolves it.
+    /// Where grid `g` finds its vertices, resolved from its ids as the GPU resolves them.
     #[inline]
     fn slots(&self, g: usize) -> GridSlots {
-        self.shape.slots(&self.headers[g], g)
+        self.shape.slots(&self.ids[g], g)
     }
 }
 
@@ -237,18 +258,23 @@ impl BaseEdges {
         BaseEdges { of_grid, owner }
     }
 
-    fn headers(&self, base: &Mesh) -> Vec<GridHeader> {
+    fn ids(&self, base: &Mesh) -> Vec<GridIds> {
         self.of_grid
             .iter()
             .zip(&base.triangles)
-            .map(|(&e, &t)| GridHeader::new(e, t))
+            .map(|(&edges, &corners)| GridIds { edges, corners })
             .collect()
     }
 }
 
+/// Whether a mesh's grid ids need wide headers: packed ones hold `2^21` edges and vertices.
+pub fn needs_wide_headers(edges: u64, vertices: u64) -> bool {
+    let packed = MAX_HEADER_ID as u64 + 1;
+    edges > packed || vertices > packed
+}
+
 /// Refuses, with the reason, a mesh whose grids at `levels` the layout cannot address: sphere
-/// and leaf depths, 32-bit primitive ids, 21-bit base vertex and edge ids in the headers, and
-/// vertex words below 2^30. From counts alone, so it can run before the long subdivision.
+/// and leaf depths, 32-bit primitive and header ids, and vertex words below 2^31. From counts alone, so it can run before the long subdivision.
 pub fn check_limits(base: &Mesh, levels: u32, options: &GridOptions, quantized: bool) -> Result<()> {
     check_counts(base, base_edge_count(base), levels, options, quantized)
 }
@@ -276,13 +302,9 @@ fn check_counts(base: &Mesh, edges: u64, levels: u32, options: &GridOptions, qua
             triangle_count(levels)
         );
     }
-    let ids = MAX_HEADER_ID as u64 + 1;
     let vertices = base.positions.len() as u64;
-    if vertices > ids {
-        bail!("{vertices} base vertices are more than a grid header can address ({ids}); use --mode triangles");
-    }
-    if edges > ids {
-        bail!("{edges} base edges are more than a grid header can address ({ids}); use --mode triangles");
+    if vertices.max(edges) > u32::MAX as u64 {
+        bail!("{vertices} base vertices and {edges} base edges overflow 32-bit grid header ids");
     }
     let inner_count = inner_vertex_count(levels) as u64;
     let inner_words = if quantized {
@@ -327,11 +349,10 @@ pub fn layout(base: &Mesh, sub: &Subdivided, options: &GridOptions) -> Result<Gr
     let levels = sub.levels;
     let grids = base.triangles.len();
     let n = grid_size(levels);
-    // Counted against the headers' ids before any header is packed.
     let edges = BaseEdges::new(base);
     let quantized = sub.inner_codes.is_some();
     check_counts(base, edges.owner.len() as u64, levels, options, quantized)?;
-    let shape = GridShape::new(grids, edges.owner.len(), levels, options, quantized);
+    let shape = GridShape::new(base, edges.owner.len(), levels, options, quantized);
 
     let mut vertices: Vec<Vec3> = Vec::with_capacity(shape.corner_offset as usize + base.positions.len());
     for g in 0..grids {
@@ -360,7 +381,7 @@ pub fn layout(base: &Mesh, sub: &Subdivided, options: &GridOptions) -> Result<Gr
     }
     Ok(GridLayout {
         shape,
-        headers: edges.headers(base),
+        ids: edges.ids(base),
         vertices,
         inner_by_grid,
         buffer,
@@ -383,7 +404,7 @@ const GRIDS_PER_TASK: usize = 128;
 /// The layout's vertex buffer moves into the result (its edge and corner areas are final);
 /// the rest of it is left to the caller, so freeing it is not part of the build.
 pub fn build_from_layout(layout: &mut GridLayout) -> GridScene {
-    let grids = layout.headers.len();
+    let grids = layout.ids.len();
     let mut vertices = std::mem::take(&mut layout.buffer);
     let layout = &*layout;
     // One pass over each grid's vertices gives its box, its radii and its leaves' thicknesses.
@@ -399,7 +420,7 @@ pub fn build_from_layout(layout: &mut GridLayout) -> GridScene {
             }
         });
     vertices[..layout.inner_by_grid.len()].copy_from_slice(&layout.inner_by_grid);
-    assemble(&layout.shape, &layout.headers, &per_grid, vertices)
+    assemble(&layout.shape, &layout.ids, &per_grid, vertices)
 }
 
 /// Per grid, in base-triangle order: its box, its spheres' radii and its leaves' thickness
@@ -479,8 +500,8 @@ impl PerGridTask<'_> {
 /// What both builds end with: the top-level BVH over the grids' boxes, then every per-grid
 /// part in its leaf order, so leaves name contiguous ranges and need no indirection.
 /// `vertices` holds the inner areas in base-triangle order, reordered where they lie.
-fn assemble(shape: &GridShape, headers: &[GridHeader], per_grid: &PerGrid, mut vertices: Vec<u32>) -> GridScene {
-    let grids = headers.len();
+fn assemble(shape: &GridShape, ids: &[GridIds], per_grid: &PerGrid, mut vertices: Vec<u32>) -> GridScene {
+    let grids = ids.len();
     let top = bvh::build(&per_grid.boxes, &top_level_params());
     let words = shape.inner_words as usize;
     reorder_records(&mut vertices[..grids * words], words, &top.order);
@@ -488,20 +509,24 @@ fn assemble(shape: &GridShape, headers: &[GridHeader], per_grid: &PerGrid, mut v
     let spheres = per_grid.spheres;
     let leaf_words = per_grid.leaves.div_ceil(4);
     let sphere_words = if shape.half_radii { 0 } else { spheres };
-    let mut leaf_headers = vec![GridHeader::default(); grids];
+    let header_stride = if shape.wide_headers { 2 } else { 1 };
+    let mut leaf_headers = vec![GridHeader::default(); grids * header_stride];
     let mut radii = vec![0u32; grids * (sphere_words + leaf_words)];
     let (radius_area, thickness_area) = radii.split_at_mut(grids * sphere_words);
     let tasks: Vec<_> = top
         .order
         .chunks(GRIDS_PER_TASK)
-        .zip(leaf_headers.chunks_mut(GRIDS_PER_TASK))
+        .zip(leaf_headers.chunks_mut(GRIDS_PER_TASK * header_stride))
         .zip(chunks_or_empty(radius_area, sphere_words))
         .zip(chunks_or_empty(thickness_area, leaf_words))
         .collect();
     tasks.into_par_iter().for_each(|(((order, into), radii), thickness)| {
         for (i, &g) in order.iter().enumerate() {
             let g = g as usize;
-            into[i] = headers[g];
+            match shape.wide_headers {
+                true => into[2 * i..][..2].copy_from_slice(&ids[g].pack_wide()),
+                false => into[i] = ids[g].pack(),
+            }
             for (r, &from) in radii[i * sphere_words..][..sphere_words]
                 .iter_mut()
                 .zip(&per_grid.radii[g * spheres..][..sphere_words])
@@ -555,7 +580,8 @@ fn assemble(shape: &GridShape, headers: &[GridHeader], per_grid: &PerGrid, mut v
             leaf_footprint: shape.leaf_footprint as u32,
             radius_scale,
             thickness_word,
-            _pad: [0; 2],
+            wide_headers: shape.wide_headers as u32,
+            _pad: 0,
         },
         base_triangle: top.order,
     }

@@ -40,7 +40,7 @@ fn every_grid_reads_back_its_vertices() {
             true => quantize::inner_words(g.inner_count),
             false => 3 * g.inner_count,
         };
-        assert_eq!(g.edge_word, scene.headers.len() as u32 * per_grid);
+        assert_eq!(g.edge_word, scene.grid_count() as u32 * per_grid);
         let shared = sub.positions.len() - g.edge_offset as usize;
         assert_eq!(scene.vertices.len(), g.edge_word as usize + 3 * shared, "L={levels}");
     }
@@ -71,7 +71,7 @@ fn spheres_are_conservative() {
         let scene = loop_grids(&mesh, levels, excluded, half_radii);
         let n = grid_size(levels);
         let g = &scene.params;
-        for slot in 0..scene.headers.len() {
+        for slot in 0..scene.grid_count() {
             for level in 0..=g.leaf_level {
                 for index in 0..triangle_count(level) {
                     let c = sub_triangle(n, level, index).map(|p| lattice_vertex(&scene, slot, p));
@@ -107,7 +107,7 @@ fn leaf_thickness_is_conservative() {
         let leaf_level = scene.params.leaf_level;
         let m = (n >> leaf_level) as i32;
         let mut thick = 0;
-        for slot in 0..scene.headers.len() {
+        for slot in 0..scene.grid_count() {
             for leaf in 0..triangle_count(leaf_level) {
                 let lattice = sub_triangle(n, leaf_level, leaf).map(|p| [p[0] as i32, p[1] as i32]);
                 let c = lattice.map(|p| lattice_vertex(&scene, slot, [p[0] as u32, p[1] as u32]));
@@ -191,34 +191,65 @@ impl GridScene {
     }
 }
 
-/// A mesh whose base edges or vertices exceed the headers' 21-bit ids is refused by a
-/// check that needs no subdivision (the layout used to panic on it, after subdividing).
+/// A mesh whose grids the vertex buffer cannot address is refused by a check that needs no
+/// subdivision; one with more base edges than packed headers hold is not refused.
 #[test]
 fn meshes_beyond_grid_addresses_are_refused_up_front() {
-    use gridrt_shared::layout::MAX_HEADER_ID;
-    let strip = |triangles: u32| Mesh {
-        positions: vec![Vec3::ZERO; triangles as usize + 2],
-        triangles: (0..triangles).map(|i| [i, i + 1, i + 2]).collect(),
-    };
     let options = GridOptions::default();
     // A strip of T triangles has 2T + 1 edges and T + 2 vertices.
     let ok = strip(MAX_HEADER_ID / 2 - 1);
     check_limits(&ok, 3, &options, true).unwrap();
-    let e = check_limits(&strip(MAX_HEADER_ID / 2 + 1), 3, &options, true)
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("base edges are more than a grid header can address"), "{e}");
+    check_limits(&strip(MAX_HEADER_ID / 2 + 1), 3, &options, true).unwrap();
     // Vertex words: 16-bit inner codes take the buffer past its addresses at L = 6 only.
     check_limits(&ok, 5, &options, true).unwrap();
     let e = check_limits(&ok, 6, &options, true).unwrap_err().to_string();
     assert!(e.contains("more than a grid scene can address"), "{e}");
-    let mut many_vertices = ok;
-    many_vertices.positions.resize(MAX_HEADER_ID as usize + 2, Vec3::ZERO);
-    let e = check_limits(&many_vertices, 3, &options, true).unwrap_err().to_string();
-    assert!(
-        e.contains("base vertices are more than a grid header can address"),
-        "{e}"
-    );
+}
+
+/// A zigzag strip of `triangles` triangles in the plane z = 0.
+fn strip(triangles: u32) -> Mesh {
+    Mesh {
+        positions: (0..triangles + 2)
+            .map(|i| Vec3::new(i as f32 * 0.5, (i % 2) as f32, 0.0))
+            .collect(),
+        triangles: (0..triangles)
+            .map(|i| if i % 2 == 0 { [i, i + 1, i + 2] } else { [i + 1, i, i + 2] })
+            .collect(),
+    }
+}
+
+/// Packed headers hold ids below 2^21: a mesh with more base edges or vertices gets wide
+/// headers, and its grids still find their own corners and edges.
+#[test]
+fn meshes_past_packed_ids_get_wide_headers() {
+    let packed = MAX_HEADER_ID as u64 + 1;
+    assert!(!needs_wide_headers(packed, packed));
+    assert!(needs_wide_headers(packed + 1, 3));
+    assert!(needs_wide_headers(3, packed + 1));
+    let small = build_lean(&strip(1000), 1, Scheme::Flat, &GridOptions::default(), true).unwrap();
+    assert_eq!(small.params.wide_headers, 0);
+    assert_eq!(small.headers.len(), small.grid_count());
+    // 2^21 + 3 edges.
+    let base = strip(MAX_HEADER_ID / 2 + 1);
+    let scene = build_lean(&base, 1, Scheme::Flat, &GridOptions::default(), true).unwrap();
+    assert_eq!(scene.params.wide_headers, 1);
+    assert_eq!(scene.headers.len(), 2 * scene.grid_count());
+    let view = scene.view();
+    let edges = BaseEdges::new(&base);
+    let mut highest_edge = 0;
+    for slot in 0..scene.grid_count() {
+        let t = scene.base_triangle[slot] as usize;
+        let ids = view.ids(slot as u32);
+        assert_eq!(ids.corners, base.triangles[t]);
+        assert_eq!(ids.edges, edges.of_grid[t]);
+        highest_edge = highest_edge.max(ids.edges.into_iter().max().unwrap());
+        // The midpoint of edge 0, read through the ids, lies between its corners.
+        let open = view.open(slot as u32);
+        let mid = view.vertex(&open, [1, 0]);
+        let [a, b, _] = base.triangles[t].map(|v| base.positions[v as usize]);
+        assert!(mid.distance(a.lerp(b, 0.5)) < 1e-3, "grid {slot}: {mid} between {a} and {b}");
+    }
+    assert!(highest_edge > MAX_HEADER_ID);
 }
 
 /// The lean build (each grid subdivided on its own, written straight into place) gives
