@@ -68,6 +68,17 @@ struct Plan {
     options: GridOptions,
 }
 
+impl Plan {
+    fn grid_build(&self) -> grid::GridBuild {
+        grid::GridBuild {
+            levels: self.levels,
+            scheme: self.scheme,
+            options: self.options,
+            quantized: self.quantized,
+        }
+    }
+}
+
 fn decode(data: &[u8]) -> (Plan, Mesh, Bytes<'_>) {
     let mut b = Bytes(data);
     let flags = b.u8();
@@ -120,8 +131,8 @@ pub fn run_pipeline(data: &[u8]) {
         Err(e) => return assert_one_line(&e),
     };
     // The lean build, as `render` runs it, gives the same scene bit for bit.
-    let lean = grid::build_lean(&mesh, plan.levels, plan.scheme, &plan.options, plan.quantized)
-        .expect("the lean build refuses what the whole-mesh build takes");
+    let lean =
+        grid::build_lean(&mesh, &plan.grid_build()).expect("the lean build refuses what the whole-mesh build takes");
     assert!(lean == grids, "the lean build differs from the whole-mesh build");
     grids.set_lod(plan.lod).expect("lod within levels");
     let grids = Scene::Grids(grids);

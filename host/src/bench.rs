@@ -93,7 +93,7 @@ fn agreement(a: &Scene, ha: &[HitRecord], b: &Scene, hb: &[HitRecord]) -> f64 {
     same as f64 / ha.len().max(1) as f64
 }
 
-pub fn run(args: &BenchArgs) -> Result<()> {
+pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
     if args.meshes.is_empty() {
         bail!("name at least one mesh to benchmark");
     }
@@ -113,7 +113,10 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     let (backend, device_name, timing) = (device.kind(), device.describe(), device.timing().to_string());
     // Per mesh: load+subdivide, stats, rays, then 4 timed runs.
     let steps = 7;
-    let bar = ProgressBar::new((args.meshes.len() * steps) as u64);
+    let bar = match quiet {
+        true => ProgressBar::hidden(),
+        false => ProgressBar::new((args.meshes.len() * steps) as u64),
+    };
     bar.set_style(ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}").unwrap());
     let mut results = Vec::new();
     for (name, mesh) in &meshes {

@@ -1,7 +1,6 @@
 //! The `gridrt` command line: argument definitions and the commands behind them.
 
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 use anyhow::{anyhow, bail, Result};
 use clap::{Parser, Subcommand, ValueEnum};
@@ -10,6 +9,7 @@ use gridrt_shared::layout::{SHADE_EYE_LIGHT, SHADE_NORMAL, SHADE_PRIMITIVE};
 use crate::device::{Device, DeviceChoice};
 use crate::mesh::frame::LocalFrame;
 use crate::mesh::{self, Mesh};
+use crate::progress::Stages;
 use crate::rays::RayOrder;
 use crate::scene::Scene;
 use crate::subdiv::{self, Scheme, Subdivided};
@@ -24,6 +24,9 @@ use crate::{bench, camera, grid, image_io, limits, stats, triangles};
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
+    /// Print nothing but warnings and errors: no progress, sizes or timings.
+    #[arg(long, short, global = true)]
+    pub quiet: bool,
 }
 
 #[derive(Subcommand, Debug)]
@@ -98,6 +101,16 @@ impl BuildArgs {
     pub fn check_grid_limits(&self, name: &str, mesh: &Mesh) -> Result<()> {
         let quantized = self.inner_vertices == InnerVertices::Quantized;
         grid::check_limits(mesh, self.levels, &self.grid_options(), quantized).map_err(|e| anyhow!("{name}: {e}"))
+    }
+
+    /// The grid build these arguments ask for.
+    pub fn grid_build(&self) -> grid::GridBuild {
+        grid::GridBuild {
+            levels: self.levels,
+            scheme: self.subdivision.scheme(),
+            options: self.grid_options(),
+            quantized: self.inner_vertices == InnerVertices::Quantized,
+        }
     }
 
     pub fn grid_options(&self) -> grid::GridOptions {
@@ -207,11 +220,12 @@ fn at_least_one() -> clap::builder::RangedU64ValueParser<usize> {
 }
 
 pub fn run(cli: Cli) -> Result<()> {
+    let mut stages = Stages::new(cli.quiet);
     match cli.command {
-        Command::Render(args) => render(&args),
-        Command::Stats(args) => stats::run(&args),
-        Command::Bench(args) => bench::run(&args),
-        Command::Export(args) => export(&args),
+        Command::Render(args) => render(&args, &mut stages),
+        Command::Stats(args) => stats::run(&args, cli.quiet),
+        Command::Bench(args) => bench::run(&args, cli.quiet),
+        Command::Export(args) => export(&args, &mut stages),
     }
 }
 
@@ -248,30 +262,31 @@ pub fn subdivide(mesh: &Mesh, build: &BuildArgs) -> Subdivided {
     sub
 }
 
-fn render(args: &RenderArgs) -> Result<()> {
+fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
     let lod = args.lod.unwrap_or(args.build.levels);
     if lod > args.build.levels {
         bail!("--lod {lod} is deeper than --levels {}", args.build.levels);
     }
     image_io::check_png_path(&args.output)?;
-    let (name, mesh) = load(args.mesh.as_deref())?;
+    let (name, mesh) = stages.run("load", || load(args.mesh.as_deref()))?;
     check_render_memory(&name, &mesh, args)?;
     if args.mode == Mode::Grid {
         args.build.check_grid_limits(&name, &mesh)?;
     }
-    let device = Device::open(args.backend, "rendering")?;
-    let started = Instant::now();
+    let device = stages.run("device", || Device::open(args.backend, "rendering"))?;
     let scene = match args.mode {
         Mode::Grid => {
-            let b = &args.build;
-            let quantized = b.inner_vertices == InnerVertices::Quantized;
-            let mut g = grid::build_lean(&mesh, b.levels, b.subdivision.scheme(), &b.grid_options(), quantized)?;
+            let grids = mesh.triangles.len() as u64;
+            let mut g = stages.run_counted("build", grids, |bar| {
+                grid::build_lean_reporting(&mesh, &args.build.grid_build(), &|n| bar.inc(n as u64))
+            })?;
             g.set_lod(lod)?;
             Scene::Grids(g)
         }
         Mode::Triangles => {
-            let sub = subdivide(&mesh, &args.build);
-            Scene::Triangles(triangles::build(&sub.positions, &sub.micro_triangles(lod)))
+            let sub = stages.run("subdivide", || subdivide(&mesh, &args.build));
+            let triangles = sub.micro_triangles(lod);
+            Scene::Triangles(stages.run("build", || triangles::build(&sub.positions, &triangles)))
         }
     };
     let micro = limits::micro_triangles(mesh.triangles.len(), lod);
@@ -280,14 +295,12 @@ fn render(args: &RenderArgs) -> Result<()> {
         Scene::Grids(_) => limits::micro_triangles(mesh.triangles.len(), args.build.levels),
         Scene::Triangles(_) => micro,
     };
-    eprintln!(
-        "{name}: {} base triangles, {micro} micro-triangles at depth {lod}, built in {:.2} s ({}, {:.2} B per \
-         micro-triangle)",
+    stages.say(format!(
+        "{name}: {} base triangles, {micro} micro-triangles at depth {lod}, {} ({:.2} B per micro-triangle)",
         mesh.triangles.len(),
-        started.elapsed().as_secs_f64(),
         limits::human(scene.memory() as u64),
         scene.memory() as f64 / stored as f64
-    );
+    ));
     let bounds = scene.bounds();
     let shading = match args.shading {
         Shading::Eye => SHADE_EYE_LIGHT,
@@ -295,24 +308,25 @@ fn render(args: &RenderArgs) -> Result<()> {
         Shading::Primitive => SHADE_PRIMITIVE,
     };
     let frame = scene.frame(camera::frame(&bounds, args.width, args.height), shading);
-    let started = Instant::now();
-    let pixels = device.render(&scene, &frame)?;
-    image_io::write_png(&args.output, &pixels, args.width, args.height)?;
-    eprintln!(
-        "rendered {}x{} on {} in {:.3} s -> {}",
+    let pixels = stages.run("render", || device.render(&scene, &frame))?;
+    stages.run("write", || {
+        image_io::write_png(&args.output, &pixels, args.width, args.height)
+    })?;
+    stages.say(format!(
+        "rendered {}x{} on {} -> {}",
         args.width,
         args.height,
         device.describe(),
-        started.elapsed().as_secs_f64(),
         args.output.display()
-    );
+    ));
+    stages.report();
     Ok(())
 }
 
 /// Subdivides a mesh and writes the micro-mesh, in the input's units, as binary PLY.
-fn export(args: &ExportArgs) -> Result<()> {
+fn export(args: &ExportArgs, stages: &mut Stages) -> Result<()> {
     image_io::check_output(&args.output, "ply")?;
-    let (name, mesh, frame) = load_in_frame(args.mesh.as_deref())?;
+    let (name, mesh, frame) = stages.run("load", || load_in_frame(args.mesh.as_deref()))?;
     limits::check_build(
         &format!("subdividing {name}"),
         mesh.triangles.len(),
@@ -321,19 +335,22 @@ fn export(args: &ExportArgs) -> Result<()> {
         0,
         "use fewer --levels",
     )?;
-    let started = Instant::now();
-    let sub = subdiv::subdivide(&mesh, args.levels, args.subdivision.scheme());
-    let positions: Vec<_> = sub.positions.iter().map(|&p| frame.to_world(p).as_vec3()).collect();
+    let sub = stages.run("subdivide", || {
+        subdiv::subdivide(&mesh, args.levels, args.subdivision.scheme())
+    });
     let triangles = sub.micro_triangles(args.levels);
-    mesh::ply::write_ply(&args.output, &positions, &triangles)?;
-    eprintln!(
-        "{name}: {} micro-triangles, {} vertices at --levels {} -> {} in {:.2} s",
+    stages.run("write", || {
+        let positions: Vec<_> = sub.positions.iter().map(|&p| frame.to_world(p).as_vec3()).collect();
+        mesh::ply::write_ply(&args.output, &positions, &triangles)
+    })?;
+    stages.say(format!(
+        "{name}: {} micro-triangles, {} vertices at --levels {} -> {}",
         triangles.len(),
-        positions.len(),
+        sub.positions.len(),
         args.levels,
-        args.output.display(),
-        started.elapsed().as_secs_f64()
-    );
+        args.output.display()
+    ));
+    stages.report();
     Ok(())
 }
 

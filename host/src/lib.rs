@@ -17,6 +17,7 @@ pub mod grid;
 pub mod image_io;
 pub mod limits;
 pub mod mesh;
+pub mod progress;
 pub mod quantize;
 pub mod rays;
 pub mod scene;

@@ -145,16 +145,20 @@ pub fn check_work(name: &str, mesh: &Mesh, build: &BuildArgs, extra: u64) -> Res
     )
 }
 
-/// A spinner on stderr naming the current step (hidden when stderr is not a terminal).
-pub fn spinner() -> ProgressBar {
+/// A spinner on stderr naming the current step (hidden when stderr is not a terminal, or
+/// when `quiet`).
+pub fn spinner(quiet: bool) -> ProgressBar {
+    if quiet {
+        return ProgressBar::hidden();
+    }
     let bar = ProgressBar::new_spinner();
     bar.set_style(ProgressStyle::with_template("{spinner} {elapsed} {msg}").expect("valid template"));
     bar.enable_steady_tick(std::time::Duration::from_millis(200));
     bar
 }
 
-pub fn run(args: &StatsArgs) -> Result<()> {
-    let bar = spinner();
+pub fn run(args: &StatsArgs, quiet: bool) -> Result<()> {
+    let bar = spinner(quiet);
     bar.set_message("loading");
     let (name, mesh) = cli::load(args.mesh.as_deref())?;
     check_work(&name, &mesh, &args.build, 0)?;

@@ -14,7 +14,7 @@
 
 use crate::layout::GridIds;
 #[cfg(test)]
-use crate::layout::{GridHeader, MAX_HEADER_ID};
+use crate::layout::MAX_HEADER_ID;
 
 /// A lattice point `(i, j)` of a grid.
 pub type Lattice = [u32; 2];
@@ -247,14 +247,7 @@ impl GridSlots {
     /// `inner_first`, the first vertex of the edge area at `edge_first`, the first of the
     /// corner area at `corner_first`.
     #[inline]
-    pub fn addressed(
-        ids: &GridIds,
-        n: u32,
-        inner_first: u32,
-        edge_first: u32,
-        corner_first: u32,
-        stride: u32,
-    ) -> Self {
+    pub fn addressed(ids: &GridIds, n: u32, inner_first: u32, edge_first: u32, corner_first: u32, stride: u32) -> Self {
         let edge = |e: u32| {
             let base = edge_first + ids.edge(e) * (n - 1) * stride;
             if ids.edge_reversed(e) {

@@ -9,7 +9,9 @@ use crate::grid_index::{
     lattice_index, level_start, micro_cell_offset, sub_triangle, triangle_count, vertex_count, GridSlots, Lattice,
     MAX_LEAF_DEPTH,
 };
-use crate::layout::{BvhNode, GridHeader, GridIds, GridParams, Hit, SplitParams, GRID_HEADERS, GRID_RADII, GRID_VERTICES};
+use crate::layout::{
+    BvhNode, GridHeader, GridIds, GridParams, Hit, SplitParams, GRID_HEADERS, GRID_RADII, GRID_VERTICES,
+};
 use crate::quantize::{dequantize, read_half, read_half_triple, unit_from_exponent};
 use crate::ray::{Ray, T_FAR};
 use crate::sphere::{decode_radius, intersect_sphere_scaled};

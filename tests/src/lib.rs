@@ -103,7 +103,16 @@ pub fn build_pair_from(
     }
     // The grids as the CLI builds them, each subdivided on its own; the baseline from the
     // whole subdivided mesh.
-    let mut g = grid::build_lean(mesh, levels, scheme, options, quantized).expect("grid build");
+    let mut g = grid::build_lean(
+        mesh,
+        &grid::GridBuild {
+            levels,
+            scheme,
+            options: *options,
+            quantized,
+        },
+    )
+    .expect("grid build");
     g.set_lod(lod).unwrap();
     let t = triangles::build(&sub.positions, &sub.micro_triangles(lod));
     let bounds = Aabb::from_points(sub.positions.iter().copied());

@@ -66,6 +66,55 @@ fn renders_the_default_scene() {
     }
 }
 
+/// A render says what it built and how long each stage took; `--quiet` says nothing.
+#[test]
+fn render_reports_its_stages_unless_quiet() {
+    let dir = scratch("stages");
+    let out = dir.join("stages.png");
+    let out = out.to_str().unwrap();
+    let o = gridrt(&[
+        "render",
+        "--backend",
+        "cpu",
+        "--width",
+        "32",
+        "--height",
+        "24",
+        "-o",
+        out,
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let err = stderr(&o);
+    assert!(err.contains("B per micro-triangle"), "{err}");
+    let timings = err.lines().last().unwrap_or_default();
+    for stage in ["load ", "build ", "render ", "write ", "total "] {
+        assert!(timings.contains(stage), "no {stage:?} time in {err:?}");
+    }
+    let ply = dir.join("quiet.ply");
+    for mut args in [
+        vec![
+            "render",
+            "--quiet",
+            "--backend",
+            "cpu",
+            "--width",
+            "32",
+            "--height",
+            "24",
+            "-o",
+            out,
+        ],
+        vec!["export", "-q", "--levels", "1", "-o"],
+    ] {
+        if args[0] == "export" {
+            args.push(ply.to_str().unwrap());
+        }
+        let o = gridrt(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert_eq!(stderr(&o), "", "gridrt {args:?} was not quiet");
+    }
+}
+
 #[test]
 fn renders_a_mesh_file() {
     let Some(meshes) = meshes_dir() else {
@@ -232,7 +281,10 @@ fn fails_with(args: &[&str], env: &[(&str, &str)], needles: &[&str]) -> String {
         );
     }
     // Refused before any work: nothing was built.
-    assert!(!err.contains("built in"), "gridrt {args:?} built before failing: {err}");
+    assert!(
+        !err.contains("B per micro-triangle"),
+        "gridrt {args:?} built before failing: {err}"
+    );
     err
 }
 

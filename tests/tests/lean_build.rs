@@ -1,7 +1,7 @@
 //! The lean grid build on real meshes: each grid subdivided on its own from its base
 //! neighbourhood gives exactly the scene of subdividing the whole mesh first.
 
-use gridrt::grid::{build, build_lean, lean_build_applies, GridOptions};
+use gridrt::grid::{build, build_lean, lean_build_applies, GridBuild, GridOptions};
 use gridrt::mesh::load_mesh_quiet;
 use gridrt::subdiv::{subdivide, Scheme};
 use gridrt_tests::meshes_dir;
@@ -21,7 +21,14 @@ fn the_lean_build_equals_the_whole_mesh_build_on_the_shared_meshes() {
         let mut sub = subdivide(&mesh, levels, Scheme::Loop);
         sub.quantize_inner();
         let whole = build(&mesh, &sub, &options).unwrap();
-        let lean = build_lean(&mesh, levels, Scheme::Loop, &options, true).unwrap();
+        let lean = build_lean(
+            &mesh,
+            &GridBuild {
+                options,
+                ..GridBuild::new(levels)
+            },
+        )
+        .unwrap();
         assert!(lean == whole, "{file}: the lean build differs");
     }
 }

@@ -41,16 +41,46 @@ fn patches_fit(vertex_faces: &VertexFaces, base: &Mesh) -> bool {
     vertex_faces.patch_faces() <= MAX_PATCH_FACES_PER_TRIANGLE * base.triangles.len() as u64
 }
 
-/// `base` subdivided `levels` times with `scheme` and built as grids, inner vertices
-/// `quantized` or not: the same scene as subdividing the whole mesh and calling
-/// [`super::build`], in a fraction of the memory.
-pub fn build_lean(
-    base: &Mesh,
-    levels: u32,
-    scheme: Scheme,
-    options: &GridOptions,
-    quantized: bool,
-) -> Result<GridScene> {
+/// What to build from a base mesh: depth, subdivision scheme, grid options and the inner
+/// vertices' form.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub struct GridBuild {
+    /// Subdivision depth `L`: each base triangle becomes a grid of `4^L` micro-triangles.
+    pub levels: u32,
+    pub scheme: Scheme,
+    pub options: GridOptions,
+    /// Inner vertices as 16-bit codes (`gridrt_shared::quantize`) rather than `f32` triples.
+    pub quantized: bool,
+}
+
+impl GridBuild {
+    /// Loop subdivision to depth `levels`, default options, quantized inner vertices.
+    pub fn new(levels: u32) -> Self {
+        GridBuild {
+            levels,
+            scheme: Scheme::Loop,
+            options: GridOptions::default(),
+            quantized: true,
+        }
+    }
+}
+
+/// `base` subdivided and built as grids: the same scene as subdividing the whole mesh and
+/// calling [`super::build`], in a fraction of the memory.
+pub fn build_lean(base: &Mesh, build: &GridBuild) -> Result<GridScene> {
+    build_lean_reporting(base, build, &|_| {})
+}
+
+/// [`build_lean`], calling `progress(grids)` (from any thread) as each run of grids is
+/// written; the top-level BVH is built after the last.
+pub fn build_lean_reporting(base: &Mesh, build: &GridBuild, progress: &(dyn Fn(usize) + Sync)) -> Result<GridScene> {
+    let GridBuild {
+        levels,
+        scheme,
+        options,
+        quantized,
+    } = *build;
+    let options = &options;
     let edges = BaseEdges::new(base);
     check_counts(base, edges.owner.len() as u64, levels, options, quantized)?;
     let vertex_faces = VertexFaces::new(base);
@@ -75,7 +105,7 @@ pub fn build_lean(
         scheme,
         table: SphereTable::new(levels, shape.leaf_level),
     };
-    let corners = builder.write_grids(&mut buffer, &mut per_grid);
+    let corners = builder.write_grids(&mut buffer, &mut per_grid, progress);
     // Base vertices no triangle uses keep their place; the others were moved by subdivision.
     let corner_start = grids * shape.inner_words as usize + 3 * (shape.corner_offset - shape.edge_offset) as usize;
     let corner_area = &mut buffer[corner_start..];
@@ -135,7 +165,12 @@ impl Builder<'_> {
     /// Subdivides and writes every grid: inner areas (base-triangle order) and edge areas into
     /// `buffer`, boxes and radii into `per_grid`. Returns the corners each task owns, as
     /// `(base vertex, position)`.
-    fn write_grids(&self, buffer: &mut [u32], per_grid: &mut PerGrid) -> Vec<Vec<(u32, Vec3)>> {
+    fn write_grids(
+        &self,
+        buffer: &mut [u32],
+        per_grid: &mut PerGrid,
+        progress: &(dyn Fn(usize) + Sync),
+    ) -> Vec<Vec<(u32, Vec3)>> {
         let shape = &self.shape;
         let grids = self.base.triangles.len();
         let words = shape.inner_words as usize;
@@ -158,7 +193,12 @@ impl Builder<'_> {
         }
         tasks
             .into_par_iter()
-            .map_init(Scratch::default, |scratch, task| self.write_task(task, scratch))
+            .map_init(Scratch::default, |scratch, task| {
+                let grids = task.per_grid.grids.len();
+                let corners = self.write_task(task, scratch);
+                progress(grids);
+                corners
+            })
             .collect()
     }
 

@@ -22,7 +22,7 @@ mod spheres;
 mod tests;
 use crate::mesh::Mesh;
 use crate::subdiv::Subdivided;
-pub use lean::{build_lean, lean_build_applies};
+pub use lean::{build_lean, build_lean_reporting, lean_build_applies, GridBuild};
 pub use spheres::encode_radius;
 use spheres::{grid_bounds_and_radii, radius_scale, SphereTable};
 

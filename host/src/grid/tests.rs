@@ -213,7 +213,13 @@ fn strip(triangles: u32) -> Mesh {
             .map(|i| Vec3::new(i as f32 * 0.5, (i % 2) as f32, 0.0))
             .collect(),
         triangles: (0..triangles)
-            .map(|i| if i % 2 == 0 { [i, i + 1, i + 2] } else { [i + 1, i, i + 2] })
+            .map(|i| {
+                if i % 2 == 0 {
+                    [i, i + 1, i + 2]
+                } else {
+                    [i + 1, i, i + 2]
+                }
+            })
             .collect(),
     }
 }
@@ -226,12 +232,16 @@ fn meshes_past_packed_ids_get_wide_headers() {
     assert!(!needs_wide_headers(packed, packed));
     assert!(needs_wide_headers(packed + 1, 3));
     assert!(needs_wide_headers(3, packed + 1));
-    let small = build_lean(&strip(1000), 1, Scheme::Flat, &GridOptions::default(), true).unwrap();
+    let flat = GridBuild {
+        scheme: Scheme::Flat,
+        ..GridBuild::new(1)
+    };
+    let small = build_lean(&strip(1000), &flat).unwrap();
     assert_eq!(small.params.wide_headers, 0);
     assert_eq!(small.headers.len(), small.grid_count());
     // 2^21 + 3 edges.
     let base = strip(MAX_HEADER_ID / 2 + 1);
-    let scene = build_lean(&base, 1, Scheme::Flat, &GridOptions::default(), true).unwrap();
+    let scene = build_lean(&base, &flat).unwrap();
     assert_eq!(scene.params.wide_headers, 1);
     assert_eq!(scene.headers.len(), 2 * scene.grid_count());
     let view = scene.view();
@@ -247,7 +257,10 @@ fn meshes_past_packed_ids_get_wide_headers() {
         let open = view.open(slot as u32);
         let mid = view.vertex(&open, [1, 0]);
         let [a, b, _] = base.triangles[t].map(|v| base.positions[v as usize]);
-        assert!(mid.distance(a.lerp(b, 0.5)) < 1e-3, "grid {slot}: {mid} between {a} and {b}");
+        assert!(
+            mid.distance(a.lerp(b, 0.5)) < 1e-3,
+            "grid {slot}: {mid} between {a} and {b}"
+        );
     }
     assert!(highest_edge > MAX_HEADER_ID);
 }
@@ -292,7 +305,16 @@ fn the_lean_build_equals_the_whole_mesh_build() {
                     sub.quantize_inner();
                 }
                 let whole = build(&mesh, &sub, &options).unwrap();
-                let lean = build_lean(&mesh, levels, scheme, &options, quantized).unwrap();
+                let lean = build_lean(
+                    &mesh,
+                    &GridBuild {
+                        levels,
+                        scheme,
+                        options,
+                        quantized,
+                    },
+                )
+                .unwrap();
                 assert!(lean == whole, "{name} L={levels} {scheme:?} quantized={quantized}");
             }
         }
