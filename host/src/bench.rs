@@ -3,7 +3,7 @@
 
 use std::fmt::Write as _;
 
-use anyhow::{bail, Result};
+use anyhow::{anyhow, bail, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
@@ -13,6 +13,7 @@ use crate::device::Device;
 use crate::rays::{ao_rays, primary_rays, reorder, trace_cpu, RayOrder};
 use crate::scene::Scene;
 use crate::stats::{self, Stats};
+use crate::{limits, triangles};
 use gridrt_shared::layout::{HitRecord, RayRecord};
 
 #[derive(Serialize, Debug, Clone, Copy, Default)]
@@ -110,6 +111,13 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
         stats::check_work(name, mesh, &args.build, ray_bytes)?;
     }
     let device = Device::open(args.backend, "benchmarking")?;
+    for (name, mesh) in &meshes {
+        let micro = limits::micro_triangles(mesh.triangles.len(), args.build.levels);
+        let baseline = triangles::least_buffer_sizes(mesh.positions.len() as u64, micro);
+        for sizes in [args.build.check_grid_limits(name, mesh)?, baseline] {
+            device.check_fits(&sizes).map_err(|e| anyhow!("{name}: {e}"))?;
+        }
+    }
     let (backend, device_name, timing) = (device.kind(), device.describe(), device.timing().to_string());
     // Per mesh: load+subdivide, stats, rays, then 4 timed runs.
     let steps = 7;

@@ -97,10 +97,10 @@ pub enum InnerVertices {
 }
 
 impl BuildArgs {
-    /// Refuses, before subdividing, a mesh whose grids could not be addressed at these levels.
-    pub fn check_grid_limits(&self, name: &str, mesh: &Mesh) -> Result<()> {
-        let quantized = self.inner_vertices == InnerVertices::Quantized;
-        grid::check_limits(mesh, self.levels, &self.grid_options(), quantized).map_err(|e| anyhow!("{name}: {e}"))
+    /// Refuses, before subdividing, a mesh whose grids could not be addressed at these levels;
+    /// returns the sizes their buffers will have (see `grid::check_limits`).
+    pub fn check_grid_limits(&self, name: &str, mesh: &Mesh) -> Result<Vec<limits::BufferSize>> {
+        grid::check_limits(mesh, &self.grid_build()).map_err(|e| anyhow!("{name}: {e}"))
     }
 
     /// The grid build these arguments ask for.
@@ -270,10 +270,15 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
     image_io::check_png_path(&args.output)?;
     let (name, mesh) = stages.run("load", || load(args.mesh.as_deref()))?;
     check_render_memory(&name, &mesh, args)?;
-    if args.mode == Mode::Grid {
-        args.build.check_grid_limits(&name, &mesh)?;
-    }
+    let sizes = match args.mode {
+        Mode::Grid => args.build.check_grid_limits(&name, &mesh)?,
+        Mode::Triangles => triangles::least_buffer_sizes(
+            mesh.positions.len() as u64,
+            limits::micro_triangles(mesh.triangles.len(), lod),
+        ),
+    };
     let device = stages.run("device", || Device::open(args.backend, "rendering"))?;
+    device.check_fits(&sizes).map_err(|e| anyhow!("{name}: {e}"))?;
     let scene = match args.mode {
         Mode::Grid => {
             let grids = mesh.triangles.len() as u64;

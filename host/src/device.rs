@@ -9,6 +9,7 @@ use gridrt_shared::layout::{FrameParams, HitRecord, RayRecord};
 
 #[cfg(feature = "gpu")]
 use crate::gpu::{Gpu, NoAdapter, Timing};
+use crate::limits::BufferSize;
 use crate::rays::trace_cpu;
 use crate::scene::{render_cpu, Scene};
 
@@ -81,6 +82,19 @@ impl Device {
                 Timing::Timestamps => "GPU timestamp queries",
                 Timing::FenceToFence => "fence to fence (no timestamp queries on this adapter)",
             },
+        }
+    }
+
+    /// Refuses, before it is built, a scene whose buffers will be at least `sizes` and cannot
+    /// be bound on this device (the CPU takes any).
+    pub fn check_fits(&self, sizes: &[BufferSize]) -> Result<()> {
+        match self {
+            Device::Cpu => {
+                let _ = sizes;
+                Ok(())
+            }
+            #[cfg(feature = "gpu")]
+            Device::Gpu(gpu) => gpu.check_fits(sizes),
         }
     }
 

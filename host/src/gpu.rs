@@ -12,8 +12,9 @@ use gridrt_shared::layout::{
 use wgpu::util::DeviceExt;
 
 use crate::limits::parse_bytes;
+use crate::limits::BufferSize;
 use crate::scene::Scene;
-use crate::split::{chunk_words, scene_buffers, split};
+use crate::split::{check_chunks, chunk_words, scene_buffers, split};
 
 /// The SPIR-V module of the `kernel` crate.
 pub const KERNEL_SPV: &[u8] = include_bytes!(env!("kernel.spv"));
@@ -259,6 +260,16 @@ impl Gpu {
             make(wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC),
             make(wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST),
         )
+    }
+
+    /// Refuses, before it is built, a scene whose buffers will be at least `sizes` and cannot
+    /// be bound on this adapter: the check [`Gpu::upload`] makes on the built scene.
+    pub fn check_fits(&self, sizes: &[BufferSize]) -> Result<()> {
+        if sizes.iter().all(|b| b.bytes <= self.binding_limit) {
+            return Ok(());
+        }
+        self.check_split_bindings()?;
+        check_chunks(sizes, chunk_words(self.binding_limit), &self.describe_limits())
     }
 
     /// Uploads a scene's geometry: each buffer in one binding when every one fits, otherwise

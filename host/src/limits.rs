@@ -4,6 +4,15 @@
 
 use anyhow::{bail, Result};
 
+/// A scene buffer's name and size in bytes, possibly before it exists.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BufferSize {
+    pub name: &'static str,
+    pub bytes: u64,
+    /// The size is a lower bound (known before the build only roughly).
+    pub at_least: bool,
+}
+
 /// Peak host bytes per micro-triangle of subdividing the whole mesh and building each
 /// representation from it, measured (peak resident size over micro-triangles at several
 /// depths, see docs/RESULTS.md "Peak host memory") and rounded up.

@@ -8,6 +8,7 @@ use anyhow::{bail, Result};
 use gridrt_shared::buffer::SPLIT_CHUNKS;
 use gridrt_shared::layout::SplitParams;
 
+use crate::limits::BufferSize;
 use crate::scene::Scene;
 
 /// One of a scene's large buffers, as words.
@@ -43,6 +44,36 @@ pub fn scene_buffers(scene: &Scene) -> Vec<SceneBuffer<'_>> {
     }
 }
 
+/// Chunks of `chunk_words` words the buffers take (one at least each, so that every buffer
+/// has a binding).
+pub fn chunks_needed(sizes: &[BufferSize], chunk_words: u32) -> u64 {
+    sizes
+        .iter()
+        .map(|b| b.bytes.div_ceil(4).div_ceil(chunk_words as u64).max(1))
+        .sum()
+}
+
+/// Refuses buffers that need more than [`SPLIT_CHUNKS`] chunks of `chunk_words` words, naming
+/// each buffer and its size; `device` names where the chunk size comes from.
+pub fn check_chunks(sizes: &[BufferSize], chunk_words: u32, device: &str) -> Result<()> {
+    let needed = chunks_needed(sizes, chunk_words);
+    if needed <= SPLIT_CHUNKS as u64 {
+        return Ok(());
+    }
+    let least = |yes: bool| if yes { "at least " } else { "" };
+    let at_least = least(sizes.iter().any(|b| b.at_least));
+    let sizes: Vec<String> = sizes
+        .iter()
+        .map(|b| format!("{} {}{} bytes", b.name, least(b.at_least), b.bytes))
+        .collect();
+    bail!(
+        "the scene's buffers ({}) need {at_least}{needed} bindings of {} bytes, more than the {SPLIT_CHUNKS} that \
+         gridrt binds on {device}; use fewer levels or --backend cpu",
+        sizes.join(", "),
+        chunk_words as u64 * 4,
+    );
+}
+
 /// A scene's buffers in chunks.
 pub struct SplitScene<'a> {
     pub params: SplitParams,
@@ -64,6 +95,15 @@ pub fn split<'a>(scene: &'a Scene, chunk_words: u32, device: &str) -> Result<Spl
         "chunks of {chunk_words} words"
     );
     let buffers = scene_buffers(scene);
+    let sizes: Vec<BufferSize> = buffers
+        .iter()
+        .map(|b| BufferSize {
+            name: b.name,
+            bytes: b.words.len() as u64 * 4,
+            at_least: false,
+        })
+        .collect();
+    check_chunks(&sizes, chunk_words, device)?;
     let mut params = SplitParams {
         chunk_shift: chunk_words.trailing_zeros(),
         ..Default::default()
@@ -85,19 +125,6 @@ pub fn split<'a>(scene: &'a Scene, chunk_words: u32, device: &str) -> Result<Spl
             // A chunk of its own all the same, so every buffer has a binding.
             chunks.push(&[]);
         }
-    }
-    if chunks.len() > SPLIT_CHUNKS as usize {
-        let sizes: Vec<String> = buffers
-            .iter()
-            .map(|b| format!("{} {} bytes", b.name, b.words.len() as u64 * 4))
-            .collect();
-        bail!(
-            "the scene's buffers ({}) need {} bindings of {} bytes, more than the {SPLIT_CHUNKS} that gridrt binds \
-             on {device}; use fewer levels or --backend cpu",
-            sizes.join(", "),
-            chunks.len(),
-            chunk_words as u64 * 4,
-        );
     }
     Ok(SplitScene { params, chunks })
 }

@@ -4,6 +4,7 @@ use gridrt_shared::glam::Vec3;
 use gridrt_shared::layout::BvhNode;
 
 use crate::bvh::{self, Aabb, BuildParams};
+use crate::limits::BufferSize;
 
 #[derive(Clone, Debug)]
 pub struct TriangleScene {
@@ -19,6 +20,28 @@ pub struct TriangleScene {
 /// Builder settings of the baseline: the usual SAH with leaves of up to four triangles.
 pub fn build_params() -> BuildParams {
     BuildParams::default()
+}
+
+/// Lower bounds on the baseline's buffer sizes before it is built, in the order of
+/// `crate::split::scene_buffers`: `vertices` at least (the base mesh's), `triangles` exact.
+pub fn least_buffer_sizes(vertices: u64, triangles: u64) -> Vec<BufferSize> {
+    vec![
+        BufferSize {
+            name: "BVH",
+            bytes: bvh::least_node_count(triangles, &build_params()) * 32,
+            at_least: true,
+        },
+        BufferSize {
+            name: "vertex",
+            bytes: vertices * 12,
+            at_least: true,
+        },
+        BufferSize {
+            name: "index",
+            bytes: triangles * 12,
+            at_least: false,
+        },
+    ]
 }
 
 pub fn build(positions: &[Vec3], triangles: &[[u32; 3]]) -> TriangleScene {

@@ -104,7 +104,7 @@ fn split_scenes_on_the_gpu_equal_whole_ones() {
 }
 
 /// The same through the binary, as a user forces it: and a scene that cannot be bound at all
-/// is refused before anything is uploaded, naming its buffers and the adapter's limits.
+/// is refused before it is built, naming its buffers and the adapter's limits.
 #[test]
 fn binding_limit_from_the_environment() {
     if gpu_or_skip("binding_limit_from_the_environment").is_none() {
@@ -140,9 +140,18 @@ fn binding_limit_from_the_environment() {
     let refused = run("1K", "refused.png");
     let stderr = String::from_utf8_lossy(&refused.stderr);
     assert!(!refused.status.success());
-    for part in ["grid vertex", "bytes per binding", "storage buffers per shader stage"] {
+    for part in [
+        "grid vertex",
+        "at least",
+        "bytes per binding",
+        "storage buffers per shader stage",
+    ] {
         assert!(stderr.contains(part), "{stderr:?} lacks {part:?}");
     }
+    assert!(
+        !stderr.contains("B per micro-triangle"),
+        "built before refusing: {stderr:?}"
+    );
     assert!(!dir.join("refused.png").exists());
     let bad = run("lots", "bad.png");
     assert!(String::from_utf8_lossy(&bad.stderr).contains("GRIDRT_GPU_BINDING_LIMIT=lots"));

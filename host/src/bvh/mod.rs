@@ -86,6 +86,12 @@ impl Default for BuildParams {
     }
 }
 
+/// Fewest nodes a hierarchy over `primitives` can have: leaves of at most `max_leaf_size`
+/// primitives, two children per inner node.
+pub fn least_node_count(primitives: u64, params: &BuildParams) -> u64 {
+    (2 * primitives.div_ceil(params.max_leaf_size as u64)).max(2) - 1
+}
+
 /// A built hierarchy: `order[k]` is the original index of the primitive at position `k`.
 #[derive(Clone, Debug, Default)]
 pub struct Bvh {

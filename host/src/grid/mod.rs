@@ -15,6 +15,7 @@ use gridrt_shared::quantize;
 use rayon::prelude::*;
 
 use crate::bvh::{self, Aabb, BuildParams};
+use crate::limits::BufferSize;
 
 mod lean;
 mod spheres;
@@ -273,10 +274,50 @@ pub fn needs_wide_headers(edges: u64, vertices: u64) -> bool {
     edges > packed || vertices > packed
 }
 
-/// Refuses, with the reason, a mesh whose grids at `levels` the layout cannot address: sphere
-/// and leaf depths, 32-bit primitive and header ids, and vertex words below 2^31. From counts alone, so it can run before the long subdivision.
-pub fn check_limits(base: &Mesh, levels: u32, options: &GridOptions, quantized: bool) -> Result<()> {
-    check_counts(base, base_edge_count(base), levels, options, quantized)
+/// Refuses, with the reason, a mesh whose grids the layout cannot address: sphere and leaf
+/// depths, 32-bit primitive and header ids, and vertex words below 2^31. From counts alone,
+/// so it runs before the long subdivision; returns the scene's buffer sizes (see
+/// [`least_buffer_sizes`]).
+pub fn check_limits(base: &Mesh, build: &GridBuild) -> Result<Vec<BufferSize>> {
+    let edges = base_edge_count(base);
+    check_counts(base, edges, build.levels, &build.options, build.quantized)?;
+    Ok(least_buffer_sizes(base, edges, build))
+}
+
+/// The sizes of a grid scene's buffers from counts alone, in the order of
+/// `crate::split::scene_buffers`: exact but for the top-level BVH's, whose node count is only
+/// bounded below until it is built. `edges` base edges; the counts are within
+/// [`check_limits`].
+fn least_buffer_sizes(base: &Mesh, edges: u64, build: &GridBuild) -> Vec<BufferSize> {
+    let shape = GridShape::new(base, edges as usize, build.levels, &build.options, build.quantized);
+    let grids = base.triangles.len() as u64;
+    let spheres = sphere_count(shape.leaf_level) as u64;
+    let leaves = if shape.leaf_footprint {
+        triangle_count(shape.leaf_level) as u64
+    } else {
+        0
+    };
+    let radius_words = match shape.half_radii {
+        true => (grids * spheres).div_ceil(2),
+        false => grids * spheres,
+    };
+    let size = |name, bytes| BufferSize {
+        name,
+        bytes,
+        at_least: false,
+    };
+    vec![
+        BufferSize {
+            at_least: true,
+            ..size("top-level BVH", bvh::least_node_count(grids, &top_level_params()) * 32)
+        },
+        size("grid header", grids * if shape.wide_headers { 32 } else { 16 }),
+        size(
+            "grid vertex",
+            4 * shape.buffer_words(grids as usize, base.positions.len()) as u64,
+        ),
+        size("sphere radius", 4 * (radius_words + grids * leaves.div_ceil(4))),
+    ]
 }
 
 /// [`check_limits`] with the number of base edges known.

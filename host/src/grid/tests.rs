@@ -195,15 +195,52 @@ impl GridScene {
 /// subdivision; one with more base edges than packed headers hold is not refused.
 #[test]
 fn meshes_beyond_grid_addresses_are_refused_up_front() {
-    let options = GridOptions::default();
     // A strip of T triangles has 2T + 1 edges and T + 2 vertices.
     let ok = strip(MAX_HEADER_ID / 2 - 1);
-    check_limits(&ok, 3, &options, true).unwrap();
-    check_limits(&strip(MAX_HEADER_ID / 2 + 1), 3, &options, true).unwrap();
+    check_limits(&ok, &GridBuild::new(3)).unwrap();
+    check_limits(&strip(MAX_HEADER_ID / 2 + 1), &GridBuild::new(3)).unwrap();
     // Vertex words: 16-bit inner codes take the buffer past its addresses at L = 6 only.
-    check_limits(&ok, 5, &options, true).unwrap();
-    let e = check_limits(&ok, 6, &options, true).unwrap_err().to_string();
+    check_limits(&ok, &GridBuild::new(5)).unwrap();
+    let e = check_limits(&ok, &GridBuild::new(6)).unwrap_err().to_string();
     assert!(e.contains("more than a grid scene can address"), "{e}");
+}
+
+/// The buffer sizes known before the build are those of the built scene, but for the
+/// top-level BVH's, which they bound from below.
+#[test]
+fn buffer_sizes_are_known_before_the_build() {
+    let half = GridOptions {
+        half_radii: true,
+        leaf_footprint: false,
+        excluded_levels: 1,
+    };
+    for mesh in [default_scene(), fins(), cube()] {
+        for (levels, options, quantized) in [
+            (0, GridOptions::default(), true),
+            (2, GridOptions::default(), false),
+            (3, half, true),
+            (4, GridOptions::default(), true),
+        ] {
+            let build = GridBuild {
+                options,
+                quantized,
+                ..GridBuild::new(levels)
+            };
+            let known = check_limits(&mesh, &build).unwrap();
+            let scene = crate::scene::Scene::Grids(build_lean(&mesh, &build).unwrap());
+            let built = crate::split::scene_buffers(&scene);
+            assert_eq!(known.len(), built.len());
+            assert_eq!(known.iter().filter(|k| k.at_least).count(), 1);
+            for (k, b) in known.iter().zip(&built) {
+                let bytes = b.words.len() as u64 * 4;
+                assert_eq!(k.name, b.name);
+                match k.at_least {
+                    true => assert!(k.bytes <= bytes && k.bytes > 0, "{k:?} against {bytes}"),
+                    false => assert_eq!(k.bytes, bytes, "{} at L = {levels}, {options:?}", k.name),
+                }
+            }
+        }
+    }
 }
 
 /// A zigzag strip of `triangles` triangles in the plane z = 0.
