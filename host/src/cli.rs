@@ -279,6 +279,7 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
     };
     let device = stages.run("device", || Device::open(args.backend, "rendering"))?;
     device.check_fits(&sizes).map_err(|e| anyhow!("{name}: {e}"))?;
+    check_upload_memory(&name, &sizes, &device, args)?;
     let scene = match args.mode {
         Mode::Grid => {
             let grids = mesh.triangles.len() as u64;
@@ -357,6 +358,23 @@ fn export(args: &ExportArgs, stages: &mut Stages) -> Result<()> {
     ));
     stages.report();
     Ok(())
+}
+
+/// Refuses, before building, a render whose scene, with the copies the device keeps of it in
+/// host memory (lavapipe's), and image would not fit in memory.
+fn check_upload_memory(name: &str, sizes: &[limits::BufferSize], device: &Device, args: &RenderArgs) -> Result<()> {
+    let scene: u64 = sizes.iter().map(|b| b.bytes).sum();
+    let copies = device.host_upload_bytes(scene);
+    if copies == 0 {
+        return Ok(());
+    }
+    let image = (args.width as u64 * args.height as u64).saturating_mul(limits::IMAGE_BYTES_PER_PIXEL);
+    limits::check_memory(
+        scene.saturating_add(copies).saturating_add(image),
+        limits::available_memory()?,
+        &format!("{name} uploaded to {}", device.describe()),
+        "use fewer --levels, or --backend cpu",
+    )
 }
 
 /// Refuses a render whose build and image would not fit in memory, before building.

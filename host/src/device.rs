@@ -85,6 +85,19 @@ impl Device {
         }
     }
 
+    /// Host bytes that handing `bytes` of scene buffers to this device costs besides the scene
+    /// itself (none on the CPU backend).
+    pub fn host_upload_bytes(&self, bytes: u64) -> u64 {
+        match self {
+            Device::Cpu => {
+                let _ = bytes;
+                0
+            }
+            #[cfg(feature = "gpu")]
+            Device::Gpu(gpu) => gpu.host_upload_bytes(bytes),
+        }
+    }
+
     /// Refuses, before it is built, a scene whose buffers will be at least `sizes` and cannot
     /// be bound on this device (the CPU takes any).
     pub fn check_fits(&self, sizes: &[BufferSize]) -> Result<()> {

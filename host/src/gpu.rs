@@ -12,7 +12,7 @@ use gridrt_shared::layout::{
 use wgpu::util::DeviceExt;
 
 use crate::limits::parse_bytes;
-use crate::limits::BufferSize;
+use crate::limits::{self, BufferSize};
 use crate::scene::Scene;
 use crate::split::{check_chunks, chunk_words, scene_buffers, split};
 
@@ -260,6 +260,19 @@ impl Gpu {
             make(wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC),
             make(wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST),
         )
+    }
+
+    /// Host bytes an upload of `bytes` of scene buffers costs besides the scene itself: on a
+    /// device that is the CPU (lavapipe) the driver's buffers, and the copies made on the way
+    /// to them, live in host memory (measured, docs/RESULTS.md "Scale"); elsewhere nothing
+    /// counted here.
+    pub fn host_upload_bytes(&self, bytes: u64) -> u64 {
+        match self.adapter.device_type {
+            wgpu::DeviceType::Cpu => bytes
+                .saturating_mul(limits::CPU_DEVICE_COPIES)
+                .saturating_add(limits::CPU_DEVICE_BYTES),
+            _ => 0,
+        }
     }
 
     /// Refuses, before it is built, a scene whose buffers will be at least `sizes` and cannot

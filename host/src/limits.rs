@@ -24,6 +24,12 @@ pub const TRIANGLES_BYTES_PER_MICRO_TRIANGLE: u64 = 168;
 pub const LEAN_GRID_BYTES_PER_MICRO_TRIANGLE: u64 = 6;
 pub const LEAN_GRID_BYTES_PER_BASE_TRIANGLE: u64 = 400;
 
+/// Host memory a CPU Vulkan device (lavapipe) takes to hold an uploaded scene: copies of the
+/// scene's bytes, plus the driver's own; measured (peak resident size of GPU renders against
+/// CPU renders, docs/RESULTS.md "Scale") and rounded up.
+pub const CPU_DEVICE_COPIES: u64 = 2;
+pub const CPU_DEVICE_BYTES: u64 = 512 << 20;
+
 /// Host bytes per pixel of an image being rendered and written: the packed pixels and the
 /// byte copy the PNG encoder reads.
 pub const IMAGE_BYTES_PER_PIXEL: u64 = 8;

@@ -354,6 +354,51 @@ fn counts_below_one_are_refused() {
     fails_with(&["render", "--width", "0"], &[], &["--width", "0"]);
 }
 
+/// On a device that is the CPU (lavapipe), an uploaded scene's copies live in host memory too:
+/// a render whose build fits but whose upload would not is refused before the build.
+#[test]
+fn uploads_beyond_host_memory_are_refused_before_any_work() {
+    let Some(gpu) = gpu_or_skip("uploads_beyond_host_memory_are_refused_before_any_work") else {
+        return;
+    };
+    if gpu.host_upload_bytes(1) == 0 {
+        eprintln!("SKIPPED: {} keeps scenes in its own memory", gpu.describe());
+        return;
+    }
+    let args = [
+        "render",
+        "--backend",
+        "gpu",
+        "--width",
+        "32",
+        "--height",
+        "24",
+        "-o",
+        "x.png",
+    ];
+    let needles = ["default scene uploaded to", "memory", "--backend cpu"];
+    fails_with(&args, &[("GRIDRT_MEMORY_LIMIT", "300M")], &needles);
+    // The same render on the CPU backend fits.
+    let out = scratch("upload_memory").join("cpu.png");
+    let cpu = Command::new(gridrt_exe())
+        .args([
+            "render",
+            "--backend",
+            "cpu",
+            "-q",
+            "--width",
+            "32",
+            "--height",
+            "24",
+            "-o",
+        ])
+        .arg(&out)
+        .env("GRIDRT_MEMORY_LIMIT", "300M")
+        .output()
+        .expect("run gridrt");
+    assert!(cpu.status.success(), "{}", stderr(&cpu));
+}
+
 #[test]
 fn builds_beyond_memory_are_refused_before_any_work() {
     let limit = [("GRIDRT_MEMORY_LIMIT", "100M")];
