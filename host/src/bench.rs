@@ -8,8 +8,9 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
 use crate::bvh::Aabb;
-use crate::cli::{self, BenchArgs};
+use crate::cli::{self, BenchArgs, BuildArgs};
 use crate::device::Device;
+use crate::mesh::Mesh;
 use crate::rays::{ao_rays, primary_rays, reorder, trace_cpu, RayOrder};
 use crate::scene::Scene;
 use crate::stats::{self, Stats};
@@ -94,6 +95,33 @@ fn agreement(a: &Scene, ha: &[HitRecord], b: &Scene, hb: &[HitRecord]) -> f64 {
     same as f64 / ha.len().max(1) as f64
 }
 
+/// Refuses, before building, a mesh whose representations the device cannot bind, or whose
+/// uploads it would keep copies of in host memory (lavapipe) beyond what is free.
+fn check_device(name: &str, mesh: &Mesh, device: &Device, build: &BuildArgs, ray_bytes: u64) -> Result<()> {
+    let micro = limits::micro_triangles(mesh.triangles.len(), build.levels);
+    let baseline = triangles::least_buffer_sizes(mesh.positions.len() as u64, micro);
+    let mut largest = 0;
+    for sizes in [build.check_grid_limits(name, mesh)?, baseline] {
+        device.check_fits(&sizes).map_err(|e| anyhow!("{name}: {e}"))?;
+        largest = largest.max(sizes.iter().map(|b| b.bytes).sum::<u64>());
+    }
+    // One representation is uploaded at a time, while both are alive on the host.
+    match device.host_upload_bytes(largest) {
+        0 => Ok(()),
+        copies => limits::check_build(
+            &format!(
+                "measuring {name} on {}, which keeps its uploads in host memory,",
+                device.describe()
+            ),
+            mesh.triangles.len(),
+            build.levels,
+            limits::Builds::Both,
+            ray_bytes.saturating_add(copies),
+            "use fewer --levels, or --backend cpu",
+        ),
+    }
+}
+
 pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
     if args.meshes.is_empty() {
         bail!("name at least one mesh to benchmark");
@@ -112,11 +140,7 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
     }
     let device = Device::open(args.backend, "benchmarking")?;
     for (name, mesh) in &meshes {
-        let micro = limits::micro_triangles(mesh.triangles.len(), args.build.levels);
-        let baseline = triangles::least_buffer_sizes(mesh.positions.len() as u64, micro);
-        for sizes in [args.build.check_grid_limits(name, mesh)?, baseline] {
-            device.check_fits(&sizes).map_err(|e| anyhow!("{name}: {e}"))?;
-        }
+        check_device(name, mesh, &device, &args.build, ray_bytes)?;
     }
     let (backend, device_name, timing) = (device.kind(), device.describe(), device.timing().to_string());
     // Per mesh: load+subdivide, stats, rays, then 4 timed runs.

@@ -105,6 +105,22 @@ pub fn closest_hit_slack(ray: &Ray, triangles: [[Vec3; 3]; 2]) -> f32 {
     hit_uncertainty(ray, triangles[0]) + hit_uncertainty(ray, triangles[1])
 }
 
+/// Whether `ray` meets triangle `[a, b, c]` only through the triangle test's rounding: in
+/// double precision its line passes outside the triangle. The watertight test shears the
+/// vertices into the ray's frame after moving them to its origin, so its inside/outside
+/// decision is as accurate as the largest of those coordinates allows: a sliver a thousandth
+/// of its length thick, seen from close by, can be hit a few units in the last place of its
+/// length outside it. Box and sphere tests are conservative for the exact triangle, not for
+/// the rounded test, so one traversal may cull such a triangle that another, or a brute-force
+/// loop, hits. Either is correct to the test's precision.
+pub fn hits_only_by_rounding(ray: &Ray, [a, b, c]: [Vec3; 3]) -> bool {
+    let (o, d) = (ray.origin.as_dvec3(), ray.dir.as_dvec3());
+    let (a, b, c) = (a.as_dvec3() - o, b.as_dvec3() - o, c.as_dvec3() - o);
+    // The signed volumes the test's edge functions compute in the sheared frame.
+    let (u, v, w) = (d.dot(b.cross(c)), d.dot(c.cross(a)), d.dot(a.cross(b)));
+    (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0)
+}
+
 /// How far the triangle test's `t` for this ray and triangle may be from the truth: its own
 /// error here (against a double-precision reference) plus `1e-5 / |cos|`, `cos` between the
 /// ray and the normal: a vertex off by 1e-5 (a hundred units in the last place of the

@@ -378,6 +378,21 @@ fn uploads_beyond_host_memory_are_refused_before_any_work() {
     ];
     let needles = ["default scene uploaded to", "memory", "--backend cpu"];
     fails_with(&args, &[("GRIDRT_MEMORY_LIMIT", "300M")], &needles);
+    if let Some(meshes) = meshes_dir() {
+        let teapot = meshes.join("teapot.obj");
+        let bench = [
+            "bench",
+            teapot.to_str().unwrap(),
+            "--backend",
+            "gpu",
+            "--width",
+            "32",
+            "--height",
+            "24",
+        ];
+        let needles = ["teapot.obj on ", "host memory", "--backend cpu"];
+        fails_with(&bench, &[("GRIDRT_MEMORY_LIMIT", "300M")], &needles);
+    }
     // The same render on the CPU backend fits.
     let out = scratch("upload_memory").join("cpu.png");
     let cpu = Command::new(gridrt_exe())
