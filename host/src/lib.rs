@@ -1,27 +1,43 @@
 //! gridrt: a ray tracer for triangular grid primitives (micro-meshes) on ordinary GPUs.
 //!
-//! Data flows one way: [`mesh`] loads a base mesh, [`subdiv`] subdivides it (and
-//! [`quantize`] may snap its inner vertices to 16 bits), [`grid`] and
-//! [`triangles`] build the two representations (each over [`bvh`]), and [`scene`] (CPU) or
-//! [`gpu`] traces them with the one implementation in `gridrt_shared`.
+//! A base mesh is subdivided `L` times; each base triangle becomes a *grid* of `4^L`
+//! micro-triangles with implicit connectivity, shared edge and corner vertices and a 4-ary
+//! sphere hierarchy, under an SAH BVH over the grids. Rendering the built-in scene takes four
+//! calls ([`pipeline`]):
+//!
+//! ```
+//! use gridrt::backend::Backend;
+//! use gridrt::pipeline::{BuildOptions, RenderOptions};
+//! use gridrt::{camera, mesh, scene::Scene};
+//!
+//! // The built-in scene; `Some(path)` loads a .obj or .ply file.
+//! let input = mesh::open(None)?;
+//! let scene = Scene::build(&input.mesh, &BuildOptions::levels(3))?;
+//! let view = camera::frame(&scene.bounds(), 64, 48);
+//! // `Backend::open(BackendChoice::Auto)` takes the GPU when there is one.
+//! let image = Backend::CPU.render(&scene, &view, &RenderOptions::default())?;
+//! assert_eq!(image.pixels.len(), 64 * 48);
+//! # Ok::<(), anyhow::Error>(())
+//! ```
+//!
+//! Underneath, data flows one way: [`mesh`] loads a base mesh, [`subdiv`] subdivides it (and
+//! [`quantize`] may snap its inner vertices to 16 bits), [`grid`] and [`triangles`] build the
+//! two representations (each over [`bvh`]), and a [`backend`] traces them: the CPU
+//! ([`scene`]) or the GPU (`gpu`), with the one implementation in `gridrt_shared`.
 
-pub mod bench;
+pub mod backend;
 pub mod bvh;
 pub mod camera;
-pub mod chart;
-pub mod cli;
-pub mod device;
 #[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod grid;
 pub mod image_io;
 pub mod limits;
 pub mod mesh;
-pub mod progress;
+pub mod pipeline;
 pub mod quantize;
 pub mod rays;
 pub mod scene;
 pub mod split;
-pub mod stats;
 pub mod subdiv;
 pub mod triangles;

@@ -92,7 +92,7 @@ pub fn ao_rays(
 }
 
 /// The order a benchmark traces its rays in. Both representations always trace the same list.
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum RayOrder {
     /// Primary rays row by row, view by view; AO rays hit by hit in that order, each hit's

@@ -4,10 +4,11 @@ use std::path::PathBuf;
 
 use gridrt::bvh::Aabb;
 use gridrt::gpu::{Gpu, NoAdapter};
+use gridrt::grid;
 use gridrt::mesh::Mesh;
+use gridrt::pipeline::{BuildOptions, Representation};
 use gridrt::scene::Scene;
 use gridrt::subdiv::{subdivide, Scheme, Subdivided};
-use gridrt::{grid, triangles};
 use gridrt_shared::glam::Vec3;
 
 /// The GPU, or `None` with the reason printed when there is no adapter at all; any other GPU
@@ -97,29 +98,31 @@ pub fn build_pair_from(
     options: &grid::GridOptions,
     quantized: bool,
 ) -> Pair {
-    let mut sub = subdivide(mesh, levels, scheme);
-    if quantized {
-        sub.quantize_inner();
-    }
-    // The grids as the CLI builds them, each subdivided on its own; the baseline from the
-    // whole subdivided mesh.
-    let mut g = grid::build_lean(
-        mesh,
-        &grid::GridBuild {
+    // Both through the library's pipeline, as the CLI builds them: grids each subdivided on
+    // their own, the baseline from the whole subdivided mesh.
+    let mut options = BuildOptions {
+        representation: Representation::Grids,
+        grid: grid::GridBuild {
             levels,
             scheme,
             options: *options,
             quantized,
         },
-    )
-    .expect("grid build");
-    g.set_lod(lod).unwrap();
-    let t = triangles::build(&sub.positions, &sub.micro_triangles(lod));
+        lod: Some(lod),
+    };
+    let grids = Scene::build(mesh, &options).expect("grid build");
+    options.representation = Representation::Triangles;
+    let triangles = Scene::build(mesh, &options).expect("baseline build");
+    // The same micro-mesh, for brute force and bounds.
+    let mut sub = subdivide(mesh, levels, scheme);
+    if quantized {
+        sub.quantize_inner();
+    }
     let bounds = Aabb::from_points(sub.positions.iter().copied());
     Pair {
         sub,
-        grids: Scene::Grids(g),
-        triangles: Scene::Triangles(t),
+        grids,
+        triangles,
         bounds,
     }
 }

@@ -93,7 +93,7 @@ impl Mesh {
 }
 
 /// What a dropped triangle is, for messages.
-const DEGENERATE: &str = "a repeated vertex, or the same three vertices as an earlier triangle";
+pub const DEGENERATE: &str = "a repeated vertex, or the same three vertices as an earlier triangle";
 
 /// Loads .obj or .ply (case-insensitive extension) and validates it. Every error is one line that starts with the
 /// file path. Dropped degenerate triangles are reported as one warning line on stderr.
@@ -106,6 +106,35 @@ pub fn load_mesh(path: &Path) -> anyhow::Result<Mesh> {
         );
     }
     Ok(mesh)
+}
+
+/// A mesh ready for the pipeline, and where it came from.
+pub struct Input {
+    /// The file's name as given, or `default scene`.
+    pub name: String,
+    /// The mesh in its local frame (see [`frame`]).
+    pub mesh: Mesh,
+    /// Maps the mesh back to the file's units.
+    pub frame: frame::LocalFrame,
+    /// Degenerate triangles dropped while loading (a repeated vertex, or the same three
+    /// vertices as an earlier triangle).
+    pub dropped: usize,
+}
+
+/// Loads `path` (`.obj` or `.ply`), or the built-in scene when `None`, and moves it into its
+/// local frame, where everything after loading works. Errors are one line naming the file.
+pub fn open(path: Option<&Path>) -> anyhow::Result<Input> {
+    let (name, (mut mesh, dropped)) = match path {
+        Some(p) => (p.display().to_string(), load_mesh_quiet(p)?),
+        None => ("default scene".to_string(), (scene::default_scene(), 0)),
+    };
+    let frame = mesh.into_local_frame();
+    Ok(Input {
+        name,
+        mesh,
+        frame,
+        dropped,
+    })
 }
 
 /// [`load_mesh`] without the warning: returns the number of dropped degenerate triangles instead.
@@ -127,7 +156,7 @@ pub fn load_mesh_quiet(path: &Path) -> anyhow::Result<(Mesh, usize)> {
 }
 
 /// The OS reason without Rust's " (os error 2)" suffix: `No such file or directory`.
-pub(crate) fn io_reason(e: &std::io::Error) -> String {
+pub fn io_reason(e: &std::io::Error) -> String {
     let s = e.to_string();
     match s.rfind(" (os error ") {
         Some(i) => s[..i].to_string(),

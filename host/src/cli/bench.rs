@@ -7,14 +7,14 @@ use anyhow::{anyhow, bail, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
-use crate::bvh::Aabb;
-use crate::cli::{self, BenchArgs, BuildArgs};
-use crate::device::Device;
-use crate::mesh::Mesh;
-use crate::rays::{ao_rays, primary_rays, reorder, trace_cpu, RayOrder};
-use crate::scene::Scene;
-use crate::stats::{self, Stats};
-use crate::{limits, triangles};
+use super::stats::{self, Stats};
+use super::{BenchArgs, BuildArgs};
+use gridrt::backend::Backend;
+use gridrt::bvh::Aabb;
+use gridrt::mesh::{Input, Mesh};
+use gridrt::rays::{ao_rays, primary_rays, reorder, trace_cpu, RayOrder};
+use gridrt::scene::Scene;
+use gridrt::{limits, triangles};
 use gridrt_shared::layout::{HitRecord, RayRecord};
 
 #[derive(Serialize, Debug, Clone, Copy, Default)]
@@ -57,15 +57,15 @@ const RAY_BYTES: u64 = 2 * std::mem::size_of::<RayRecord>() as u64 + 2 * std::me
 /// Every file the run will write, checked before the first mesh is measured.
 fn check_outputs(args: &BenchArgs) -> Result<()> {
     for path in [&args.json, &args.markdown].into_iter().flatten() {
-        crate::image_io::check_writable(path)?;
+        gridrt::image_io::check_writable(path)?;
     }
     if let Some(chart) = &args.chart {
-        crate::image_io::check_png_path(chart)?;
+        gridrt::image_io::check_png_path(chart)?;
         if let Err(e) = std::fs::metadata(&args.font) {
             bail!(
                 "{}: cannot read the chart's font: {}",
                 args.font.display(),
-                crate::mesh::io_reason(&e)
+                gridrt::mesh::io_reason(&e)
             );
         }
     }
@@ -97,7 +97,7 @@ fn agreement(a: &Scene, ha: &[HitRecord], b: &Scene, hb: &[HitRecord]) -> f64 {
 
 /// Refuses, before building, a mesh whose representations the device cannot bind, or whose
 /// uploads it would keep copies of in host memory (lavapipe) beyond what is free.
-fn check_device(name: &str, mesh: &Mesh, device: &Device, build: &BuildArgs, ray_bytes: u64) -> Result<()> {
+fn check_device(name: &str, mesh: &Mesh, device: &Backend, build: &BuildArgs, ray_bytes: u64) -> Result<()> {
     let micro = limits::micro_triangles(mesh.triangles.len(), build.levels);
     let baseline = triangles::least_buffer_sizes(mesh.positions.len() as u64, micro);
     let mut largest = 0;
@@ -131,15 +131,15 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
     let meshes = args
         .meshes
         .iter()
-        .map(|path| cli::load(Some(path)))
+        .map(|path| super::load(Some(path)))
         .collect::<Result<Vec<_>>>()?;
     let rays_per_view = args.width as u64 * args.height as u64 * (1 + args.ao_samples as u64);
     let ray_bytes = (args.views as u64 * rays_per_view).saturating_mul(RAY_BYTES);
-    for (name, mesh) in &meshes {
+    for Input { name, mesh, .. } in &meshes {
         stats::check_work(name, mesh, &args.build, ray_bytes)?;
     }
-    let device = Device::open(args.backend, "benchmarking")?;
-    for (name, mesh) in &meshes {
+    let device = super::open_backend(args.backend, "benchmarking")?;
+    for Input { name, mesh, .. } in &meshes {
         check_device(name, mesh, &device, &args.build, ray_bytes)?;
     }
     let (backend, device_name, timing) = (device.kind(), device.describe(), device.timing().to_string());
@@ -151,9 +151,9 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
     };
     bar.set_style(ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}").unwrap());
     let mut results = Vec::new();
-    for (name, mesh) in &meshes {
+    for Input { name, mesh, .. } in &meshes {
         bar.set_message(format!("{name}: subdividing"));
-        let sub = cli::subdivide(mesh, &args.build);
+        let sub = super::subdivide(mesh, &args.build);
         bar.inc(1);
         let (stats, grids, tris) = stats::measure(name, mesh, &sub, &args.build, args.build_repeats, &|step| {
             bar.set_message(format!("{name}: {step}"))
@@ -168,7 +168,7 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
         let first_hits = trace_cpu(&tris, &primary);
         let mut ao = ao_rays(&primary, &first_hits, args.ao_samples, &bounds, |p| tris.normal(p));
         reorder(
-            args.ray_order,
+            args.ray_order.order(),
             &mut primary,
             &mut ao,
             args.views,
@@ -213,7 +213,7 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
             views: args.views,
             width: args.width,
             height: args.height,
-            ray_order: args.ray_order,
+            ray_order: args.ray_order.order(),
             rays: PerKind {
                 primary: primary.len() as f64,
                 ao: ao.len() as f64,
@@ -235,7 +235,7 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
             .map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", path.display()))?;
     }
     if let Some(path) = &args.chart {
-        crate::chart::write_chart(&results, path, &args.font)?;
+        super::chart::write_chart(&results, path, &args.font)?;
     }
     if let Some(path) = &args.markdown {
         std::fs::write(path, table).map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", path.display()))?;

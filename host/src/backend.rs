@@ -5,80 +5,92 @@
 use std::time::Instant;
 
 use anyhow::Result;
-use gridrt_shared::layout::{FrameParams, HitRecord, RayRecord};
+use gridrt_shared::layout::{Camera, FrameParams, HitRecord, RayRecord};
 
 #[cfg(feature = "gpu")]
 use crate::gpu::{Gpu, NoAdapter, Timing};
 use crate::limits::BufferSize;
+use crate::pipeline::{Image, RenderOptions};
 use crate::rays::trace_cpu;
 use crate::scene::{render_cpu, Scene};
 
-/// Which device the user asks for.
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum DeviceChoice {
+/// Which backend to open.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum BackendChoice {
     /// The GPU if wgpu finds an adapter, otherwise the CPU.
+    #[default]
     Auto,
     Gpu,
     Cpu,
 }
 
-pub enum Device {
-    Cpu,
+/// A CPU or a GPU, behind one interface: everything that traces takes a `&Backend`.
+pub enum Backend {
+    /// The CPU; `fallback` says why, when `Auto` found no GPU.
+    Cpu { fallback: Option<String> },
     #[cfg(feature = "gpu")]
     Gpu(Box<Gpu>),
 }
 
-impl Device {
-    /// The device `choice` asks for: for `auto`, the CPU (with a note saying the CPU does the
-    /// `work`) when wgpu finds no adapter at all. Any other GPU failure is an error.
-    pub fn open(choice: DeviceChoice, work: &str) -> Result<Device> {
+impl Backend {
+    /// The CPU backend.
+    pub const CPU: Backend = Backend::Cpu { fallback: None };
+
+    /// The backend `choice` asks for: for `Auto`, the CPU when wgpu finds no adapter at all
+    /// (see [`Backend::fallback`]). Any other GPU failure is an error.
+    pub fn open(choice: BackendChoice) -> Result<Backend> {
         match choice {
-            DeviceChoice::Cpu => Ok(Device::Cpu),
+            BackendChoice::Cpu => Ok(Backend::CPU),
             #[cfg(feature = "gpu")]
-            DeviceChoice::Gpu => Ok(Device::Gpu(Box::new(Gpu::new()?))),
+            BackendChoice::Gpu => Ok(Backend::Gpu(Box::new(Gpu::new()?))),
             #[cfg(feature = "gpu")]
-            DeviceChoice::Auto => match Gpu::new() {
-                Ok(gpu) => Ok(Device::Gpu(Box::new(gpu))),
-                Err(e) if e.is::<NoAdapter>() => {
-                    eprintln!("note: {e}; {work} on the CPU");
-                    Ok(Device::Cpu)
-                }
+            BackendChoice::Auto => match Gpu::new() {
+                Ok(gpu) => Ok(Backend::Gpu(Box::new(gpu))),
+                Err(e) if e.is::<NoAdapter>() => Ok(Backend::Cpu {
+                    fallback: Some(e.to_string()),
+                }),
                 Err(e) => Err(e),
             },
             #[cfg(not(feature = "gpu"))]
-            DeviceChoice::Gpu => anyhow::bail!("this gridrt was built without the `gpu` feature; use --backend cpu"),
+            BackendChoice::Gpu => anyhow::bail!("this gridrt was built without the `gpu` feature; use --backend cpu"),
             #[cfg(not(feature = "gpu"))]
-            DeviceChoice::Auto => {
-                let _ = work; // no GPU to fall back from
-                Ok(Device::Cpu)
-            }
+            BackendChoice::Auto => Ok(Backend::CPU),
+        }
+    }
+
+    /// Why `Auto` chose the CPU, when it did because there was no GPU.
+    pub fn fallback(&self) -> Option<&str> {
+        match self {
+            Backend::Cpu { fallback } => fallback.as_deref(),
+            #[cfg(feature = "gpu")]
+            Backend::Gpu(_) => None,
         }
     }
 
     /// `cpu` or `gpu`.
     pub fn kind(&self) -> &'static str {
         match self {
-            Device::Cpu => "cpu",
+            Backend::Cpu { .. } => "cpu",
             #[cfg(feature = "gpu")]
-            Device::Gpu(_) => "gpu",
+            Backend::Gpu(_) => "gpu",
         }
     }
 
     /// One line naming the device.
     pub fn describe(&self) -> String {
         match self {
-            Device::Cpu => format!("CPU, {} threads", rayon::current_num_threads()),
+            Backend::Cpu { .. } => format!("CPU, {} threads", rayon::current_num_threads()),
             #[cfg(feature = "gpu")]
-            Device::Gpu(gpu) => gpu.describe(),
+            Backend::Gpu(gpu) => gpu.describe(),
         }
     }
 
-    /// How [`Device::time_trace`] measures.
+    /// How [`Backend::time_trace`] measures.
     pub fn timing(&self) -> &'static str {
         match self {
-            Device::Cpu => "wall clock",
+            Backend::Cpu { .. } => "wall clock",
             #[cfg(feature = "gpu")]
-            Device::Gpu(gpu) => match gpu.timing() {
+            Backend::Gpu(gpu) => match gpu.timing() {
                 Timing::Timestamps => "GPU timestamp queries",
                 Timing::FenceToFence => "fence to fence (no timestamp queries on this adapter)",
             },
@@ -89,12 +101,12 @@ impl Device {
     /// itself (none on the CPU backend).
     pub fn host_upload_bytes(&self, bytes: u64) -> u64 {
         match self {
-            Device::Cpu => {
+            Backend::Cpu { .. } => {
                 let _ = bytes;
                 0
             }
             #[cfg(feature = "gpu")]
-            Device::Gpu(gpu) => gpu.host_upload_bytes(bytes),
+            Backend::Gpu(gpu) => gpu.host_upload_bytes(bytes),
         }
     }
 
@@ -102,21 +114,31 @@ impl Device {
     /// be bound on this device (the CPU takes any).
     pub fn check_fits(&self, sizes: &[BufferSize]) -> Result<()> {
         match self {
-            Device::Cpu => {
+            Backend::Cpu { .. } => {
                 let _ = sizes;
                 Ok(())
             }
             #[cfg(feature = "gpu")]
-            Device::Gpu(gpu) => gpu.check_fits(sizes),
+            Backend::Gpu(gpu) => gpu.check_fits(sizes),
         }
     }
 
-    /// Renders one frame: packed RGBA8, row-major, top row first.
-    pub fn render(&self, scene: &Scene, frame: &FrameParams) -> Result<Vec<u32>> {
+    /// Renders `scene` as `camera` sees it.
+    pub fn render(&self, scene: &Scene, camera: &Camera, options: &RenderOptions) -> Result<Image> {
+        let pixels = self.render_frame(scene, &scene.frame(*camera, options.shading.code()))?;
+        Ok(Image {
+            width: camera.width,
+            height: camera.height,
+            pixels,
+        })
+    }
+
+    /// Renders one frame as the kernels take it: packed RGBA8, row-major, top row first.
+    pub fn render_frame(&self, scene: &Scene, frame: &FrameParams) -> Result<Vec<u32>> {
         match self {
-            Device::Cpu => Ok(render_cpu(scene, frame)),
+            Backend::Cpu { .. } => Ok(render_cpu(scene, frame)),
             #[cfg(feature = "gpu")]
-            Device::Gpu(gpu) => gpu.render(scene, frame),
+            Backend::Gpu(gpu) => gpu.render(scene, frame),
         }
     }
 
@@ -130,7 +152,7 @@ impl Device {
         repeats: usize,
     ) -> Result<(Vec<HitRecord>, Vec<f64>)> {
         match self {
-            Device::Cpu => {
+            Backend::Cpu { .. } => {
                 let mut hits = Vec::new();
                 let mut seconds = Vec::new();
                 for k in 0..warmup + repeats {
@@ -143,7 +165,7 @@ impl Device {
                 Ok((hits, seconds))
             }
             #[cfg(feature = "gpu")]
-            Device::Gpu(gpu) => {
+            Backend::Gpu(gpu) => {
                 let uploaded = gpu.upload(scene)?;
                 let (hits, mut seconds) = gpu.time_trace(&uploaded, rays, warmup + repeats)?;
                 seconds.drain(..warmup.min(seconds.len()));

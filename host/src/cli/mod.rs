@@ -4,16 +4,20 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{anyhow, bail, Result};
 use clap::{Parser, Subcommand, ValueEnum};
-use gridrt_shared::layout::{SHADE_EYE_LIGHT, SHADE_NORMAL, SHADE_PRIMITIVE};
 
-use crate::device::{Device, DeviceChoice};
-use crate::mesh::frame::LocalFrame;
-use crate::mesh::{self, Mesh};
-use crate::progress::Stages;
-use crate::rays::RayOrder;
-use crate::scene::Scene;
-use crate::subdiv::{self, Scheme, Subdivided};
-use crate::{bench, camera, grid, image_io, limits, stats, triangles};
+use gridrt::backend::{Backend, BackendChoice};
+use gridrt::mesh::{self, Input, Mesh};
+use gridrt::pipeline::{BuildOptions, RenderOptions, Representation, Shading};
+use gridrt::rays::RayOrder;
+use gridrt::scene::Scene;
+use gridrt::subdiv::{self, Scheme, Subdivided};
+use gridrt::{camera, grid, image_io, limits, triangles};
+use progress::Stages;
+
+mod bench;
+mod chart;
+mod progress;
+mod stats;
 
 #[derive(Parser, Debug)]
 #[command(
@@ -41,6 +45,47 @@ pub enum Command {
     Export(ExportArgs),
 }
 
+/// Where rays are traced.
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BackendArg {
+    /// The GPU if wgpu finds an adapter, otherwise the CPU.
+    Auto,
+    Gpu,
+    Cpu,
+}
+
+/// The backend `arg` names; for `auto` on a machine without a GPU, a note saying the CPU does
+/// the `work`.
+pub fn open_backend(arg: BackendArg, work: &str) -> Result<Backend> {
+    let backend = Backend::open(match arg {
+        BackendArg::Auto => BackendChoice::Auto,
+        BackendArg::Gpu => BackendChoice::Gpu,
+        BackendArg::Cpu => BackendChoice::Cpu,
+    })?;
+    if let Some(reason) = backend.fallback() {
+        eprintln!("note: {reason}; {work} on the CPU");
+    }
+    Ok(backend)
+}
+
+/// The order a benchmark traces its rays in (see `gridrt::rays::RayOrder`).
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RayOrderArg {
+    /// Primary rays row by row, AO rays hit by hit.
+    Scanline,
+    /// Primary rays in 8x8 pixel tiles, AO rays by direction octant and origin.
+    Coherent,
+}
+
+impl RayOrderArg {
+    pub fn order(self) -> RayOrder {
+        match self {
+            RayOrderArg::Scanline => RayOrder::Scanline,
+            RayOrderArg::Coherent => RayOrder::Coherent,
+        }
+    }
+}
+
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Mode {
     /// Grid primitives: sphere hierarchy per base triangle, BVH over grids.
@@ -56,13 +101,23 @@ pub enum SubdivisionArg {
 }
 
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Shading {
+pub enum ShadingArg {
     /// Headlight on a plain material.
     Eye,
     /// Geometric normal as colour.
     Normal,
     /// One colour per micro-triangle.
     Primitive,
+}
+
+impl ShadingArg {
+    fn shading(self) -> Shading {
+        match self {
+            ShadingArg::Eye => Shading::EyeLight,
+            ShadingArg::Normal => Shading::Normal,
+            ShadingArg::Primitive => Shading::Primitive,
+        }
+    }
 }
 
 /// What to build: shared by `render` and `stats`.
@@ -126,8 +181,8 @@ impl BuildArgs {
 pub struct RenderArgs {
     /// Mesh to render (.obj or .ply); the built-in scene when absent.
     pub mesh: Option<PathBuf>,
-    #[arg(long, value_enum, default_value_t = DeviceChoice::Auto)]
-    pub backend: DeviceChoice,
+    #[arg(long, value_enum, default_value_t = BackendArg::Auto)]
+    pub backend: BackendArg,
     #[arg(long, value_enum, default_value_t = Mode::Grid)]
     pub mode: Mode,
     #[command(flatten)]
@@ -139,10 +194,24 @@ pub struct RenderArgs {
     pub width: u32,
     #[arg(long, default_value_t = 720, value_parser = clap::value_parser!(u32).range(1..))]
     pub height: u32,
-    #[arg(long, value_enum, default_value_t = Shading::Eye)]
-    pub shading: Shading,
+    #[arg(long, value_enum, default_value_t = ShadingArg::Eye)]
+    pub shading: ShadingArg,
     #[arg(long, short, default_value = "render.png")]
     pub output: PathBuf,
+}
+
+impl RenderArgs {
+    /// The library's build options for these arguments.
+    pub fn build_options(&self) -> BuildOptions {
+        BuildOptions {
+            representation: match self.mode {
+                Mode::Grid => Representation::Grids,
+                Mode::Triangles => Representation::Triangles,
+            },
+            grid: self.build.grid_build(),
+            lod: self.lod,
+        }
+    }
 }
 
 #[derive(clap::Args, Debug)]
@@ -176,8 +245,8 @@ pub struct BenchArgs {
     pub meshes: Vec<PathBuf>,
     #[command(flatten)]
     pub build: BuildArgs,
-    #[arg(long, value_enum, default_value_t = DeviceChoice::Cpu)]
-    pub backend: DeviceChoice,
+    #[arg(long, value_enum, default_value_t = BackendArg::Cpu)]
+    pub backend: BackendArg,
     /// Camera views on an orbit around each mesh.
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..))]
     pub views: u32,
@@ -189,8 +258,8 @@ pub struct BenchArgs {
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u32).range(1..))]
     pub ao_samples: u32,
     /// Order of the ray lists (both representations trace the same list).
-    #[arg(long, value_enum, default_value_t = RayOrder::Scanline)]
-    pub ray_order: RayOrder,
+    #[arg(long, value_enum, default_value_t = RayOrderArg::Scanline)]
+    pub ray_order: RayOrderArg,
     /// Untimed runs before the timed ones.
     #[arg(long, default_value_t = 1)]
     pub warmup: usize,
@@ -211,7 +280,7 @@ pub struct BenchArgs {
     #[arg(long)]
     pub chart: Option<PathBuf>,
     /// TrueType font for the chart's labels.
-    #[arg(long, default_value = crate::chart::DEFAULT_FONT)]
+    #[arg(long, default_value = chart::DEFAULT_FONT)]
     pub font: PathBuf,
 }
 
@@ -229,20 +298,19 @@ pub fn run(cli: Cli) -> Result<()> {
     }
 }
 
-/// The mesh named on the command line, or the built-in scene, with a display name; moved into
-/// its local frame (see [`mesh::frame`]), where everything after loading works.
-pub fn load(path: Option<&Path>) -> Result<(String, Mesh)> {
-    load_in_frame(path).map(|(name, mesh, _)| (name, mesh))
-}
-
-/// [`load`], also returning the frame, which maps the mesh back to the file's units.
-pub fn load_in_frame(path: Option<&Path>) -> Result<(String, Mesh, LocalFrame)> {
-    let (name, mut mesh) = match path {
-        Some(p) => (p.display().to_string(), mesh::load_mesh(p)?),
-        None => ("default scene".to_string(), mesh::scene::default_scene()),
-    };
-    let frame = mesh.into_local_frame();
-    Ok((name, mesh, frame))
+/// The mesh named on the command line, or the built-in scene, in its local frame (see
+/// `gridrt::mesh::open`), warning about dropped degenerate triangles.
+pub fn load(path: Option<&Path>) -> Result<Input> {
+    let input = mesh::open(path)?;
+    if input.dropped > 0 {
+        eprintln!(
+            "warning: {}: dropped {} degenerate triangles ({})",
+            input.name,
+            input.dropped,
+            mesh::DEGENERATE
+        );
+    }
+    Ok(input)
 }
 
 impl SubdivisionArg {
@@ -263,12 +331,13 @@ pub fn subdivide(mesh: &Mesh, build: &BuildArgs) -> Subdivided {
 }
 
 fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
-    let lod = args.lod.unwrap_or(args.build.levels);
+    let options = args.build_options();
+    let lod = options.lod.unwrap_or(args.build.levels);
     if lod > args.build.levels {
         bail!("--lod {lod} is deeper than --levels {}", args.build.levels);
     }
     image_io::check_png_path(&args.output)?;
-    let (name, mesh) = stages.run("load", || load(args.mesh.as_deref()))?;
+    let Input { name, mesh, .. } = stages.run("load", || load(args.mesh.as_deref()))?;
     check_render_memory(&name, &mesh, args)?;
     let sizes = match args.mode {
         Mode::Grid => args.build.check_grid_limits(&name, &mesh)?,
@@ -277,23 +346,14 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
             limits::micro_triangles(mesh.triangles.len(), lod),
         ),
     };
-    let device = stages.run("device", || Device::open(args.backend, "rendering"))?;
-    device.check_fits(&sizes).map_err(|e| anyhow!("{name}: {e}"))?;
-    check_upload_memory(&name, &sizes, &device, args)?;
+    let backend = stages.run("device", || open_backend(args.backend, "rendering"))?;
+    backend.check_fits(&sizes).map_err(|e| anyhow!("{name}: {e}"))?;
+    check_upload_memory(&name, &sizes, &backend, args)?;
     let scene = match args.mode {
-        Mode::Grid => {
-            let grids = mesh.triangles.len() as u64;
-            let mut g = stages.run_counted("build", grids, |bar| {
-                grid::build_lean_reporting(&mesh, &args.build.grid_build(), &|n| bar.inc(n as u64))
-            })?;
-            g.set_lod(lod)?;
-            Scene::Grids(g)
-        }
-        Mode::Triangles => {
-            let sub = stages.run("subdivide", || subdivide(&mesh, &args.build));
-            let triangles = sub.micro_triangles(lod);
-            Scene::Triangles(stages.run("build", || triangles::build(&sub.positions, &triangles)))
-        }
+        Mode::Grid => stages.run_counted("build", mesh.triangles.len() as u64, |bar| {
+            Scene::build_reporting(&mesh, &options, &|n| bar.inc(n as u64))
+        })?,
+        Mode::Triangles => stages.run("build", || Scene::build(&mesh, &options))?,
     };
     let micro = limits::micro_triangles(mesh.triangles.len(), lod);
     // Grids hold every level built, whatever depth renders.
@@ -307,22 +367,17 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
         limits::human(scene.memory() as u64),
         scene.memory() as f64 / stored as f64
     ));
-    let bounds = scene.bounds();
-    let shading = match args.shading {
-        Shading::Eye => SHADE_EYE_LIGHT,
-        Shading::Normal => SHADE_NORMAL,
-        Shading::Primitive => SHADE_PRIMITIVE,
+    let view = camera::frame(&scene.bounds(), args.width, args.height);
+    let render = RenderOptions {
+        shading: args.shading.shading(),
     };
-    let frame = scene.frame(camera::frame(&bounds, args.width, args.height), shading);
-    let pixels = stages.run("render", || device.render(&scene, &frame))?;
-    stages.run("write", || {
-        image_io::write_png(&args.output, &pixels, args.width, args.height)
-    })?;
+    let image = stages.run("render", || backend.render(&scene, &view, &render))?;
+    stages.run("write", || image.write_png(&args.output))?;
     stages.say(format!(
         "rendered {}x{} on {} -> {}",
         args.width,
         args.height,
-        device.describe(),
+        backend.describe(),
         args.output.display()
     ));
     stages.report();
@@ -332,7 +387,7 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
 /// Subdivides a mesh and writes the micro-mesh, in the input's units, as binary PLY.
 fn export(args: &ExportArgs, stages: &mut Stages) -> Result<()> {
     image_io::check_output(&args.output, "ply")?;
-    let (name, mesh, frame) = stages.run("load", || load_in_frame(args.mesh.as_deref()))?;
+    let Input { name, mesh, frame, .. } = stages.run("load", || load(args.mesh.as_deref()))?;
     limits::check_build(
         &format!("subdividing {name}"),
         mesh.triangles.len(),
@@ -362,7 +417,7 @@ fn export(args: &ExportArgs, stages: &mut Stages) -> Result<()> {
 
 /// Refuses, before building, a render whose scene, with the copies the device keeps of it in
 /// host memory (lavapipe's), and image would not fit in memory.
-fn check_upload_memory(name: &str, sizes: &[limits::BufferSize], device: &Device, args: &RenderArgs) -> Result<()> {
+fn check_upload_memory(name: &str, sizes: &[limits::BufferSize], device: &Backend, args: &RenderArgs) -> Result<()> {
     let scene: u64 = sizes.iter().map(|b| b.bytes).sum();
     let copies = device.host_upload_bytes(scene);
     if copies == 0 {

@@ -7,12 +7,12 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 use serde_json::{Map, Value};
 
-use crate::cli::{self, BuildArgs, StatsArgs};
-use crate::grid::{self, GridScene};
-use crate::limits;
-use crate::mesh::Mesh;
-use crate::subdiv::Subdivided;
-use crate::triangles::{self, TriangleScene};
+use super::{BuildArgs, StatsArgs};
+use gridrt::grid::{self, GridScene};
+use gridrt::limits;
+use gridrt::mesh::{Input, Mesh};
+use gridrt::subdiv::Subdivided;
+use gridrt::triangles::{self, TriangleScene};
 
 /// Builds timed per representation at most; the median is reported.
 pub const BUILD_REPEATS: usize = 7;
@@ -160,10 +160,10 @@ pub fn spinner(quiet: bool) -> ProgressBar {
 pub fn run(args: &StatsArgs, quiet: bool) -> Result<()> {
     let bar = spinner(quiet);
     bar.set_message("loading");
-    let (name, mesh) = cli::load(args.mesh.as_deref())?;
+    let Input { name, mesh, .. } = super::load(args.mesh.as_deref())?;
     check_work(&name, &mesh, &args.build, 0)?;
     bar.set_message(format!("{name}: subdividing"));
-    let sub = cli::subdivide(&mesh, &args.build);
+    let sub = super::subdivide(&mesh, &args.build);
     let (s, _, _) = measure(&name, &mesh, &sub, &args.build, BUILD_REPEATS, &|step| {
         bar.set_message(format!("{name}: {step}"))
     })?;

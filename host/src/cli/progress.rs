@@ -19,10 +19,6 @@ impl Stages {
         }
     }
 
-    pub fn quiet(&self) -> bool {
-        self.quiet
-    }
-
     /// Runs stage `name` under a spinner and records its time.
     pub fn run<T>(&mut self, name: &'static str, stage: impl FnOnce() -> T) -> T {
         self.run_counted(name, 0, |_| stage())

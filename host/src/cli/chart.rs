@@ -7,7 +7,7 @@ use anyhow::{anyhow, Context, Result};
 use plotters::prelude::*;
 use plotters::style::{register_font, FontStyle};
 
-use crate::bench::BenchResult;
+use super::bench::BenchResult;
 
 /// Where a sans-serif font is looked for when none is given (Debian's fonts-dejavu-core).
 pub const DEFAULT_FONT: &str = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";

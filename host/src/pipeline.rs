@@ -1,0 +1,130 @@
+//! The render pipeline in four calls: open a mesh, build a [`Scene`] from it, frame a camera,
+//! render an [`Image`] on a [`Backend`]. The `gridrt` binary is a thin user of it.
+//!
+//! See the crate documentation for the whole chain, and `host/examples/embed.rs`.
+
+use std::path::Path;
+
+use anyhow::{bail, Result};
+use gridrt_shared::layout::{SHADE_EYE_LIGHT, SHADE_NORMAL, SHADE_PRIMITIVE};
+
+use crate::grid::{self, GridBuild};
+use crate::mesh::Mesh;
+use crate::scene::Scene;
+use crate::{image_io, subdiv, triangles};
+
+/// Which structure holds the micro-triangles.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Representation {
+    /// Grid primitives: a sphere hierarchy per base triangle, an SAH BVH over the grids.
+    #[default]
+    Grids,
+    /// The baseline: every micro-triangle in an indexed list under an SAH BVH.
+    Triangles,
+}
+
+/// What [`Scene::build`] makes of a base mesh.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BuildOptions {
+    pub representation: Representation,
+    /// Subdivision depth and scheme, and the grids' own options (the baseline uses the
+    /// depth, the scheme and the inner vertices' form).
+    pub grid: GridBuild,
+    /// Depth rendered, at most `grid.levels` (level of detail from the same grids);
+    /// `None`: the full depth.
+    pub lod: Option<u32>,
+}
+
+impl BuildOptions {
+    /// Grids of depth `levels`, Loop subdivision, the default grid options.
+    pub fn levels(levels: u32) -> Self {
+        BuildOptions {
+            representation: Representation::Grids,
+            grid: GridBuild::new(levels),
+            lod: None,
+        }
+    }
+}
+
+impl Default for BuildOptions {
+    fn default() -> Self {
+        BuildOptions::levels(3)
+    }
+}
+
+impl Scene {
+    /// Builds `mesh` (in its local frame, see [`crate::mesh::open`]) as `options` say. Grids
+    /// are built one base triangle at a time; the baseline subdivides the whole mesh.
+    pub fn build(mesh: &Mesh, options: &BuildOptions) -> Result<Scene> {
+        Scene::build_reporting(mesh, options, &|_| {})
+    }
+
+    /// [`Scene::build`], calling `progress(grids)` as runs of grids are built (grids only).
+    pub fn build_reporting(mesh: &Mesh, options: &BuildOptions, progress: &(dyn Fn(usize) + Sync)) -> Result<Scene> {
+        let levels = options.grid.levels;
+        let lod = options.lod.unwrap_or(levels);
+        if lod > levels {
+            bail!("level of detail {lod} is deeper than the {levels} levels built");
+        }
+        match options.representation {
+            Representation::Grids => {
+                grid::check_limits(mesh, &options.grid)?;
+                let mut grids = grid::build_lean_reporting(mesh, &options.grid, progress)?;
+                grids.set_lod(lod)?;
+                Ok(Scene::Grids(grids))
+            }
+            Representation::Triangles => {
+                let mut sub = subdiv::subdivide(mesh, levels, options.grid.scheme);
+                if options.grid.quantized {
+                    sub.quantize_inner();
+                }
+                let list = sub.micro_triangles(lod);
+                Ok(Scene::Triangles(triangles::build(&sub.positions, &list)))
+            }
+        }
+    }
+}
+
+/// How pixels are coloured.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Shading {
+    /// A headlight on a plain material.
+    #[default]
+    EyeLight,
+    /// The geometric normal as colour.
+    Normal,
+    /// One colour per micro-triangle.
+    Primitive,
+}
+
+impl Shading {
+    /// The mode number the shared shading code reads.
+    pub fn code(self) -> u32 {
+        match self {
+            Shading::EyeLight => SHADE_EYE_LIGHT,
+            Shading::Normal => SHADE_NORMAL,
+            Shading::Primitive => SHADE_PRIMITIVE,
+        }
+    }
+}
+
+/// How a frame is rendered (its size and view are the camera's).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct RenderOptions {
+    pub shading: Shading,
+}
+
+/// A rendered frame: packed RGBA8 (red in the low byte), row-major, top row first.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Image {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<u32>,
+}
+
+impl Image {
+    /// Writes the image as PNG (through a temporary file, so a failure leaves no partial one).
+    pub fn write_png(&self, path: &Path) -> Result<()> {
+        image_io::write_png(path, &self.pixels, self.width, self.height)
+    }
+}

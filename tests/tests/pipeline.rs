@@ -1,0 +1,59 @@
+//! The library's front door, as an embedder uses it: open, build, frame, render.
+
+use gridrt::backend::{Backend, BackendChoice};
+use gridrt::camera;
+use gridrt::image_io::fraction_within;
+use gridrt::mesh;
+use gridrt::pipeline::{BuildOptions, RenderOptions, Representation, Shading};
+use gridrt::scene::{render_cpu, Scene};
+use gridrt_tests::gpu_or_skip;
+
+#[test]
+fn the_pipeline_renders_both_representations_on_both_backends() {
+    let input = mesh::open(None).unwrap();
+    assert_eq!((input.name.as_str(), input.dropped), ("default scene", 0));
+    let gpu = gpu_or_skip("the_pipeline_renders_both_representations_on_both_backends")
+        .map(|_| Backend::open(BackendChoice::Gpu).unwrap());
+    let mut images = Vec::new();
+    for representation in [Representation::Grids, Representation::Triangles] {
+        let options = BuildOptions {
+            representation,
+            ..BuildOptions::levels(2)
+        };
+        let scene = Scene::build(&input.mesh, &options).unwrap();
+        let view = camera::frame(&scene.bounds(), 80, 60);
+        let render = RenderOptions {
+            shading: Shading::Normal,
+        };
+        let image = Backend::CPU.render(&scene, &view, &render).unwrap();
+        assert_eq!((image.width, image.height), (80, 60));
+        // The very pixels the CPU loop renders for this frame.
+        assert!(image.pixels == render_cpu(&scene, &scene.frame(view, Shading::Normal.code())));
+        if let Some(gpu) = &gpu {
+            let on_gpu = gpu.render(&scene, &view, &render).unwrap();
+            assert!(
+                fraction_within(&on_gpu.pixels, &image.pixels, 2) >= 0.995,
+                "{representation:?}"
+            );
+        }
+        images.push(image);
+    }
+    // Grids and the baseline hold the same micro-triangles.
+    assert!(fraction_within(&images[0].pixels, &images[1].pixels, 2) >= 0.995);
+}
+
+#[test]
+fn the_pipeline_refuses_what_it_cannot_build() {
+    let input = mesh::open(None).unwrap();
+    let deeper = BuildOptions {
+        lod: Some(4),
+        ..BuildOptions::levels(3)
+    };
+    let e = Scene::build(&input.mesh, &deeper).err().expect("refused").to_string();
+    assert!(e.contains("level of detail 4"), "{e}");
+    let e = mesh::open(Some("no/such/mesh.ply".as_ref()))
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(e.contains("no/such/mesh.ply") && !e.contains('\n'), "{e}");
+}
