@@ -1,5 +1,7 @@
-//! Camera set-up on the host: framing a scene's bounds automatically.
+//! Camera set-up on the host: framing a scene's bounds automatically, or from a
+//! [`Viewpoint`] given in part or in full.
 
+use anyhow::{bail, Result};
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::layout::Camera;
 
@@ -8,7 +10,7 @@ use crate::bvh::Aabb;
 /// Vertical field of view of every auto-framed view, in degrees.
 pub const FOV_DEGREES: f32 = 40.0;
 
-/// A pinhole camera at `eye` looking at `target`, `+y` up.
+/// A pinhole camera at `eye` looking at `target`, `+y` up (`+z` when looking along `y`).
 pub fn look_at(eye: Vec3, target: Vec3, fov_degrees: f32, width: u32, height: u32) -> Camera {
     let forward = (target - eye).normalize();
     let up_hint = if forward.cross(Vec3::Y).length_squared() < 1e-8 {
@@ -16,6 +18,12 @@ pub fn look_at(eye: Vec3, target: Vec3, fov_degrees: f32, width: u32, height: u3
     } else {
         Vec3::Y
     };
+    look_at_up(eye, forward, up_hint, fov_degrees, width, height)
+}
+
+/// A pinhole camera at `eye` looking along unit `forward`, `up_hint` (not parallel to it)
+/// pointing up in the picture.
+fn look_at_up(eye: Vec3, forward: Vec3, up_hint: Vec3, fov_degrees: f32, width: u32, height: u32) -> Camera {
     let right = forward.cross(up_hint).normalize();
     let up = right.cross(forward);
     let half_h = (fov_degrees.to_radians() * 0.5).tan();
@@ -53,4 +61,170 @@ pub fn orbit(bounds: &Aabb, k: u32, views: u32, width: u32, height: u32) -> Came
 /// The default auto-framed view.
 pub fn frame(bounds: &Aabb, width: u32, height: u32) -> Camera {
     orbit(bounds, 0, 1, width, height)
+}
+
+/// Where a camera stands and looks, in the scene's coordinates. Every part left out is chosen
+/// from the scene's bounds as [`frame`] chooses it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Viewpoint {
+    /// The eye; `None`: on the orbit `azimuth`, `elevation`, `distance` around the target.
+    pub eye: Option<Vec3>,
+    /// The point looked at; `None`: the centre of the bounds.
+    pub target: Option<Vec3>,
+    /// Up in the picture (any length, not along the view).
+    pub up: Vec3,
+    /// Vertical field of view.
+    pub fov_degrees: f32,
+    /// Around `up`, from the front (`+z` when `up` is `+y`) towards `+x`.
+    pub azimuth_degrees: f32,
+    /// Above the plane across `up`.
+    pub elevation_degrees: f32,
+    /// From the target; `None`: where the bounding sphere fills the frame.
+    pub distance: Option<f32>,
+}
+
+impl Default for Viewpoint {
+    fn default() -> Self {
+        Viewpoint {
+            eye: None,
+            target: None,
+            up: Vec3::Y,
+            fov_degrees: FOV_DEGREES,
+            azimuth_degrees: 35.0,
+            elevation_degrees: 25.0,
+            distance: None,
+        }
+    }
+}
+
+/// The camera `viewpoint` describes for a scene within `bounds`; the default viewpoint gives
+/// [`frame`]'s camera. Refuses a view with no direction (the eye on the target) or no up (up
+/// along the view, or zero).
+pub fn view(bounds: &Aabb, viewpoint: &Viewpoint, width: u32, height: u32) -> Result<Camera> {
+    let v = viewpoint;
+    if !(v.fov_degrees > 0.0 && v.fov_degrees < 180.0) {
+        bail!("a field of view of {} degrees is not between 0 and 180", v.fov_degrees);
+    }
+    let up = v.up.normalize_or_zero();
+    if up == Vec3::ZERO {
+        bail!("the up direction {} has no length", v.up);
+    }
+    let target = v.target.unwrap_or_else(|| bounds.center());
+    let eye = match v.eye {
+        Some(eye) => eye,
+        None => {
+            let fov = v.fov_degrees.to_radians();
+            let fit = fov.min(fov * width as f32 / height as f32);
+            let radius = (bounds.max - bounds.min).length() * 0.5;
+            let distance = v.distance.unwrap_or(radius / (fit * 0.5).sin() * 1.02);
+            target + orbit_direction(up, v.azimuth_degrees, v.elevation_degrees) * distance
+        }
+    };
+    let forward = (target - eye).normalize_or_zero();
+    if forward == Vec3::ZERO {
+        bail!("the eye is on the target: no direction to look in");
+    }
+    if forward.cross(up).length_squared() < 1e-8 {
+        bail!(
+            "the up direction {} is along the view: no way to tell up in the picture",
+            v.up
+        );
+    }
+    Ok(look_at_up(eye, forward, up, v.fov_degrees, width, height))
+}
+
+/// Unit direction from a target to an eye at `azimuth` and `elevation` (degrees) about `up`
+/// (unit): the front is the part of `+z` across `up` (of `+x` when `up` is along `z`).
+fn orbit_direction(up: Vec3, azimuth: f32, elevation: f32) -> Vec3 {
+    let across = |axis: Vec3| axis - up * up.dot(axis);
+    let front = match across(Vec3::Z) {
+        f if f.length_squared() > 1e-8 => f.normalize(),
+        _ => across(Vec3::X).normalize(),
+    };
+    let side = up.cross(front);
+    let (a, e) = (azimuth.to_radians(), elevation.to_radians());
+    side * (e.cos() * a.sin()) + up * e.sin() + front * (e.cos() * a.cos())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn bounds() -> Aabb {
+        Aabb {
+            min: Vec3::new(-1.0, -0.5, -0.25),
+            max: Vec3::new(1.0, 0.5, 0.25),
+        }
+    }
+
+    #[test]
+    fn the_default_viewpoint_is_the_default_frame() {
+        let b = bounds();
+        assert_eq!(view(&b, &Viewpoint::default(), 64, 48).unwrap(), frame(&b, 64, 48));
+    }
+
+    #[test]
+    fn an_eye_and_a_target_are_kept() {
+        let v = Viewpoint {
+            eye: Some(Vec3::new(0.0, 0.0, 5.0)),
+            target: Some(Vec3::ZERO),
+            ..Viewpoint::default()
+        };
+        let c = view(&bounds(), &v, 64, 48).unwrap();
+        assert_eq!(c.origin, [0.0, 0.0, 5.0]);
+        // The centre pixel looks straight at the target, up is up.
+        let centre = Vec3::from(c.to_top_left) + Vec3::from(c.horizontal) * 0.5 + Vec3::from(c.vertical) * 0.5;
+        assert!(centre.normalize().distance(-Vec3::Z) < 1e-6, "{centre}");
+        assert!(Vec3::from(c.vertical).y < 0.0);
+        // From behind, around +y: the eye at -z.
+        let behind = Viewpoint {
+            azimuth_degrees: 180.0,
+            elevation_degrees: 0.0,
+            distance: Some(3.0),
+            ..Viewpoint::default()
+        };
+        let c = view(&bounds(), &behind, 64, 48).unwrap();
+        assert!(Vec3::from(c.origin).distance(Vec3::new(0.0, 0.0, -3.0)) < 1e-5);
+        // Up along z: the front is +x.
+        let z_up = Viewpoint {
+            up: Vec3::Z,
+            azimuth_degrees: 0.0,
+            elevation_degrees: 0.0,
+            distance: Some(2.0),
+            ..Viewpoint::default()
+        };
+        let c = view(&bounds(), &z_up, 64, 48).unwrap();
+        assert!(Vec3::from(c.origin).distance(Vec3::new(2.0, 0.0, 0.0)) < 1e-5);
+    }
+
+    #[test]
+    fn views_without_a_direction_or_an_up_are_refused() {
+        let on_target = Viewpoint {
+            eye: Some(Vec3::ONE),
+            target: Some(Vec3::ONE),
+            ..Viewpoint::default()
+        };
+        let up_along = Viewpoint {
+            eye: Some(Vec3::new(0.0, 3.0, 0.0)),
+            target: Some(Vec3::ZERO),
+            ..Viewpoint::default()
+        };
+        let no_up = Viewpoint {
+            up: Vec3::ZERO,
+            ..Viewpoint::default()
+        };
+        let wide = Viewpoint {
+            fov_degrees: 180.0,
+            ..Viewpoint::default()
+        };
+        for (v, needle) in [
+            (on_target, "on the target"),
+            (up_along, "along the view"),
+            (no_up, "no length"),
+            (wide, "field of view"),
+        ] {
+            let e = view(&bounds(), &v, 64, 48).unwrap_err().to_string();
+            assert!(e.contains(needle), "{e}");
+        }
+    }
 }

@@ -68,7 +68,7 @@ impl Scene {
         }
         match options.representation {
             Representation::Grids => {
-                grid::check_limits(mesh, &options.grid)?;
+                // The build checks the mesh against the grid layout's limits first.
                 let mut grids = grid::build_lean_reporting(mesh, &options.grid, progress)?;
                 grids.set_lod(lod)?;
                 Ok(Scene::Grids(grids))

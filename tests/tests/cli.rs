@@ -115,6 +115,58 @@ fn render_reports_its_stages_unless_quiet() {
     }
 }
 
+/// The camera flags: the defaults spelled out change nothing, another side changes the
+/// picture, and a view without a direction is refused before any work.
+#[test]
+fn the_camera_can_be_placed() {
+    let dir = scratch("camera");
+    let png = |name: &str| dir.join(name).to_str().unwrap().to_string();
+    let render = |extra: &[&str], out: &str| {
+        let mut args = vec![
+            "render",
+            "--backend",
+            "cpu",
+            "--levels",
+            "1",
+            "--width",
+            "48",
+            "--height",
+            "36",
+            "-o",
+            out,
+        ];
+        args.extend_from_slice(extra);
+        let o = gridrt(&args);
+        assert!(o.status.success(), "gridrt {args:?}: {}", stderr(&o));
+        std::fs::read(out).unwrap()
+    };
+    let default = render(&[], &png("default.png"));
+    let spelled = ["--azimuth", "35", "--elevation", "25", "--fov", "40", "--up", "0,1,0"];
+    assert!(
+        render(&spelled, &png("spelled.png")) == default,
+        "the defaults spelled out differ"
+    );
+    assert!(render(&["--azimuth", "-145"], &png("behind.png")) != default);
+    let placed = render(&["--eye", "3,2,4", "--target", "0,0,0"], &png("placed.png"));
+    assert!(placed != default);
+    check_png(&dir.join("placed.png"), 48, 36);
+    for (args, needle) in [
+        (&["--eye", "1,2"][..], "x,y,z"),
+        (&["--distance", "-1"], "above zero"),
+        (&["--eye", "1,1,1", "--target", "1,1,1"], "no direction"),
+        (&["--fov", "180"], "field of view"),
+        (&["--up", "0,0,0"], "no length"),
+    ] {
+        let mut all = vec!["render", "--backend", "cpu", "-o", "x.png"];
+        all.extend_from_slice(args);
+        let o = gridrt(&all);
+        assert!(!o.status.success(), "gridrt {all:?} succeeded");
+        let err = stderr(&o);
+        assert!(err.contains(needle), "gridrt {all:?}: {err}");
+        assert!(!err.contains("B per micro-triangle"), "built before refusing: {err}");
+    }
+}
+
 #[test]
 fn renders_a_mesh_file() {
     let Some(meshes) = meshes_dir() else {

@@ -6,12 +6,16 @@ use anyhow::{anyhow, bail, Result};
 use clap::{Parser, Subcommand, ValueEnum};
 
 use gridrt::backend::{Backend, BackendChoice};
+use gridrt::bvh::Aabb;
+use gridrt::camera::Viewpoint;
+use gridrt::mesh::frame::LocalFrame;
 use gridrt::mesh::{self, Input, Mesh};
 use gridrt::pipeline::{BuildOptions, RenderOptions, Representation, Shading};
 use gridrt::rays::RayOrder;
 use gridrt::scene::Scene;
 use gridrt::subdiv::{self, Scheme, Subdivided};
 use gridrt::{camera, grid, image_io, limits, triangles};
+use gridrt_shared::glam::DVec3;
 use progress::Stages;
 
 mod bench;
@@ -196,8 +200,74 @@ pub struct RenderArgs {
     pub height: u32,
     #[arg(long, value_enum, default_value_t = ShadingArg::Eye)]
     pub shading: ShadingArg,
+    #[command(flatten)]
+    pub camera: CameraArgs,
     #[arg(long, short, default_value = "render.png")]
     pub output: PathBuf,
+}
+
+/// Where the camera stands, in the mesh file's units; whatever is left out is chosen from the
+/// mesh's bounds (the whole mesh in view, from the front-right, somewhat above).
+#[derive(clap::Args, Debug, Clone)]
+pub struct CameraArgs {
+    /// Eye position, `x,y,z`; without it the eye orbits the target (see --azimuth).
+    #[arg(long, value_parser = parse_point, allow_hyphen_values = true)]
+    pub eye: Option<DVec3>,
+    /// Point looked at, `x,y,z`; the centre of the mesh's bounds when absent.
+    #[arg(long, value_parser = parse_point, allow_hyphen_values = true)]
+    pub target: Option<DVec3>,
+    /// Up in the picture, `x,y,z`.
+    #[arg(long, value_parser = parse_point, default_value = "0,1,0", allow_hyphen_values = true)]
+    pub up: DVec3,
+    /// Vertical field of view, in degrees.
+    #[arg(long, default_value_t = camera::FOV_DEGREES)]
+    pub fov: f32,
+    /// Degrees around the up axis from the front (+z with +y up) towards +x, without --eye.
+    #[arg(long, default_value_t = 35.0, allow_hyphen_values = true)]
+    pub azimuth: f32,
+    /// Degrees above the horizon, without --eye.
+    #[arg(long, default_value_t = 25.0, allow_hyphen_values = true)]
+    pub elevation: f32,
+    /// Distance from the target, without --eye; where the whole mesh fits when absent.
+    #[arg(long, value_parser = parse_positive, allow_hyphen_values = true)]
+    pub distance: Option<f64>,
+}
+
+impl CameraArgs {
+    /// The viewpoint in the mesh's local frame.
+    pub fn viewpoint(&self, frame: &LocalFrame) -> Viewpoint {
+        Viewpoint {
+            eye: self.eye.map(|p| frame.to_local(p)),
+            target: self.target.map(|p| frame.to_local(p)),
+            up: self.up.as_vec3(),
+            fov_degrees: self.fov,
+            azimuth_degrees: self.azimuth,
+            elevation_degrees: self.elevation,
+            distance: self.distance.map(|d| (d * frame.scale) as f32),
+        }
+    }
+}
+
+/// `x,y,z`: three finite numbers.
+fn parse_point(text: &str) -> std::result::Result<DVec3, String> {
+    let parts: Vec<&str> = text.split(',').map(str::trim).collect();
+    let numbers: Vec<f64> = parts
+        .iter()
+        .filter_map(|p| p.parse().ok())
+        .filter(|v: &f64| v.is_finite())
+        .collect();
+    match numbers.as_slice() {
+        &[x, y, z] if parts.len() == 3 => Ok(DVec3::new(x, y, z)),
+        _ => Err(format!("expected three numbers x,y,z, found {text:?}")),
+    }
+}
+
+/// A finite number above zero.
+fn parse_positive(text: &str) -> std::result::Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("expected a number above zero, found {text:?}")),
+    }
 }
 
 impl RenderArgs {
@@ -337,7 +407,11 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
         bail!("--lod {lod} is deeper than --levels {}", args.build.levels);
     }
     image_io::check_png_path(&args.output)?;
-    let Input { name, mesh, .. } = stages.run("load", || load(args.mesh.as_deref()))?;
+    let Input { name, mesh, frame, .. } = stages.run("load", || load(args.mesh.as_deref()))?;
+    let viewpoint = args.camera.viewpoint(&frame);
+    // A view with no direction is refused before the build (bounds only matter for defaults).
+    let whole = Aabb::from_points(mesh.positions.iter().copied());
+    camera::view(&whole, &viewpoint, args.width, args.height)?;
     check_render_memory(&name, &mesh, args)?;
     let sizes = match args.mode {
         Mode::Grid => args.build.check_grid_limits(&name, &mesh)?,
@@ -367,7 +441,7 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
         limits::human(scene.memory() as u64),
         scene.memory() as f64 / stored as f64
     ));
-    let view = camera::frame(&scene.bounds(), args.width, args.height);
+    let view = camera::view(&scene.bounds(), &viewpoint, args.width, args.height)?;
     let render = RenderOptions {
         shading: args.shading.shading(),
     };
