@@ -105,6 +105,20 @@ pub fn view(bounds: &Aabb, viewpoint: &Viewpoint, width: u32, height: u32) -> Re
     if !(v.fov_degrees > 0.0 && v.fov_degrees < 180.0) {
         bail!("a field of view of {} degrees is not between 0 and 180", v.fov_degrees);
     }
+    let angles = [v.azimuth_degrees, v.elevation_degrees];
+    let points_finite = [v.eye, v.target, Some(v.up)]
+        .into_iter()
+        .flatten()
+        .all(|p| p.is_finite());
+    if !angles.iter().all(|a| a.is_finite()) || !points_finite {
+        bail!("a camera position, direction or angle is not a finite number");
+    }
+    if v.distance.is_some_and(|d| !(d.is_finite() && d > 0.0)) {
+        bail!(
+            "a camera distance of {:?} is not a finite length above zero",
+            v.distance
+        );
+    }
     let up = v.up.normalize_or_zero();
     if up == Vec3::ZERO {
         bail!("the up direction {} has no length", v.up);
@@ -217,11 +231,21 @@ mod tests {
             fov_degrees: 180.0,
             ..Viewpoint::default()
         };
+        let spun = Viewpoint {
+            azimuth_degrees: f32::INFINITY,
+            ..Viewpoint::default()
+        };
+        let far = Viewpoint {
+            distance: Some(f32::INFINITY),
+            ..Viewpoint::default()
+        };
         for (v, needle) in [
             (on_target, "on the target"),
             (up_along, "along the view"),
             (no_up, "no length"),
             (wide, "field of view"),
+            (spun, "not a finite number"),
+            (far, "finite length"),
         ] {
             let e = view(&bounds(), &v, 64, 48).unwrap_err().to_string();
             assert!(e.contains(needle), "{e}");
