@@ -183,8 +183,8 @@ impl BuildArgs {
 
 #[derive(clap::Args, Debug)]
 pub struct RenderArgs {
-    /// Mesh to render (.obj or .ply); the built-in scene when absent.
-    pub mesh: Option<PathBuf>,
+    /// Meshes to render together (.obj, .ply, .gltf or .glb); the built-in scene when none.
+    pub meshes: Vec<PathBuf>,
     #[arg(long, value_enum, default_value_t = BackendArg::Auto)]
     pub backend: BackendArg,
     #[arg(long, value_enum, default_value_t = Mode::Grid)]
@@ -286,7 +286,7 @@ impl RenderArgs {
 
 #[derive(clap::Args, Debug)]
 pub struct ExportArgs {
-    /// Mesh to subdivide (.obj or .ply); the built-in scene when absent.
+    /// Mesh to subdivide (.obj, .ply, .gltf or .glb); the built-in scene when absent.
     pub mesh: Option<PathBuf>,
     /// Subdivision depth L: every base triangle becomes 4^L micro-triangles.
     #[arg(long, short = 'L', default_value_t = 3, value_parser = clap::value_parser!(u32).range(0..=6))]
@@ -299,7 +299,7 @@ pub struct ExportArgs {
 
 #[derive(clap::Args, Debug)]
 pub struct StatsArgs {
-    /// Mesh to measure (.obj or .ply); the built-in scene when absent.
+    /// Mesh to measure (.obj, .ply, .gltf or .glb); the built-in scene when absent.
     pub mesh: Option<PathBuf>,
     #[command(flatten)]
     pub build: BuildArgs,
@@ -310,7 +310,7 @@ pub struct StatsArgs {
 
 #[derive(clap::Args, Debug)]
 pub struct BenchArgs {
-    /// Meshes to measure (.obj or .ply).
+    /// Meshes to measure (.obj, .ply, .gltf or .glb).
     #[arg(required = true)]
     pub meshes: Vec<PathBuf>,
     #[command(flatten)]
@@ -371,7 +371,12 @@ pub fn run(cli: Cli) -> Result<()> {
 /// The mesh named on the command line, or the built-in scene, in its local frame (see
 /// `gridrt::mesh::open`), warning about dropped degenerate triangles.
 pub fn load(path: Option<&Path>) -> Result<Input> {
-    let input = mesh::open(path)?;
+    load_all(path.as_slice())
+}
+
+/// [`load`] for several meshes rendered together.
+pub fn load_all(paths: &[&Path]) -> Result<Input> {
+    let input = mesh::open_all(paths)?;
     if input.dropped > 0 {
         eprintln!(
             "warning: {}: dropped {} degenerate triangles ({})",
@@ -407,7 +412,8 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
         bail!("--lod {lod} is deeper than --levels {}", args.build.levels);
     }
     image_io::check_png_path(&args.output)?;
-    let Input { name, mesh, frame, .. } = stages.run("load", || load(args.mesh.as_deref()))?;
+    let paths: Vec<&Path> = args.meshes.iter().map(PathBuf::as_path).collect();
+    let Input { name, mesh, frame, .. } = stages.run("load", || load_all(&paths))?;
     let viewpoint = args.camera.viewpoint(&frame);
     // A view with no direction is refused before the build (bounds only matter for defaults).
     let whole = Aabb::from_points(mesh.positions.iter().copied());

@@ -1,4 +1,4 @@
-//! Triangle meshes as loaded from disk (OBJ, PLY) or generated in code.
+//! Triangle meshes as loaded from disk (OBJ, PLY, glTF) or generated in code.
 
 use std::path::Path;
 
@@ -6,6 +6,7 @@ use anyhow::{anyhow, bail};
 use gridrt_shared::glam::Vec3;
 
 pub mod frame;
+pub mod gltf;
 pub mod obj;
 pub mod ply;
 pub mod scene;
@@ -95,7 +96,7 @@ impl Mesh {
 /// What a dropped triangle is, for messages.
 pub const DEGENERATE: &str = "a repeated vertex, or the same three vertices as an earlier triangle";
 
-/// Loads .obj or .ply (case-insensitive extension) and validates it. Every error is one line that starts with the
+/// Loads .obj, .ply, .gltf or .glb (case-insensitive extension) and validates it. Every error is one line that starts with the
 /// file path. Dropped degenerate triangles are reported as one warning line on stderr.
 pub fn load_mesh(path: &Path) -> anyhow::Result<Mesh> {
     let (mesh, dropped) = load_mesh_quiet(path)?;
@@ -121,7 +122,7 @@ pub struct Input {
     pub dropped: usize,
 }
 
-/// Loads `path` (`.obj` or `.ply`), or the built-in scene when `None`, and moves it into its
+/// Loads `path` (`.obj`, `.ply`, `.gltf` or `.glb`), or the built-in scene when `None`, and moves it into its
 /// local frame, where everything after loading works. Errors are one line naming the file.
 pub fn open(path: Option<&Path>) -> anyhow::Result<Input> {
     let (name, (mut mesh, dropped)) = match path {
@@ -137,15 +138,51 @@ pub fn open(path: Option<&Path>) -> anyhow::Result<Input> {
     })
 }
 
+/// Several files as one mesh (each loaded and checked on its own, then put side by side in
+/// the files' common units), or the built-in scene when `paths` is empty; in its local frame.
+pub fn open_all(paths: &[&Path]) -> anyhow::Result<Input> {
+    let [first, rest @ ..] = paths else {
+        return open(None);
+    };
+    let mut all = open_world(first)?;
+    for path in rest {
+        let next = open_world(path)?;
+        let base = all.mesh.positions.len() as u32;
+        all.mesh.positions.extend(next.mesh.positions);
+        all.mesh
+            .triangles
+            .extend(next.mesh.triangles.iter().map(|t| t.map(|i| base + i)));
+        all.name = format!("{} + {}", all.name, next.name);
+        all.dropped += next.dropped;
+    }
+    all.frame = all.mesh.into_local_frame();
+    Ok(all)
+}
+
+/// A file loaded and checked, still in its own units.
+fn open_world(path: &Path) -> anyhow::Result<Input> {
+    let (mesh, dropped) = load_mesh_quiet(path)?;
+    Ok(Input {
+        name: path.display().to_string(),
+        mesh,
+        frame: frame::LocalFrame::IDENTITY,
+        dropped,
+    })
+}
+
 /// [`load_mesh`] without the warning: returns the number of dropped degenerate triangles instead.
 pub fn load_mesh_quiet(path: &Path) -> anyhow::Result<(Mesh, usize)> {
     let name = path.display().to_string();
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-    let parse: fn(&[u8]) -> anyhow::Result<Mesh> = match ext.as_deref() {
-        Some("obj") => obj::parse_obj,
-        Some("ply") => ply::parse_ply,
-        _ => bail!("{name}: unsupported format (expected .obj or .ply)"),
+    let folder = path.parent();
+    let parse = |bytes: &[u8]| match ext.as_deref() {
+        Some("obj") => obj::parse_obj(bytes),
+        Some("ply") => ply::parse_ply(bytes),
+        _ => gltf::parse_gltf(bytes, folder),
     };
+    if !matches!(ext.as_deref(), Some("obj" | "ply" | "gltf" | "glb")) {
+        bail!("{name}: unsupported format (expected .obj, .ply, .gltf or .glb)");
+    }
     let bytes = std::fs::read(path).map_err(|e| anyhow!("{name}: cannot open: {}", io_reason(&e)))?;
     if bytes.is_empty() {
         bail!("{name}: no triangles (empty file)");
@@ -250,6 +287,29 @@ mod tests {
     use super::test_util::*;
     use super::*;
 
+    /// Several files open as one mesh in their common units, then in one local frame; a bad
+    /// one is named.
+    #[test]
+    fn several_files_open_as_one_mesh() {
+        let a = write_temp("a.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+        let b = write_temp("b.obj", b"v 4 0 0\nv 5 0 0\nv 4 1 0\nv 9 9 9\nf 1 2 3\nf 1 1 2\n");
+        let all = open_all(&[&a, &b]).unwrap();
+        assert_eq!(all.name, format!("{} + {}", a.display(), b.display()));
+        assert_eq!(all.dropped, 1);
+        assert_eq!(all.mesh.triangles, vec![[0, 1, 2], [3, 4, 5]]);
+        let world: Vec<_> = all
+            .mesh
+            .positions
+            .iter()
+            .map(|&p| all.frame.to_world(p).as_vec3())
+            .collect();
+        assert_eq!(world[3], Vec3::new(4.0, 0.0, 0.0));
+        assert_eq!(open_all(&[]).unwrap().name, "default scene");
+        let missing = a.with_file_name("missing.ply");
+        let e = open_all(&[&a, &missing]).err().unwrap().to_string();
+        assert!(e.starts_with(&missing.display().to_string()), "{e}");
+    }
+
     #[test]
     fn validate_drops_degenerates_and_rejects_bad_meshes() {
         let p = vec![Vec3::ZERO, Vec3::X, Vec3::Y];
@@ -310,7 +370,11 @@ mod tests {
     fn generic_errors() {
         expect_err("empty.obj", b"", &["no triangles"]);
         expect_err("empty.ply", b"", &["no triangles"]);
-        expect_err("x.stl", b"solid x\n", &["unsupported format (expected .obj or .ply)"]);
+        expect_err(
+            "x.stl",
+            b"solid x\n",
+            &["unsupported format (expected .obj, .ply, .gltf or .glb)"],
+        );
         expect_err("noext", b"v 0 0 0\n", &["unsupported format"]);
         let missing = std::env::temp_dir().join("gridrt-definitely-missing-dir/missing.obj");
         let e = format!("{:#}", load_mesh(&missing).unwrap_err());
