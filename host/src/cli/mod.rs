@@ -202,6 +202,10 @@ pub struct RenderArgs {
     pub shading: ShadingArg,
     #[command(flatten)]
     pub camera: CameraArgs,
+    /// Render N frames around the target (the azimuth turning by 360/N degrees each), written
+    /// as OUTPUT_000.png, OUTPUT_001.png, ...
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=100_000), conflicts_with = "eye")]
+    pub turntable: Option<u32>,
     #[arg(long, short, default_value = "render.png")]
     pub output: PathBuf,
 }
@@ -447,21 +451,41 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
         limits::human(scene.memory() as u64),
         scene.memory() as f64 / stored as f64
     ));
-    let view = camera::view(&scene.bounds(), &viewpoint, args.width, args.height)?;
     let render = RenderOptions {
         shading: args.shading.shading(),
     };
-    let image = stages.run("render", || backend.render(&scene, &view, &render))?;
-    stages.run("write", || image.write_png(&args.output))?;
-    stages.say(format!(
-        "rendered {}x{} on {} -> {}",
-        args.width,
-        args.height,
-        backend.describe(),
-        args.output.display()
-    ));
+    let frames = args.turntable.unwrap_or(1);
+    for k in 0..frames {
+        // A turntable turns the orbit's azimuth by equal steps, the first frame the plain view.
+        let turned = Viewpoint {
+            azimuth_degrees: viewpoint.azimuth_degrees + 360.0 * k as f32 / frames as f32,
+            ..viewpoint
+        };
+        let view = camera::view(&scene.bounds(), &turned, args.width, args.height)?;
+        let image = stages.run("render", || backend.render(&scene, &view, &render))?;
+        let output = frame_path(&args.output, k, args.turntable);
+        stages.run("write", || image.write_png(&output))?;
+        stages.say(format!(
+            "rendered {}x{} on {} -> {}",
+            args.width,
+            args.height,
+            backend.describe(),
+            output.display()
+        ));
+    }
     stages.report();
     Ok(())
+}
+
+/// Where frame `k` goes: `output` itself, or for a turntable `output`'s name with the frame
+/// number, `render_007.png`.
+fn frame_path(output: &Path, k: u32, turntable: Option<u32>) -> PathBuf {
+    let Some(frames) = turntable else {
+        return output.to_path_buf();
+    };
+    let digits = (frames - 1).max(1).ilog10() as usize + 1;
+    let stem = output.file_stem().unwrap_or_default().to_string_lossy();
+    output.with_file_name(format!("{stem}_{k:0width$}.png", width = digits.max(3)))
 }
 
 /// Subdivides a mesh and writes the micro-mesh, in the input's units, as binary PLY.

@@ -19,7 +19,7 @@ impl Stages {
         }
     }
 
-    /// Runs stage `name` under a spinner and records its time.
+    /// Runs stage `name` under a spinner and records its time (added up over repeated runs).
     pub fn run<T>(&mut self, name: &'static str, stage: impl FnOnce() -> T) -> T {
         self.run_counted(name, 0, |_| stage())
     }
@@ -31,7 +31,12 @@ impl Stages {
         let started = Instant::now();
         let result = stage(&bar);
         bar.finish_and_clear();
-        self.done.push((name, started.elapsed()));
+        // A stage run again (a turntable's frames) adds to its time.
+        let elapsed = started.elapsed();
+        match self.done.iter_mut().find(|(n, _)| *n == name) {
+            Some((_, total)) => *total += elapsed,
+            None => self.done.push((name, elapsed)),
+        }
         result
     }
 
