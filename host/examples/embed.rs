@@ -19,6 +19,7 @@ fn main() -> Result<()> {
     let backend = Backend::open(BackendChoice::Auto)?;
     let options = RenderOptions {
         shading: Shading::Normal,
+        ..RenderOptions::default()
     };
     backend
         .render(&scene, &view, &options)?

@@ -125,7 +125,7 @@ impl Backend {
 
     /// Renders `scene` as `camera` sees it.
     pub fn render(&self, scene: &Scene, camera: &Camera, options: &RenderOptions) -> Result<Image> {
-        let pixels = self.render_frame(scene, &scene.frame(*camera, options.shading.code()))?;
+        let pixels = self.render_frame(scene, &options.frame(scene, camera))?;
         Ok(Image {
             width: camera.width,
             height: camera.height,

@@ -6,10 +6,13 @@
 use std::path::Path;
 
 use anyhow::{bail, Result};
-use gridrt_shared::layout::{SHADE_EYE_LIGHT, SHADE_NORMAL, SHADE_PRIMITIVE};
+use gridrt_shared::layout::{
+    Camera, FrameParams, SHADE_AMBIENT_OCCLUSION, SHADE_EYE_LIGHT, SHADE_NORMAL, SHADE_PRIMITIVE,
+};
 
 use crate::grid::{self, GridBuild};
 use crate::mesh::Mesh;
+use crate::rays::AO_RADIUS;
 use crate::scene::Scene;
 use crate::{image_io, subdiv, triangles};
 
@@ -95,6 +98,8 @@ pub enum Shading {
     Normal,
     /// One colour per micro-triangle.
     Primitive,
+    /// The plain material darkened by ambient occlusion (see [`RenderOptions::ao_samples`]).
+    AmbientOcclusion,
 }
 
 impl Shading {
@@ -104,14 +109,45 @@ impl Shading {
             Shading::EyeLight => SHADE_EYE_LIGHT,
             Shading::Normal => SHADE_NORMAL,
             Shading::Primitive => SHADE_PRIMITIVE,
+            Shading::AmbientOcclusion => SHADE_AMBIENT_OCCLUSION,
         }
     }
 }
 
 /// How a frame is rendered (its size and view are the camera's).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RenderOptions {
     pub shading: Shading,
+    /// Ambient-occlusion rays per pixel.
+    pub ao_samples: u32,
+    /// How far ambient-occlusion rays look, in the scene's coordinates; `None`: a tenth of
+    /// the scene's bounding-box diagonal.
+    pub ao_distance: Option<f32>,
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        RenderOptions {
+            shading: Shading::EyeLight,
+            ao_samples: 16,
+            ao_distance: None,
+        }
+    }
+}
+
+impl RenderOptions {
+    /// The dispatch parameters of `scene` seen by `camera` with these options.
+    pub fn frame(&self, scene: &Scene, camera: &Camera) -> FrameParams {
+        let bounds = scene.bounds();
+        let diagonal = (bounds.max - bounds.min).length();
+        FrameParams {
+            ao_samples: self.ao_samples,
+            ao_distance: self.ao_distance.unwrap_or(diagonal * AO_RADIUS),
+            // A hair off the surface, so the rays do not find the triangle they leave.
+            ao_offset: diagonal * 1e-5,
+            ..scene.frame(*camera, self.shading.code())
+        }
+    }
 }
 
 /// A rendered frame: packed RGBA8 (red in the low byte), row-major, top row first.

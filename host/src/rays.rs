@@ -5,6 +5,7 @@ use gridrt_shared::camera::primary_ray;
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::layout::{HitRecord, RayRecord};
 use gridrt_shared::ray::T_FAR;
+use gridrt_shared::sample::{cosine_direction, hash, unit_float};
 
 use crate::bvh::Aabb;
 use crate::camera;
@@ -39,19 +40,6 @@ pub fn primary_rays(bounds: &Aabb, views: u32, width: u32, height: u32) -> Vec<R
     rays
 }
 
-/// A 32-bit integer hash (lowbias32), the source of the AO directions.
-fn hash(mut x: u32) -> u32 {
-    x ^= x >> 16;
-    x = x.wrapping_mul(0x7feb_352d);
-    x ^= x >> 15;
-    x = x.wrapping_mul(0x846c_a68b);
-    x ^ (x >> 16)
-}
-
-fn unit_float(x: u32) -> f32 {
-    (x >> 8) as f32 / (1u32 << 24) as f32
-}
-
 /// `samples` cosine-distributed rays over the hemisphere of each primary hit, on the side the
 /// primary ray came from, starting a hair off the surface. `normal_of` gives the geometric
 /// normal of a hit.
@@ -81,10 +69,7 @@ pub fn ao_rays(
         let (t1, t2) = n.any_orthonormal_pair();
         for s in 0..samples {
             let h = hash(AO_SEED ^ hash(k as u32 * samples + s));
-            let (u1, u2) = (unit_float(h), unit_float(hash(h)));
-            let r = u1.sqrt();
-            let phi = std::f32::consts::TAU * u2;
-            let d = t1 * (r * phi.cos()) + t2 * (r * phi.sin()) + n * (1.0 - u1).max(0.0).sqrt();
+            let d = cosine_direction(n, t1, t2, unit_float(h), unit_float(hash(h)));
             rays.push(record(p, d.normalize(), diagonal * AO_RADIUS));
         }
     }

@@ -175,6 +175,7 @@ pub struct Camera {
 pub const SHADE_EYE_LIGHT: u32 = 0;
 pub const SHADE_NORMAL: u32 = 1;
 pub const SHADE_PRIMITIVE: u32 = 2;
+pub const SHADE_AMBIENT_OCCLUSION: u32 = 3;
 
 /// How the grid buffers are to be read; all zero for a triangle scene.
 #[repr(C)]
@@ -256,7 +257,11 @@ pub struct FrameParams {
     pub tile_y: u32,
     pub tile_width: u32,
     pub tile_height: u32,
-    pub _pad: [u32; 3],
+    /// Ambient occlusion ([`SHADE_AMBIENT_OCCLUSION`]): rays per pixel, how far they look,
+    /// and how far off the surface they start.
+    pub ao_samples: u32,
+    pub ao_distance: f32,
+    pub ao_offset: f32,
 }
 
 /// Primitive id of a miss.

@@ -16,6 +16,7 @@ pub mod grid_traverse;
 pub mod layout;
 pub mod quantize;
 pub mod ray;
+pub mod sample;
 pub mod shade;
 pub mod sphere;
 pub mod traverse;

@@ -1,8 +1,9 @@
 use crate::buffer::Buffer;
 use crate::camera::primary_ray;
 use crate::glam::Vec3;
-use crate::layout::{BvhNode, FrameParams, Hit, SHADE_NORMAL, SHADE_PRIMITIVE};
+use crate::layout::{BvhNode, FrameParams, Hit, SHADE_AMBIENT_OCCLUSION, SHADE_NORMAL, SHADE_PRIMITIVE};
 use crate::ray::{Ray, T_FAR};
+use crate::sample::{cosine_direction, hash, orthonormal_basis, unit_float};
 use crate::traverse::{trace, LeafPrimitives};
 // On the GPU, float methods come from a trait (GLSL.std.450 underneath); natively from core.
 #[cfg(target_arch = "spirv")]
@@ -12,7 +13,8 @@ use spirv_std::num_traits::Float;
 ///
 /// - eye light: a two-sided headlight, so the shape reads without any light set-up;
 /// - normal: the unit geometric normal mapped to RGB;
-/// - primitive: a colour hashed from the primitive id, to see the micro-triangles.
+/// - primitive: a colour hashed from the primitive id, to see the micro-triangles;
+/// - ambient occlusion: the plain material, which [`render_pixel`] darkens by occlusion.
 pub fn shade(hit: &Hit, ray: &Ray, mode: u32) -> Vec3 {
     if !hit.is_hit() {
         // A quiet vertical gradient, so silhouettes stand out.
@@ -26,6 +28,9 @@ pub fn shade(hit: &Hit, ray: &Ray, mode: u32) -> Vec3 {
     let n = if len2 > 0.0 { n / len2.sqrt() } else { Vec3::ZERO };
     if mode == SHADE_NORMAL {
         return n * 0.5 + Vec3::splat(0.5);
+    }
+    if mode == SHADE_AMBIENT_OCCLUSION {
+        return Vec3::new(0.85, 0.78, 0.62);
     }
     let facing = n.dot(ray.dir.normalize()).abs();
     let base = if mode == SHADE_PRIMITIVE {
@@ -72,5 +77,45 @@ pub fn render_pixel<N: Buffer<BvhNode>, P: LeafPrimitives>(
 ) -> u32 {
     let ray = primary_ray(&frame.camera, x, y);
     let hit = trace(nodes, prims, &ray, T_FAR);
-    pack_rgba8(shade(&hit, &ray, frame.shading))
+    let mut color = shade(&hit, &ray, frame.shading);
+    if frame.shading == SHADE_AMBIENT_OCCLUSION && hit.is_hit() {
+        let pixel = y * frame.camera.width + x;
+        color *= 0.1 + 0.9 * unoccluded(frame, nodes, prims, &ray, &hit, pixel);
+    }
+    pack_rgba8(color)
+}
+
+/// The fraction of `frame.ao_samples` cosine-distributed rays from `hit` (on the side `ray`
+/// came from) that meet nothing within `frame.ao_distance`. The directions come from a hash
+/// of the pixel and the sample, so every run and both backends draw the same ones.
+fn unoccluded<N: Buffer<BvhNode>, P: LeafPrimitives>(
+    frame: &FrameParams,
+    nodes: N,
+    prims: &P,
+    ray: &Ray,
+    hit: &Hit,
+    pixel: u32,
+) -> f32 {
+    let n = Vec3::from(hit.normal);
+    let len2 = n.dot(n);
+    if len2 == 0.0 || frame.ao_samples == 0 {
+        return 1.0;
+    }
+    let mut n = n / len2.sqrt();
+    if n.dot(ray.dir) > 0.0 {
+        n = -n;
+    }
+    let origin = ray.origin + ray.dir * hit.t + n * frame.ao_offset;
+    let (t1, t2) = orthonormal_basis(n);
+    let mut open = 0u32;
+    let mut s = 0;
+    while s < frame.ao_samples {
+        let h = hash(hash(pixel) ^ s.wrapping_mul(0x9e37_79b9));
+        let dir = cosine_direction(n, t1, t2, unit_float(h), unit_float(hash(h)));
+        if !trace(nodes, prims, &Ray::new(origin, dir), frame.ao_distance).is_hit() {
+            open += 1;
+        }
+        s += 1;
+    }
+    open as f32 / frame.ao_samples as f32
 }

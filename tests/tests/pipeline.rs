@@ -24,6 +24,7 @@ fn the_pipeline_renders_both_representations_on_both_backends() {
         let view = camera::frame(&scene.bounds(), 80, 60);
         let render = RenderOptions {
             shading: Shading::Normal,
+            ..RenderOptions::default()
         };
         let image = Backend::CPU.render(&scene, &view, &render).unwrap();
         assert_eq!((image.width, image.height), (80, 60));
@@ -56,4 +57,50 @@ fn the_pipeline_refuses_what_it_cannot_build() {
         .expect("refused")
         .to_string();
     assert!(e.contains("no/such/mesh.ply") && !e.contains('\n'), "{e}");
+}
+
+/// Ambient occlusion: the same rays from the same pixels on both backends, darker where the
+/// scene closes in, and no darker than the plain material where the rays look nowhere.
+#[test]
+fn ambient_occlusion_agrees_across_backends_and_darkens() {
+    let input = mesh::open(None).unwrap();
+    let gpu = gpu_or_skip("ambient_occlusion_agrees_across_backends_and_darkens")
+        .map(|_| Backend::open(BackendChoice::Gpu).unwrap());
+    for representation in [Representation::Grids, Representation::Triangles] {
+        let options = BuildOptions {
+            representation,
+            ..BuildOptions::levels(2)
+        };
+        let scene = Scene::build(&input.mesh, &options).unwrap();
+        let view = camera::frame(&scene.bounds(), 96, 72);
+        let ao = RenderOptions {
+            shading: Shading::AmbientOcclusion,
+            ao_samples: 8,
+            ..RenderOptions::default()
+        };
+        let image = Backend::CPU.render(&scene, &view, &ao).unwrap();
+        if let Some(gpu) = &gpu {
+            let on_gpu = gpu.render(&scene, &view, &ao).unwrap();
+            let within = fraction_within(&on_gpu.pixels, &image.pixels, 2);
+            assert!(within >= 0.99, "{representation:?}: {:.3}% agree", 100.0 * within);
+        }
+        // Rays that look (almost) nowhere see nothing: the plain material everywhere.
+        let blind = RenderOptions {
+            ao_distance: Some(1e-6),
+            ..ao
+        };
+        let open = Backend::CPU.render(&scene, &view, &blind).unwrap();
+        let red = |p: u32| p & 0xff;
+        let darker = image
+            .pixels
+            .iter()
+            .zip(&open.pixels)
+            .filter(|(a, b)| red(**a) < red(**b))
+            .count();
+        assert!(image.pixels.iter().zip(&open.pixels).all(|(a, b)| red(*a) <= red(*b)));
+        assert!(
+            darker > image.pixels.len() / 50,
+            "{representation:?}: only {darker} pixels occluded"
+        );
+    }
 }

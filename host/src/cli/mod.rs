@@ -112,6 +112,8 @@ pub enum ShadingArg {
     Normal,
     /// One colour per micro-triangle.
     Primitive,
+    /// Ambient occlusion (--ao-samples rays per pixel, looking --ao-distance far).
+    Ao,
 }
 
 impl ShadingArg {
@@ -120,6 +122,7 @@ impl ShadingArg {
             ShadingArg::Eye => Shading::EyeLight,
             ShadingArg::Normal => Shading::Normal,
             ShadingArg::Primitive => Shading::Primitive,
+            ShadingArg::Ao => Shading::AmbientOcclusion,
         }
     }
 }
@@ -200,6 +203,13 @@ pub struct RenderArgs {
     pub height: u32,
     #[arg(long, value_enum, default_value_t = ShadingArg::Eye)]
     pub shading: ShadingArg,
+    /// Ambient-occlusion rays per pixel (`--shading ao`).
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=4096))]
+    pub ao_samples: u32,
+    /// How far ambient-occlusion rays look, in the file's units; a tenth of the mesh's
+    /// bounding-box diagonal when absent.
+    #[arg(long, value_parser = parse_positive, allow_hyphen_values = true)]
+    pub ao_distance: Option<f64>,
     #[command(flatten)]
     pub camera: CameraArgs,
     /// Render N frames around the target (the azimuth turning by 360/N degrees each), written
@@ -453,6 +463,8 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
     ));
     let render = RenderOptions {
         shading: args.shading.shading(),
+        ao_samples: args.ao_samples,
+        ao_distance: args.ao_distance.map(|d| (d * frame.scale) as f32),
     };
     let frames = args.turntable.unwrap_or(1);
     for k in 0..frames {
