@@ -8,19 +8,32 @@ use gridrt::pipeline::{BuildOptions, RenderOptions, Representation, Shading};
 use gridrt::scene::{render_cpu, Scene};
 use gridrt_tests::gpu_or_skip;
 
+/// The GPU backend, or `None` where the tests skip it.
+fn gpu_backend(test: &str) -> Option<Backend> {
+    gpu_or_skip(test).map(|_| Backend::open(BackendChoice::Gpu).unwrap())
+}
+
+/// The built-in scene at L = 2 in both representations, built through the pipeline.
+fn both_scenes() -> Vec<(Representation, Scene)> {
+    let input = mesh::open(None).unwrap();
+    [Representation::Grids, Representation::Triangles]
+        .map(|representation| {
+            let options = BuildOptions {
+                representation,
+                ..BuildOptions::levels(2)
+            };
+            (representation, Scene::build(&input.mesh, &options).unwrap())
+        })
+        .into()
+}
+
 #[test]
 fn the_pipeline_renders_both_representations_on_both_backends() {
     let input = mesh::open(None).unwrap();
     assert_eq!((input.name.as_str(), input.dropped), ("default scene", 0));
-    let gpu = gpu_or_skip("the_pipeline_renders_both_representations_on_both_backends")
-        .map(|_| Backend::open(BackendChoice::Gpu).unwrap());
+    let gpu = gpu_backend("the_pipeline_renders_both_representations_on_both_backends");
     let mut images = Vec::new();
-    for representation in [Representation::Grids, Representation::Triangles] {
-        let options = BuildOptions {
-            representation,
-            ..BuildOptions::levels(2)
-        };
-        let scene = Scene::build(&input.mesh, &options).unwrap();
+    for (representation, scene) in both_scenes() {
         let view = camera::frame(&scene.bounds(), 80, 60);
         let render = RenderOptions {
             shading: Shading::Normal,
@@ -63,15 +76,8 @@ fn the_pipeline_refuses_what_it_cannot_build() {
 /// scene closes in, and no darker than the plain material where the rays look nowhere.
 #[test]
 fn ambient_occlusion_agrees_across_backends_and_darkens() {
-    let input = mesh::open(None).unwrap();
-    let gpu = gpu_or_skip("ambient_occlusion_agrees_across_backends_and_darkens")
-        .map(|_| Backend::open(BackendChoice::Gpu).unwrap());
-    for representation in [Representation::Grids, Representation::Triangles] {
-        let options = BuildOptions {
-            representation,
-            ..BuildOptions::levels(2)
-        };
-        let scene = Scene::build(&input.mesh, &options).unwrap();
+    let gpu = gpu_backend("ambient_occlusion_agrees_across_backends_and_darkens");
+    for (representation, scene) in both_scenes() {
         let view = camera::frame(&scene.bounds(), 96, 72);
         let ao = RenderOptions {
             shading: Shading::AmbientOcclusion,
