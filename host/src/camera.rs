@@ -58,9 +58,10 @@ pub fn orbit(bounds: &Aabb, k: u32, views: u32, width: u32, height: u32) -> Came
     look_at(center + dir * distance, center, FOV_DEGREES, width, height)
 }
 
-/// The default auto-framed view.
+/// The default auto-framed view: [`view`] from the default [`Viewpoint`], the box filling
+/// the frame ([`orbit`]'s first view where that fails, as for a box that is not finite).
 pub fn frame(bounds: &Aabb, width: u32, height: u32) -> Camera {
-    orbit(bounds, 0, 1, width, height)
+    view(bounds, &Viewpoint::default(), width, height).unwrap_or_else(|_| orbit(bounds, 0, 1, width, height))
 }
 
 /// Where a camera stands and looks, in the scene's coordinates. Every part left out is chosen
@@ -79,7 +80,7 @@ pub struct Viewpoint {
     pub azimuth_degrees: f32,
     /// Above the plane across `up`.
     pub elevation_degrees: f32,
-    /// From the target; `None`: where the bounding sphere fills the frame.
+    /// From the target; `None`: as close as the bounds fit in the frame (see [`view`]).
     pub distance: Option<f32>,
 }
 
@@ -97,8 +98,9 @@ impl Default for Viewpoint {
     }
 }
 
-/// The camera `viewpoint` describes for a scene within `bounds`; the default viewpoint gives
-/// [`frame`]'s camera. Refuses a view with no direction (the eye on the target) or no up (up
+/// The camera `viewpoint` describes for a scene within `bounds`: without an eye or a
+/// distance, as close as the box's corners all stay inside nine tenths of the frame.
+/// Refuses a view with no direction (the eye on the target) or no up (up
 /// along the view, or zero).
 pub fn view(bounds: &Aabb, viewpoint: &Viewpoint, width: u32, height: u32) -> Result<Camera> {
     let v = viewpoint;
@@ -127,11 +129,11 @@ pub fn view(bounds: &Aabb, viewpoint: &Viewpoint, width: u32, height: u32) -> Re
     let eye = match v.eye {
         Some(eye) => eye,
         None => {
-            let fov = v.fov_degrees.to_radians();
-            let fit = fov.min(fov * width as f32 / height as f32);
-            let radius = (bounds.max - bounds.min).length() * 0.5;
-            let distance = v.distance.unwrap_or(radius / (fit * 0.5).sin() * 1.02);
-            target + orbit_direction(up, v.azimuth_degrees, v.elevation_degrees) * distance
+            let back = orbit_direction(up, v.azimuth_degrees, v.elevation_degrees);
+            let distance = v.distance.unwrap_or_else(|| {
+                fitting_distance(bounds, target, back, up, v.fov_degrees, width as f32 / height as f32)
+            });
+            target + back * distance
         }
     };
     let forward = (target - eye).normalize_or_zero();
@@ -145,6 +147,35 @@ pub fn view(bounds: &Aabb, viewpoint: &Viewpoint, width: u32, height: u32) -> Re
         );
     }
     Ok(look_at_up(eye, forward, up, v.fov_degrees, width, height))
+}
+
+/// Share of the frame the auto-framed box's picture may fill, each way.
+const FILL: f32 = 0.9;
+
+/// How far back along unit `back` from `target` the eye must stand for every corner of
+/// `bounds` to fall inside [`FILL`] of the frame: each corner's offset across the view, over
+/// the tangent of the half field of view, plus its depth towards the eye.
+fn fitting_distance(bounds: &Aabb, target: Vec3, back: Vec3, up: Vec3, fov_degrees: f32, aspect: f32) -> f32 {
+    let right = up.cross(back).normalize();
+    let up = back.cross(right);
+    let tan_v = (fov_degrees.to_radians() * 0.5).tan() * FILL;
+    let tan_h = tan_v * aspect;
+    let mut distance = 0f32;
+    for k in 0..8 {
+        let pick = |bit: u32, lo: f32, hi: f32| if k & bit == 0 { lo } else { hi };
+        let corner = Vec3::new(
+            pick(1, bounds.min.x, bounds.max.x),
+            pick(2, bounds.min.y, bounds.max.y),
+            pick(4, bounds.min.z, bounds.max.z),
+        );
+        let r = corner - target;
+        let need = r.dot(back) + (r.dot(right).abs() / tan_h).max(r.dot(up).abs() / tan_v);
+        distance = distance.max(need);
+    }
+    // A flat or empty box still leaves the eye off the target.
+    distance
+        .max((bounds.max - bounds.min).length() * 0.5)
+        .max(f32::MIN_POSITIVE)
 }
 
 /// Unit direction from a target to an eye at `azimuth` and `elevation` (degrees) about `up`
@@ -171,10 +202,39 @@ mod tests {
         }
     }
 
+    /// The auto-framed box fills the frame: every corner inside it, and one near its edge.
     #[test]
-    fn the_default_viewpoint_is_the_default_frame() {
+    fn the_box_fills_the_frame() {
         let b = bounds();
-        assert_eq!(view(&b, &Viewpoint::default(), 64, 48).unwrap(), frame(&b, 64, 48));
+        for (azimuth, elevation) in [(35.0, 25.0), (0.0, 0.0), (90.0, 80.0), (200.0, -30.0)] {
+            let v = Viewpoint {
+                azimuth_degrees: azimuth,
+                elevation_degrees: elevation,
+                ..Viewpoint::default()
+            };
+            let c = view(&b, &v, 64, 48).unwrap();
+            let (eye, h, vv) = (Vec3::from(c.origin), Vec3::from(c.horizontal), Vec3::from(c.vertical));
+            let normal = h.cross(vv).normalize();
+            let mut widest = 0f32;
+            for k in 0..8 {
+                let p = Vec3::new(
+                    if k & 1 == 0 { b.min.x } else { b.max.x },
+                    if k & 2 == 0 { b.min.y } else { b.max.y },
+                    if k & 4 == 0 { b.min.z } else { b.max.z },
+                );
+                // The corner on the image plane, one unit along the view from the eye.
+                let d = p - eye;
+                let on_plane = d / d.dot(normal).abs() * (Vec3::from(c.to_top_left).dot(normal).abs());
+                let rel = on_plane - Vec3::from(c.to_top_left);
+                let (u, w) = (rel.dot(h) / h.length_squared(), rel.dot(vv) / vv.length_squared());
+                assert!(
+                    (0.0..=1.0).contains(&u) && (0.0..=1.0).contains(&w),
+                    "corner {k} at {u}, {w}"
+                );
+                widest = widest.max((u - 0.5).abs()).max((w - 0.5).abs());
+            }
+            assert!(widest > 0.4, "the box fills too little: {widest}");
+        }
     }
 
     #[test]
