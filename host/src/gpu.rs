@@ -278,11 +278,16 @@ impl Gpu {
     /// Refuses, before it is built, a scene whose buffers will be at least `sizes` and cannot
     /// be bound on this adapter: the check [`Gpu::upload`] makes on the built scene.
     pub fn check_fits(&self, sizes: &[BufferSize]) -> Result<()> {
-        if sizes.iter().all(|b| b.bytes <= self.binding_limit) {
+        if self.binds_whole(sizes) {
             return Ok(());
         }
         self.check_split_bindings()?;
         check_chunks(sizes, chunk_words(self.binding_limit), &self.describe_limits())
+    }
+
+    /// Whether every buffer fits in one binding, so that none need be split.
+    fn binds_whole(&self, sizes: &[BufferSize]) -> bool {
+        sizes.iter().all(|b| b.bytes <= self.binding_limit)
     }
 
     /// Uploads a scene's geometry: each buffer in one binding when every one fits, otherwise
@@ -294,7 +299,8 @@ impl Gpu {
             Scene::Triangles(_) => vec![],
             Scene::Grids(_) => vec![self.buffer("static index list", bytemuck::cast_slice(&MICRO_TRIANGLES))],
         };
-        if buffers.iter().all(|b| b.words.len() as u64 * 4 <= self.binding_limit) {
+        let sizes: Vec<BufferSize> = buffers.iter().map(|b| b.size()).collect();
+        if self.binds_whole(&sizes) {
             let mut all = statics;
             all.extend(
                 buffers

@@ -19,6 +19,16 @@ pub struct SceneBuffer<'a> {
     pub len: u32,
 }
 
+impl SceneBuffer<'_> {
+    pub fn size(&self) -> BufferSize {
+        BufferSize {
+            name: self.name,
+            bytes: self.words.len() as u64 * 4,
+            at_least: false,
+        }
+    }
+}
+
 /// A scene's large buffers in the order of `gridrt_shared::layout::SplitParams` (the grids'
 /// static index list is not among them: it is small, and bound on its own).
 pub fn scene_buffers(scene: &Scene) -> Vec<SceneBuffer<'_>> {
@@ -95,14 +105,7 @@ pub fn split<'a>(scene: &'a Scene, chunk_words: u32, device: &str) -> Result<Spl
         "chunks of {chunk_words} words"
     );
     let buffers = scene_buffers(scene);
-    let sizes: Vec<BufferSize> = buffers
-        .iter()
-        .map(|b| BufferSize {
-            name: b.name,
-            bytes: b.words.len() as u64 * 4,
-            at_least: false,
-        })
-        .collect();
+    let sizes: Vec<BufferSize> = buffers.iter().map(SceneBuffer::size).collect();
     check_chunks(&sizes, chunk_words, device)?;
     let mut params = SplitParams {
         chunk_shift: chunk_words.trailing_zeros(),

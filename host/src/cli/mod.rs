@@ -285,6 +285,11 @@ fn parse_positive(text: &str) -> std::result::Result<f64, String> {
 }
 
 impl RenderArgs {
+    /// Host bytes of the image being rendered and written.
+    fn image_bytes(&self) -> u64 {
+        (self.width as u64 * self.height as u64).saturating_mul(limits::IMAGE_BYTES_PER_PIXEL)
+    }
+
     /// The library's build options for these arguments.
     pub fn build_options(&self) -> BuildOptions {
         BuildOptions {
@@ -539,9 +544,8 @@ fn check_upload_memory(name: &str, sizes: &[limits::BufferSize], device: &Backen
     if copies == 0 {
         return Ok(());
     }
-    let image = (args.width as u64 * args.height as u64).saturating_mul(limits::IMAGE_BYTES_PER_PIXEL);
     limits::check_memory(
-        scene.saturating_add(copies).saturating_add(image),
+        scene.saturating_add(copies).saturating_add(args.image_bytes()),
         limits::available_memory()?,
         &format!("{name} uploaded to {}", device.describe()),
         "use fewer --levels, or --backend cpu",
@@ -555,8 +559,7 @@ fn check_render_memory(name: &str, mesh: &Mesh, args: &RenderArgs) -> Result<()>
         Mode::Grid => (limits::Builds::Grids, "grid"),
         Mode::Triangles => (limits::Builds::Triangles, "triangles"),
     };
-    let pixels = args.width as u64 * args.height as u64;
-    let image = pixels.saturating_mul(limits::IMAGE_BYTES_PER_PIXEL);
+    let image = args.image_bytes();
     limits::check_memory(
         image,
         limits::available_memory()?,

@@ -29,8 +29,11 @@ pub fn parse_gltf(bytes: &[u8], folder: Option<&Path>) -> Result<Mesh> {
         }
         // No scene: every root node (a node no other names as a child).
         None => {
-            let children: Vec<usize> = document.nodes().flat_map(|n| n.children().map(|c| c.index())).collect();
-            for node in document.nodes().filter(|n| !children.contains(&n.index())) {
+            let mut is_child = vec![false; document.nodes().len()];
+            for child in document.nodes().flat_map(|n| n.children()) {
+                is_child[child.index()] = true;
+            }
+            for node in document.nodes().filter(|n| !is_child[n.index()]) {
                 add_node(&mut mesh, &node, DMat4::IDENTITY, &buffers)?;
             }
         }

@@ -125,26 +125,22 @@ pub struct Input {
 /// Loads `path` (`.obj`, `.ply`, `.gltf` or `.glb`), or the built-in scene when `None`, and moves it into its
 /// local frame, where everything after loading works. Errors are one line naming the file.
 pub fn open(path: Option<&Path>) -> anyhow::Result<Input> {
-    let (name, (mut mesh, dropped)) = match path {
-        Some(p) => (p.display().to_string(), load_mesh_quiet(p)?),
-        None => ("default scene".to_string(), (scene::default_scene(), 0)),
-    };
-    let frame = mesh.into_local_frame();
-    Ok(Input {
-        name,
-        mesh,
-        frame,
-        dropped,
-    })
+    open_all(path.as_slice())
 }
 
 /// Several files as one mesh (each loaded and checked on its own, then put side by side in
 /// the files' common units), or the built-in scene when `paths` is empty; in its local frame.
 pub fn open_all(paths: &[&Path]) -> anyhow::Result<Input> {
-    let [first, rest @ ..] = paths else {
-        return open(None);
+    let mut all = match paths.first() {
+        Some(first) => open_world(first)?,
+        None => Input {
+            name: "default scene".to_string(),
+            mesh: scene::default_scene(),
+            frame: frame::LocalFrame::IDENTITY,
+            dropped: 0,
+        },
     };
-    let mut all = open_world(first)?;
+    let rest = paths.get(1..).unwrap_or_default();
     for path in rest {
         let next = open_world(path)?;
         let base = all.mesh.positions.len() as u32;
