@@ -4,7 +4,7 @@
 use gridrt::grid::{self, GridOptions};
 use gridrt::mesh::Mesh;
 use gridrt::scene::{closest_hit_slack, hit_uncertainty, hits_only_by_rounding, Scene};
-use gridrt::subdiv::{subdivide, Scheme};
+use gridrt::subdiv::{subdivide_creased, Scheme};
 use gridrt::triangles;
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::ray::{Ray, T_FAR};
@@ -64,6 +64,8 @@ struct Plan {
     levels: u32,
     lod: u32,
     scheme: Scheme,
+    /// Creases chosen beyond this dihedral angle, in degrees.
+    crease_angle: Option<f32>,
     quantized: bool,
     options: GridOptions,
 }
@@ -73,6 +75,7 @@ impl Plan {
         grid::GridBuild {
             levels: self.levels,
             scheme: self.scheme,
+            crease_angle: self.crease_angle,
             options: self.options,
             quantized: self.quantized,
         }
@@ -83,10 +86,13 @@ fn decode(data: &[u8]) -> (Plan, Mesh, Bytes<'_>) {
     let mut b = Bytes(data);
     let flags = b.u8();
     let levels = (flags & 3) as u32;
+    // The second byte: the depth rendered (low half), the crease angle (high half, 0: none).
+    let detail = b.u8();
     let plan = Plan {
         levels,
-        lod: b.u8() as u32 % (levels + 1),
+        lod: (detail & 15) as u32 % (levels + 1),
         scheme: if flags & 4 != 0 { Scheme::Flat } else { Scheme::Loop },
+        crease_angle: (detail >> 4 != 0).then(|| (detail >> 4) as f32 * 12.0 - 6.0),
         quantized: flags & 8 != 0,
         options: GridOptions {
             half_radii: flags & 16 != 0,
@@ -118,7 +124,8 @@ pub fn run_pipeline(data: &[u8]) {
         Err(e) => return assert_one_line(&e),
     };
     mesh.into_local_frame();
-    let mut sub = subdivide(&mesh, plan.levels, plan.scheme);
+    let creases = plan.grid_build().creases(&mesh);
+    let mut sub = subdivide_creased(&mesh, plan.levels, plan.scheme, &creases);
     assert!(
         sub.positions.iter().all(|p| p.is_finite()),
         "subdivision made a non-finite vertex"

@@ -27,11 +27,11 @@ pub enum Representation {
 }
 
 /// What [`Scene::build`] makes of a base mesh.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BuildOptions {
     pub representation: Representation,
-    /// Subdivision depth and scheme, and the grids' own options (the baseline uses the
-    /// depth, the scheme and the inner vertices' form).
+    /// Subdivision depth, scheme and creases, and the grids' own options (the baseline uses
+    /// all but the last).
     pub grid: GridBuild,
     /// Depth rendered, at most `grid.levels` (level of detail from the same grids);
     /// `None`: the full depth.
@@ -77,7 +77,8 @@ impl Scene {
                 Ok(Scene::Grids(grids))
             }
             Representation::Triangles => {
-                let mut sub = subdiv::subdivide(mesh, levels, options.grid.scheme);
+                let creases = options.grid.creases(mesh);
+                let mut sub = subdiv::subdivide_creased(mesh, levels, options.grid.scheme, &creases);
                 if options.grid.quantized {
                     sub.quantize_inner();
                 }

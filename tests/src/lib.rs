@@ -105,6 +105,7 @@ pub fn build_pair_from(
         grid: grid::GridBuild {
             levels,
             scheme,
+            crease_angle: None,
             options: *options,
             quantized,
         },

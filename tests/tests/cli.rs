@@ -576,3 +576,53 @@ fn export_round_trips() {
         &["unsupported format ('.obj')", "PLY"],
     );
 }
+
+/// `--crease-angle 30` keeps a cube a cube: exported, every micro-vertex lies on its surface
+/// and every one on its edges stays on them, in millimetres far from the origin as at the
+/// unit scale. Without it Loop subdivision rounds the corners off.
+#[test]
+fn creases_keep_a_cube_sharp() {
+    let dir = scratch("creases");
+    let cube = dir.join("cube.obj");
+    let (lo, size) = (2500.0f64, 40.0f64);
+    let mut obj = String::new();
+    for i in 0..8 {
+        let c = |bit: u32| lo + if i & bit != 0 { size } else { 0.0 };
+        obj += &format!("v {} {} {}\n", c(1), c(2), c(4));
+    }
+    // Quads, counter-clockwise from outside, as faces of 1-based vertex ids.
+    obj += "f 1 3 4 2\nf 5 6 8 7\nf 1 2 6 5\nf 3 7 8 4\nf 1 5 7 3\nf 2 4 8 6\n";
+    std::fs::write(&cube, obj).unwrap();
+    let levels = 3;
+    let per_edge = (1 << levels) - 1;
+    for (creased, on_edges) in [(true, 12 * per_edge + 8), (false, 0)] {
+        let out = dir.join(format!("cube_{creased}.ply"));
+        let mut args = vec!["export", "-q", cube.to_str().unwrap(), "--levels", "3"];
+        if creased {
+            args.extend(["--crease-angle", "30"]);
+        }
+        args.extend(["-o", out.to_str().unwrap()]);
+        let o = gridrt(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let (micro, _) = gridrt::mesh::load_mesh_quiet(&out).unwrap();
+        let tolerance = size * 1e-5;
+        let at_bound = |x: f32| {
+            let x = x as f64;
+            (x - lo).abs() < tolerance || (x - lo - size).abs() < tolerance
+        };
+        let bounds_hit = |p: &gridrt_shared::glam::Vec3| p.to_array().into_iter().filter(|&x| at_bound(x)).count();
+        if creased {
+            assert!(
+                micro.positions.iter().all(|p| bounds_hit(p) >= 1),
+                "a vertex left the cube's faces"
+            );
+        }
+        let edge_vertices = micro.positions.iter().filter(|p| bounds_hit(p) >= 2).count();
+        assert_eq!(edge_vertices, on_edges, "creased: {creased}");
+    }
+    fails_with(
+        &["render", cube.to_str().unwrap(), "--crease-angle", "200"],
+        &[],
+        &["--crease-angle", "between 0 and 180"],
+    );
+}

@@ -135,6 +135,10 @@ pub struct BuildArgs {
     pub levels: u32,
     #[arg(long, value_enum, default_value_t = SubdivisionArg::Loop)]
     pub subdivision: SubdivisionArg,
+    /// Keep edges sharp where the surface folds by more than this many degrees (0 to 180;
+    /// boundaries always stay sharp). Without it, Loop subdivision rounds every edge.
+    #[arg(long, value_name = "DEGREES", value_parser = parse_crease_angle)]
+    pub crease_angle: Option<f32>,
     /// Levels at the bottom of each grid's sphere hierarchy that get no spheres.
     #[arg(long, default_value_t = grid::DEFAULT_EXCLUDED_LEVELS, value_parser = clap::value_parser!(u32).range(1..=3))]
     pub excluded_levels: u32,
@@ -170,6 +174,7 @@ impl BuildArgs {
         grid::GridBuild {
             levels: self.levels,
             scheme: self.subdivision.scheme(),
+            crease_angle: self.crease_angle,
             options: self.grid_options(),
             quantized: self.inner_vertices == InnerVertices::Quantized,
         }
@@ -312,6 +317,10 @@ pub struct ExportArgs {
     pub levels: u32,
     #[arg(long, value_enum, default_value_t = SubdivisionArg::Loop)]
     pub subdivision: SubdivisionArg,
+    /// Keep edges sharp where the surface folds by more than this many degrees (0 to 180;
+    /// boundaries always stay sharp). Without it, Loop subdivision rounds every edge.
+    #[arg(long, value_name = "DEGREES", value_parser = parse_crease_angle)]
+    pub crease_angle: Option<f32>,
     #[arg(long, short, default_value = "micro.ply")]
     pub output: PathBuf,
 }
@@ -416,8 +425,18 @@ impl SubdivisionArg {
     }
 }
 
+/// A dihedral angle in degrees, from 0 to 180.
+fn parse_crease_angle(text: &str) -> std::result::Result<f32, String> {
+    match text.trim().parse::<f32>() {
+        Ok(degrees) if (0.0..=180.0).contains(&degrees) => Ok(degrees),
+        Ok(_) => Err("a crease angle is between 0 and 180 degrees".into()),
+        Err(_) => Err(format!("'{text}' is not a number of degrees")),
+    }
+}
+
 pub fn subdivide(mesh: &Mesh, build: &BuildArgs) -> Subdivided {
-    let mut sub = subdiv::subdivide(mesh, build.levels, build.subdivision.scheme());
+    let creases = build.grid_build().creases(mesh);
+    let mut sub = subdiv::subdivide_creased(mesh, build.levels, build.subdivision.scheme(), &creases);
     if build.inner_vertices == InnerVertices::Quantized {
         sub.quantize_inner();
     }
@@ -518,7 +537,11 @@ fn export(args: &ExportArgs, stages: &mut Stages) -> Result<()> {
         "use fewer --levels",
     )?;
     let sub = stages.run("subdivide", || {
-        subdiv::subdivide(&mesh, args.levels, args.subdivision.scheme())
+        let creases = match args.crease_angle {
+            Some(degrees) => subdiv::Creases::from_angle(&mesh, degrees),
+            None => subdiv::Creases::none(),
+        };
+        subdiv::subdivide_creased(&mesh, args.levels, args.subdivision.scheme(), &creases)
     });
     let triangles = sub.micro_triangles(args.levels);
     stages.run("write", || {

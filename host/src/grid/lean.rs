@@ -23,7 +23,7 @@ use super::{
 };
 use crate::mesh::Mesh;
 use crate::quantize::quantize_grid;
-use crate::subdiv::{subdivide, subdivide_triangle, Patch, Scheme, VertexFaces};
+use crate::subdiv::{subdivide_creased, subdivide_triangle, Creases, Patch, PatchSource, Scheme, VertexFaces};
 
 /// Average base faces per patch (see `VertexFaces::patch_faces`) above which the lean build
 /// gives way to subdividing the whole mesh: a closed regular mesh starts its patches with 18
@@ -41,13 +41,16 @@ fn patches_fit(vertex_faces: &VertexFaces, base: &Mesh) -> bool {
     vertex_faces.patch_faces() <= MAX_PATCH_FACES_PER_TRIANGLE * base.triangles.len() as u64
 }
 
-/// What to build from a base mesh: depth, subdivision scheme, grid options and the inner
-/// vertices' form.
-#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+/// What to build from a base mesh: depth, subdivision scheme and creases, grid options and
+/// the inner vertices' form.
+#[derive(Copy, Clone, Debug, PartialEq)]
 pub struct GridBuild {
     /// Subdivision depth `L`: each base triangle becomes a grid of `4^L` micro-triangles.
     pub levels: u32,
     pub scheme: Scheme,
+    /// Edges whose dihedral angle exceeds this many degrees stay sharp (see [`Creases`]);
+    /// `None`: only boundaries and non-manifold edges do.
+    pub crease_angle: Option<f32>,
     pub options: GridOptions,
     /// Inner vertices as 16-bit codes (`gridrt_shared::quantize`) rather than `f32` triples.
     pub quantized: bool,
@@ -59,8 +62,17 @@ impl GridBuild {
         GridBuild {
             levels,
             scheme: Scheme::Loop,
+            crease_angle: None,
             options: GridOptions::default(),
             quantized: true,
+        }
+    }
+
+    /// The creases chosen on `base` by [`GridBuild::crease_angle`].
+    pub fn creases(&self, base: &Mesh) -> Creases {
+        match self.crease_angle {
+            Some(degrees) => Creases::from_angle(base, degrees),
+            None => Creases::none(),
         }
     }
 }
@@ -79,13 +91,15 @@ pub fn build_lean_reporting(base: &Mesh, build: &GridBuild, progress: &(dyn Fn(u
         scheme,
         options,
         quantized,
+        ..
     } = *build;
     let options = &options;
     let edges = BaseEdges::new(base);
     check_counts(base, edges.owner.len() as u64, levels, options, quantized)?;
     let vertex_faces = VertexFaces::new(base);
+    let creases = build.creases(base);
     if !patches_fit(&vertex_faces, base) {
-        let mut sub = subdivide(base, levels, scheme);
+        let mut sub = subdivide_creased(base, levels, scheme, &creases);
         if quantized {
             sub.quantize_inner();
         }
@@ -99,6 +113,7 @@ pub fn build_lean_reporting(base: &Mesh, build: &GridBuild, progress: &(dyn Fn(u
     let builder = Builder {
         base,
         vertex_faces,
+        creases,
         edges,
         corner_owner: corner_owners(base),
         shape,
@@ -136,6 +151,7 @@ fn corner_owners(base: &Mesh) -> Vec<u32> {
 struct Builder<'a> {
     base: &'a Mesh,
     vertex_faces: VertexFaces,
+    creases: Creases,
     edges: BaseEdges,
     corner_owner: Vec<u32>,
     shape: GridShape,
@@ -234,15 +250,12 @@ impl Builder<'_> {
         let levels = self.shape.levels;
         let n = grid_size(levels);
         let lattice = &mut scratch.lattice;
-        subdivide_triangle(
-            self.base,
-            &self.vertex_faces,
-            g as u32,
-            levels,
-            self.scheme,
-            &mut scratch.patch,
-            lattice,
-        );
+        let source = PatchSource {
+            mesh: self.base,
+            vertex_faces: &self.vertex_faces,
+            creases: &self.creases,
+        };
+        subdivide_triangle(&source, g as u32, levels, self.scheme, &mut scratch.patch, lattice);
         if inner_vertex_count(levels) == 0 {
             return;
         }

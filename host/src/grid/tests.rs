@@ -347,6 +347,7 @@ fn the_lean_build_equals_the_whole_mesh_build() {
                     &GridBuild {
                         levels,
                         scheme,
+                        crease_angle: None,
                         options,
                         quantized,
                     },

@@ -188,7 +188,7 @@ fn convex_from_edges(positions: Vec<Vec3>, edge: f32) -> Mesh {
 
 /// Turns every triangle of a convex body to face away from its centre; valid because each triangle lies in the
 /// body's boundary, so its outward side is the one facing away from any interior point.
-fn orient_convex(mut mesh: Mesh) -> Mesh {
+pub(crate) fn orient_convex(mut mesh: Mesh) -> Mesh {
     let center = mesh.positions.iter().copied().sum::<Vec3>() / mesh.positions.len() as f32;
     for t in &mut mesh.triangles {
         let [a, b, c] = t.map(|i| mesh.positions[i as usize]);

@@ -6,13 +6,17 @@
 //! triangles is smooth, any other edge (boundary or non-manifold) is a crease. A vertex is
 //! smooth when all its edges are smooth and its triangles form one fan; on exactly two creases
 //! it follows them (`3/4 v + 1/8 (a + b)`); anything else is a corner and stays where it is.
+//! Edges may also be chosen as creases ([`Creases`], by dihedral angle): a vertex on one such
+//! edge (a dart) stays smooth, and the halves of a crease are creases in the next round.
 
 use crate::mesh::Mesh;
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::grid_index::{grid_size, lattice_index, sub_triangle, triangle_count, vertex_count, Lattice};
 
+mod creases;
 mod patch;
-pub use patch::{subdivide_triangle, Patch, VertexFaces};
+pub use creases::Creases;
+pub use patch::{subdivide_triangle, Patch, PatchSource, VertexFaces};
 
 #[derive(Copy, Clone, Debug, PartialEq, Eq, Default)]
 pub enum Scheme {
@@ -67,32 +71,46 @@ impl Subdivided {
     }
 }
 
-/// A face during subdivision: its vertices, its base triangle and its lattice corners.
+/// A face during subdivision: its vertices, its base triangle, its lattice corners, and which
+/// of its edges (bit `e`: corner `e` to corner `e + 1`) lie on a chosen crease.
 #[derive(Copy, Clone)]
 struct Face {
     v: [u32; 3],
     base: u32,
     lattice: [Lattice; 3],
+    crease: u8,
 }
 
 impl Face {
     /// Base triangle `base` itself, with vertices `v`: the whole lattice, one step across.
-    fn base(v: [u32; 3], base: u32) -> Face {
+    fn base(v: [u32; 3], base: u32, crease: u8) -> Face {
         Face {
             v,
             base,
             lattice: [[0, 0], [1, 0], [0, 1]],
+            crease,
         }
+    }
+
+    /// Whether edge `e` lies on a chosen crease.
+    fn is_crease(&self, e: usize) -> bool {
+        self.crease & (1 << e) != 0
     }
 }
 
+/// `mesh` subdivided `levels` times, with only its boundaries and non-manifold edges as creases.
 pub fn subdivide(mesh: &Mesh, levels: u32, scheme: Scheme) -> Subdivided {
+    subdivide_creased(mesh, levels, scheme, &Creases::none())
+}
+
+/// `mesh` subdivided `levels` times, keeping `creases` as well as its boundaries sharp.
+pub fn subdivide_creased(mesh: &Mesh, levels: u32, scheme: Scheme, creases: &Creases) -> Subdivided {
     let mut positions = mesh.positions.clone();
     let mut faces: Vec<Face> = mesh
         .triangles
         .iter()
         .enumerate()
-        .map(|(b, &v)| Face::base(v, b as u32))
+        .map(|(b, &v)| Face::base(v, b as u32, creases.of(b)))
         .collect();
     for _ in 0..levels {
         let (new_positions, mids) = refine(&positions, &faces, scheme);
@@ -119,7 +137,8 @@ pub fn subdivide(mesh: &Mesh, levels: u32, scheme: Scheme) -> Subdivided {
 
 /// The four faces each face splits into, given the new vertices on its edges (from [`refine`]):
 /// lattice coordinates double at each round and the midpoints land on the new odd points.
-/// Same child order and corner order as `grid_index::child_corners`.
+/// Same child order and corner order as `grid_index::child_corners`. A child edge along a
+/// parent edge is a crease when that edge is; the inner edges are not.
 fn children(faces: &[Face], mids: &[[u32; 3]]) -> Vec<Face> {
     let mut next = Vec::with_capacity(faces.len() * 4);
     for (f, m) in faces.iter().zip(mids) {
@@ -130,16 +149,24 @@ fn children(faces: &[Face], mids: &[[u32; 3]]) -> Vec<Face> {
             (m[e], [(a[0] + b[0]) / 2, (a[1] + b[1]) / 2])
         };
         let (ab, bc, ca) = (mid(0), mid(1), mid(2));
-        for tri in [
+        // Child edges on parent edges: child 0's edges 0 and 2, child 1's 0 and 1, child 2's 1
+        // and 2; the middle child's are all inner.
+        let c = f.crease;
+        let child_creases = [c & 0b101, c & 0b011, c & 0b110, 0];
+        for (tri, crease) in [
             [corners[0], ab, ca],
             [ab, corners[1], bc],
             [ca, bc, corners[2]],
             [bc, ca, ab],
-        ] {
+        ]
+        .into_iter()
+        .zip(child_creases)
+        {
             next.push(Face {
                 v: tri.map(|c| c.0),
                 base: f.base,
                 lattice: tri.map(|c| c.1),
+                crease,
             });
         }
     }
@@ -210,6 +237,8 @@ fn refine(positions: &[Vec3], faces: &[Face], scheme: Scheme) -> (Vec<Vec3>, Vec
     let mut valence = vec![0u32; nv];
     let mut crease_sum = vec![Vec3::ZERO; nv];
     let mut creases = vec![0u32; nv];
+    // Creases that are boundaries or non-manifold, not chosen ones.
+    let mut open = vec![0u32; nv];
     let mut new_positions = positions.to_vec();
     new_positions.reserve(edges.len());
     for (a, b, range) in &edges {
@@ -219,12 +248,20 @@ fn refine(positions: &[Vec3], faces: &[Face], scheme: Scheme) -> (Vec<Vec3>, Vec
         neighbour_sum[b] += pa;
         valence[a] += 1;
         valence[b] += 1;
-        let smooth = range.len() == 2;
+        let manifold = range.len() == 2;
+        let chosen = keys[range.clone()]
+            .iter()
+            .any(|&(_, fe)| faces[fe as usize / 3].is_crease(fe as usize % 3));
+        let smooth = manifold && !chosen;
         if !smooth {
             crease_sum[a] += pb;
             crease_sum[b] += pa;
             creases[a] += 1;
             creases[b] += 1;
+        }
+        if !manifold {
+            open[a] += 1;
+            open[b] += 1;
         }
         let p = if smooth && scheme == Scheme::Loop {
             let opposite = |fe: u32| {
@@ -243,7 +280,8 @@ fn refine(positions: &[Vec3], faces: &[Face], scheme: Scheme) -> (Vec<Vec3>, Vec
             let p = positions[v];
             new_positions[v] = if valence[v] == 0 {
                 p
-            } else if creases[v] == 0 && single_fan[v] {
+            } else if single_fan[v] && (creases[v] == 0 || (creases[v] == 1 && open[v] == 0)) {
+                // Smooth, or a dart: one chosen crease ending inside a smooth surface.
                 let beta = loop_beta(valence[v]);
                 p * (1.0 - valence[v] as f32 * beta) + neighbour_sum[v] * beta
             } else if creases[v] == 2 && single_fan[v] {

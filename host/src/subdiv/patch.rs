@@ -19,8 +19,16 @@
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::grid_index::{grid_size, lattice_index, vertex_count};
 
-use super::{children, refine, Face, Scheme};
+use super::{children, refine, Creases, Face, Scheme};
 use crate::mesh::Mesh;
+
+/// What every patch of one base mesh starts from: the mesh, its faces by vertex, and the
+/// creases chosen on the whole of it.
+pub struct PatchSource<'a> {
+    pub mesh: &'a Mesh,
+    pub vertex_faces: &'a VertexFaces,
+    pub creases: &'a Creases,
+}
 
 /// For each base vertex, the base faces using it.
 pub struct VertexFaces {
@@ -71,19 +79,18 @@ pub struct Patch {
     keep: Vec<bool>,
 }
 
-/// Base triangle `t` of `mesh` subdivided `levels` times: its `vertex_count(levels)` lattice
-/// vertices in `lattice_index` order, into `lattice`, bit for bit as [`super::subdivide`]
-/// places them.
+/// Base triangle `t` of `source.mesh` subdivided `levels` times: its `vertex_count(levels)`
+/// lattice vertices in `lattice_index` order, into `lattice`, bit for bit as
+/// [`super::subdivide_creased`] places them.
 pub fn subdivide_triangle(
-    mesh: &Mesh,
-    vertex_faces: &VertexFaces,
+    source: &PatchSource,
     t: u32,
     levels: u32,
     scheme: Scheme,
     patch: &mut Patch,
     lattice: &mut Vec<Vec3>,
 ) {
-    patch.start(mesh, vertex_faces, t);
+    patch.start(source, t);
     for round in 1..=levels {
         let (positions, mids) = refine(&patch.positions, &patch.faces, scheme);
         patch.positions = positions;
@@ -104,7 +111,8 @@ pub fn subdivide_triangle(
 
 impl Patch {
     /// The base faces sharing a vertex with `t`, in index order, over their vertices in id order.
-    fn start(&mut self, mesh: &Mesh, vertex_faces: &VertexFaces, t: u32) {
+    fn start(&mut self, source: &PatchSource, t: u32) {
+        let (mesh, vertex_faces) = (source.mesh, source.vertex_faces);
         let faces = &mut self.ids;
         faces.clear();
         faces.extend(mesh.triangles[t as usize].iter().flat_map(|&v| vertex_faces.at(v)));
@@ -118,7 +126,7 @@ impl Patch {
         self.faces.extend(
             faces
                 .iter()
-                .map(|&f| Face::base(mesh.triangles[f as usize].map(local), f)),
+                .map(|&f| Face::base(mesh.triangles[f as usize].map(local), f, source.creases.of(f as usize))),
         );
         self.positions.clear();
         self.positions

@@ -163,16 +163,63 @@ fn flat_subdivision_stays_on_the_base_triangles() {
 /// whole mesh: smooth, boundary, non-manifold and corner rules, both schemes, any depth.
 #[test]
 fn a_triangle_subdivided_alone_matches_the_whole_mesh() {
-    for (name, mesh) in closed_meshes().into_iter().chain([("fins", fins())]) {
-        let vertex_faces = VertexFaces::new(&mesh);
+    let meshes = closed_meshes()
+        .into_iter()
+        .chain([("fins", fins()), ("house", house())]);
+    for (name, mesh) in meshes {
+        matches_whole_mesh(name, &mesh, &Creases::none());
+        matches_whole_mesh(&format!("{name} creased"), &mesh, &Creases::from_angle(&mesh, 30.0));
+    }
+    let dart = dart_fan();
+    let creases = Creases::from_angle(&dart, 70.0);
+    assert_eq!(creases.edge_count(), 1);
+    matches_whole_mesh("dart", &dart, &creases);
+}
+
+/// Six triangles around an inner vertex, one spoke folded by 98 degrees and the others by at
+/// most 49: at 70 degrees, one crease ending inside the surface (a dart).
+fn dart_fan() -> Mesh {
+    let lift = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+    let mut positions = vec![Vec3::ZERO];
+    positions.extend((0..6).map(|k| {
+        let a = k as f32 * std::f32::consts::FRAC_PI_3;
+        Vec3::new(a.cos(), a.sin(), lift[k])
+    }));
+    let triangles = (0..6).map(|k| [0, 1 + k, 1 + (k + 1) % 6]).collect();
+    Mesh { positions, triangles }
+}
+
+/// A dart's inner vertex moves by the smooth rule, not held as a corner.
+#[test]
+fn a_dart_vertex_stays_smooth() {
+    let dart = dart_fan();
+    let sub = subdivide_creased(&dart, 1, Scheme::Loop, &Creases::from_angle(&dart, 70.0));
+    let beta = loop_beta(6);
+    let sum: Vec3 = dart.positions[1..].iter().copied().sum();
+    let expect = dart.positions[0] * (1.0 - 6.0 * beta) + sum * beta;
+    assert!(
+        sub.positions[0].distance(expect) < 1e-6,
+        "{} != {expect}",
+        sub.positions[0]
+    );
+}
+
+fn matches_whole_mesh(name: &str, mesh: &Mesh, creases: &Creases) {
+    {
+        let vertex_faces = VertexFaces::new(mesh);
+        let source = PatchSource {
+            mesh,
+            vertex_faces: &vertex_faces,
+            creases,
+        };
         let mut patch = Patch::default();
         let mut lattice = Vec::new();
         for levels in 0..=4 {
             for scheme in [Scheme::Loop, Scheme::Flat] {
-                let whole = subdivide(&mesh, levels, scheme);
+                let whole = subdivide_creased(mesh, levels, scheme, creases);
                 let n = grid_size(levels);
                 for t in 0..mesh.triangles.len() {
-                    subdivide_triangle(&mesh, &vertex_faces, t as u32, levels, scheme, &mut patch, &mut lattice);
+                    subdivide_triangle(&source, t as u32, levels, scheme, &mut patch, &mut lattice);
                     for j in 0..=n {
                         for i in 0..=n - j {
                             let expect = whole.positions[whole.vertex(t, [i, j]) as usize];
@@ -188,6 +235,101 @@ fn a_triangle_subdivided_alone_matches_the_whole_mesh() {
             }
         }
     }
+}
+
+/// A closed box with a gabled roof of 20 degree slopes (the ridge folds by 40 degrees, the
+/// eaves by 70): 10 vertices, 16 triangles.
+fn house() -> Mesh {
+    let rise = 20f32.to_radians().tan();
+    let mut positions: Vec<Vec3> = (0..8)
+        .map(|i| Vec3::new(sign(i & 1), sign(i & 2), sign(i & 4)))
+        .collect();
+    positions.push(Vec3::new(-1.0, 1.0 + rise, 0.0));
+    positions.push(Vec3::new(1.0, 1.0 + rise, 0.0));
+    let faces: [&[u32]; 7] = [
+        &[0, 1, 3, 2],
+        &[0, 1, 5, 4],
+        &[0, 2, 6, 4],
+        &[1, 3, 7, 5],
+        &[4, 5, 7, 6],
+        &[2, 3, 9, 8],
+        &[6, 7, 9, 8],
+    ];
+    let mut triangles: Vec<[u32; 3]> = faces
+        .iter()
+        .flat_map(|f| [[f[0], f[1], f[2]], [f[0], f[2], f[3]]])
+        .collect();
+    // The gables.
+    triangles.extend([[2, 8, 6], [3, 7, 9]]);
+    crate::mesh::scene::orient_convex(Mesh { positions, triangles })
+}
+
+fn sign(bit: u32) -> f32 {
+    if bit == 0 {
+        -1.0
+    } else {
+        1.0
+    }
+}
+
+/// A cube creased at 30 degrees keeps every micro-vertex of its edges on those edges and every
+/// face flat: subdivided, it is still the cube. Without creases it rounds.
+#[test]
+fn a_creased_cube_keeps_its_edges_and_faces() {
+    let mesh = cube();
+    let creases = Creases::from_angle(&mesh, 30.0);
+    assert_eq!(creases.edge_count(), 12, "the cube's edges, not its faces' diagonals");
+    for levels in 1..=4 {
+        let sub = subdivide_creased(&mesh, levels, Scheme::Loop, &creases);
+        let n = grid_size(levels);
+        for g in 0..mesh.triangles.len() {
+            for j in 0..=n {
+                for i in 0..=n - j {
+                    let p = sub.positions[sub.vertex(g, [i, j]) as usize];
+                    // On the cube's surface: one coordinate at +-1, the others within.
+                    let on_face = p.to_array().iter().filter(|c| (c.abs() - 1.0).abs() < 1e-6).count();
+                    assert!(on_face >= 1 && p.abs().max_element() < 1.0 + 1e-6, "L={levels} {p}");
+                    let on_lattice_edge = j == 0 || i == 0 || i + j == n;
+                    let edge = if j == 0 {
+                        0
+                    } else if i + j == n {
+                        1
+                    } else {
+                        2
+                    };
+                    if on_lattice_edge && creases.of(g) & (1 << edge) != 0 {
+                        assert!(on_face >= 2, "L={levels} grid {g} ({i}, {j}) left its edge: {p}");
+                    }
+                }
+            }
+        }
+    }
+    // Without creases the corners are pulled in.
+    let round = subdivide(&mesh, 2, Scheme::Loop);
+    assert!(round.positions[0].length() < 3f32.sqrt() - 0.1);
+}
+
+#[test]
+fn crease_angles_choose_the_folds_sharper_than_them() {
+    let mesh = house();
+    // The floor's 4 edges and the walls' 4 corners (90 degrees), 4 gable rakes (90), 2 eaves
+    // (70) and the ridge (40); the gables lie flat on their walls.
+    assert_eq!(Creases::from_angle(&mesh, 30.0).edge_count(), 15);
+    assert_eq!(Creases::from_angle(&mesh, 50.0).edge_count(), 14);
+    assert_eq!(Creases::from_angle(&mesh, 80.0).edge_count(), 12);
+    assert_eq!(Creases::from_angle(&mesh, 0.0).edge_count(), 15);
+    assert_eq!(Creases::from_angle(&mesh, 180.0), Creases::none());
+    assert_eq!(Creases::from_angle(&mesh, f32::NAN), Creases::none());
+    // Scale and offset change no angle.
+    let moved = Mesh {
+        positions: mesh.positions.iter().map(|p| *p * 1e4 + Vec3::splat(3e5)).collect(),
+        triangles: mesh.triangles.clone(),
+    };
+    assert_eq!(Creases::from_angle(&moved, 30.0), Creases::from_angle(&mesh, 30.0));
+    // A triangle wound against its neighbours does not fold the flat cube face it lies in.
+    let mut flipped = cube();
+    flipped.triangles[0].swap(1, 2);
+    assert_eq!(Creases::from_angle(&flipped, 30.0).edge_count(), 12);
 }
 
 #[test]
