@@ -9,8 +9,9 @@ use gridrt_shared::layout::{Camera, FrameParams, HitRecord, RayRecord};
 
 #[cfg(feature = "gpu")]
 use crate::gpu::{Gpu, NoAdapter, Timing};
+use crate::heat_map::CostImage;
 use crate::limits::BufferSize;
-use crate::pipeline::{Image, RenderOptions};
+use crate::pipeline::{Image, RenderOptions, Shading};
 use crate::rays::trace_cpu;
 use crate::scene::{render_cpu, Scene};
 
@@ -125,6 +126,11 @@ impl Backend {
 
     /// Renders `scene` as `camera` sees it.
     pub fn render(&self, scene: &Scene, camera: &Camera, options: &RenderOptions) -> Result<Image> {
+        if options.shading == Shading::Cost {
+            let costs = self.render_costs(scene, camera)?;
+            let white = options.heat_white.unwrap_or_else(|| costs.summary().p99_total);
+            return Ok(costs.heat_map(white));
+        }
         let pixels = self.render_frame(scene, &options.frame(scene, camera))?;
         Ok(Image {
             width: camera.width,
@@ -133,12 +139,33 @@ impl Backend {
         })
     }
 
-    /// Renders one frame as the kernels take it: packed RGBA8, row-major, top row first.
+    /// The tests each pixel's primary ray makes, for the cost heat map.
+    pub fn render_costs(&self, scene: &Scene, camera: &Camera) -> Result<CostImage> {
+        let options = RenderOptions {
+            shading: Shading::Cost,
+            ..RenderOptions::default()
+        };
+        let packed = self.render_frame(scene, &options.frame(scene, camera))?;
+        Ok(CostImage::from_packed(camera.width, camera.height, &packed))
+    }
+
+    /// Renders one frame as the kernels take it: packed RGBA8 (or packed costs for the heat
+    /// map), row-major, top row first.
     pub fn render_frame(&self, scene: &Scene, frame: &FrameParams) -> Result<Vec<u32>> {
         match self {
             Backend::Cpu { .. } => Ok(render_cpu(scene, frame)),
             #[cfg(feature = "gpu")]
             Backend::Gpu(gpu) => gpu.render(scene, frame),
+        }
+    }
+
+    /// The closest hit of each of `rays`, in order (a miss: `prim` is
+    /// [`gridrt_shared::layout::NO_HIT`]).
+    pub fn trace(&self, scene: &Scene, rays: &[RayRecord]) -> Result<Vec<HitRecord>> {
+        match self {
+            Backend::Cpu { .. } => Ok(trace_cpu(scene, rays)),
+            #[cfg(feature = "gpu")]
+            Backend::Gpu(gpu) => gpu.trace(&gpu.upload(scene)?, rays),
         }
     }
 

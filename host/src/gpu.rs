@@ -7,7 +7,7 @@ use anyhow::{bail, Context, Result};
 use gridrt_shared::buffer::SPLIT_CHUNKS;
 use gridrt_shared::grid_index::MICRO_TRIANGLES;
 use gridrt_shared::layout::{
-    FrameParams, HitRecord, RayRecord, SplitParams, TraceParams, TRACE_WORKGROUP_SIZE, WORKGROUP_SIZE,
+    FrameParams, HitRecord, RayRecord, SplitParams, TraceParams, SHADE_COST, TRACE_WORKGROUP_SIZE, WORKGROUP_SIZE,
 };
 use wgpu::util::DeviceExt;
 
@@ -31,11 +31,13 @@ struct Kernels {
     grids: Pipelines,
 }
 
-/// What a dispatch does: render a tile, or trace a list of rays.
+/// What a dispatch does: render a tile, trace a list of rays, or count a tile's tests for
+/// the cost heat map.
 #[derive(Copy, Clone)]
 enum Job {
     Render,
     Trace,
+    Cost,
 }
 
 pub struct Gpu {
@@ -48,9 +50,10 @@ pub struct Gpu {
     pub adapter: wgpu::AdapterInfo,
     module: wgpu::ShaderModule,
     whole: Kernels,
-    /// The kernels for split scenes, each made the first time it runs: they bind more buffers
-    /// than some adapters allow, and take drivers long to compile.
-    split: [std::sync::OnceLock<wgpu::ComputePipeline>; 4],
+    /// The kernels for split scenes and the heat map's, each made the first time it runs: the
+    /// split ones bind more buffers than some adapters allow, and all take drivers long to
+    /// compile.
+    on_demand: [std::sync::OnceLock<wgpu::ComputePipeline>; 8],
 }
 
 /// A scene's geometry in GPU buffers, uploaded once and traced many times.
@@ -157,7 +160,7 @@ impl Gpu {
             timestamps,
             module,
             whole,
-            split: Default::default(),
+            on_demand: Default::default(),
         };
         if let Some(value) = std::env::var_os(BINDING_LIMIT_VAR) {
             let text = value.to_string_lossy();
@@ -216,24 +219,30 @@ impl Gpu {
         Ok(())
     }
 
-    /// The kernel for `job` on a split scene, made on first use.
-    fn split_pipeline(&self, scene: &Scene, job: Job) -> Result<&wgpu::ComputePipeline> {
-        let (index, entry) = match (scene, job) {
-            (Scene::Triangles(_), Job::Render) => (0, "render_triangles_split"),
-            (Scene::Triangles(_), Job::Trace) => (1, "trace_triangles_rays_split"),
-            (Scene::Grids(_), Job::Render) => (2, "render_grids_split"),
-            (Scene::Grids(_), Job::Trace) => (3, "trace_grids_rays_split"),
+    /// A kernel made on first use: any for a split scene, or the heat map's.
+    fn on_demand_pipeline(&self, scene: &Scene, job: Job, split: bool) -> Result<&wgpu::ComputePipeline> {
+        let (index, entry) = match (scene, job, split) {
+            (Scene::Triangles(_), Job::Render, _) => (0, "render_triangles_split"),
+            (Scene::Triangles(_), Job::Trace, _) => (1, "trace_triangles_rays_split"),
+            (Scene::Grids(_), Job::Render, _) => (2, "render_grids_split"),
+            (Scene::Grids(_), Job::Trace, _) => (3, "trace_grids_rays_split"),
+            (Scene::Triangles(_), Job::Cost, true) => (4, "cost_triangles_split"),
+            (Scene::Grids(_), Job::Cost, true) => (5, "cost_grids_split"),
+            (Scene::Triangles(_), Job::Cost, false) => (6, "cost_triangles"),
+            (Scene::Grids(_), Job::Cost, false) => (7, "cost_grids"),
         };
-        if let Some(p) = self.split[index].get() {
+        if let Some(p) = self.on_demand[index].get() {
             return Ok(p);
         }
-        self.check_split_bindings()?;
+        if split {
+            self.check_split_bindings()?;
+        }
         self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let pipeline = compute_pipeline(&self.device, &self.module, entry);
         if let Some(e) = pollster::block_on(self.device.pop_error_scope()) {
             bail!("the GPU driver rejected the gridrt kernel {entry}: {}", error_chain(&e));
         }
-        Ok(self.split[index].get_or_init(|| pipeline))
+        Ok(self.on_demand[index].get_or_init(|| pipeline))
     }
 
     fn buffer(&self, name: &str, contents: &[u8]) -> wgpu::Buffer {
@@ -327,16 +336,15 @@ impl Gpu {
     }
 
     fn pipeline(&self, scene: &GpuScene, job: Job) -> Result<&wgpu::ComputePipeline> {
-        if scene.is_split() {
-            return self.split_pipeline(scene.scene, job);
-        }
         let kernels = match scene.scene {
             Scene::Triangles(_) => &self.whole.triangles,
             Scene::Grids(_) => &self.whole.grids,
         };
         Ok(match job {
+            _ if scene.is_split() => self.on_demand_pipeline(scene.scene, job, true)?,
             Job::Render => &kernels.render,
             Job::Trace => &kernels.trace,
+            Job::Cost => self.on_demand_pipeline(scene.scene, job, false)?,
         })
     }
 
@@ -428,7 +436,12 @@ impl Gpu {
             mapped_at_creation: false,
         });
         let (tile, readback) = self.output("image tile", tile_bytes);
-        let pipeline = self.pipeline(scene, Job::Render)?;
+        let job = if frame.shading == SHADE_COST {
+            Job::Cost
+        } else {
+            Job::Render
+        };
+        let pipeline = self.pipeline(scene, job)?;
         let bind_groups = self.bind(pipeline, &[&params, &tile], scene);
         let mut image = vec![0u32; width as usize * height as usize];
         for y in (0..height).step_by(tile_h as usize) {

@@ -31,6 +31,7 @@ pub mod camera;
 #[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod grid;
+pub mod heat_map;
 pub mod image_io;
 pub mod limits;
 pub mod mesh;

@@ -6,8 +6,10 @@
 use std::path::Path;
 
 use anyhow::{bail, Result};
+use gridrt_shared::glam::Vec3;
 use gridrt_shared::layout::{
-    Camera, FrameParams, SHADE_AMBIENT_OCCLUSION, SHADE_EYE_LIGHT, SHADE_NORMAL, SHADE_PRIMITIVE,
+    Camera, FrameParams, SHADE_AMBIENT_OCCLUSION, SHADE_COST, SHADE_DEPTH, SHADE_EYE_LIGHT, SHADE_NORMAL,
+    SHADE_PRIMITIVE,
 };
 
 use crate::grid::{self, GridBuild};
@@ -101,6 +103,11 @@ pub enum Shading {
     Primitive,
     /// The plain material darkened by ambient occlusion (see [`RenderOptions::ao_samples`]).
     AmbientOcclusion,
+    /// Distance from the eye: white at the scene's nearest point, black at its farthest.
+    Depth,
+    /// The cost heat map: the tests each pixel's ray makes (see [`crate::heat_map`] and
+    /// [`RenderOptions::heat_white`]).
+    Cost,
 }
 
 impl Shading {
@@ -111,6 +118,8 @@ impl Shading {
             Shading::Normal => SHADE_NORMAL,
             Shading::Primitive => SHADE_PRIMITIVE,
             Shading::AmbientOcclusion => SHADE_AMBIENT_OCCLUSION,
+            Shading::Depth => SHADE_DEPTH,
+            Shading::Cost => SHADE_COST,
         }
     }
 }
@@ -124,6 +133,8 @@ pub struct RenderOptions {
     /// How far ambient-occlusion rays look, in the scene's coordinates; `None`: a tenth of
     /// the scene's bounding-box diagonal.
     pub ao_distance: Option<f32>,
+    /// Tests per pixel the cost heat map shows white; `None`: the frame's 99th percentile.
+    pub heat_white: Option<u32>,
 }
 
 impl Default for RenderOptions {
@@ -132,6 +143,7 @@ impl Default for RenderOptions {
             shading: Shading::EyeLight,
             ao_samples: 16,
             ao_distance: None,
+            heat_white: None,
         }
     }
 }
@@ -141,7 +153,23 @@ impl RenderOptions {
     pub fn frame(&self, scene: &Scene, camera: &Camera) -> FrameParams {
         let bounds = scene.bounds();
         let diagonal = (bounds.max - bounds.min).length();
+        // The eye's distances to the box around the scene, and to its farthest corner.
+        let eye = Vec3::from(camera.origin);
+        let near = (eye - eye.clamp(bounds.min, bounds.max)).length();
+        let far = (0..8)
+            .map(|k| {
+                let pick = |bit: u32, lo: f32, hi: f32| if k & bit != 0 { hi } else { lo };
+                let corner = Vec3::new(
+                    pick(1, bounds.min.x, bounds.max.x),
+                    pick(2, bounds.min.y, bounds.max.y),
+                    pick(4, bounds.min.z, bounds.max.z),
+                );
+                (corner - eye).length()
+            })
+            .fold(near, f32::max);
         FrameParams {
+            depth_near: near,
+            depth_far: far,
             ao_samples: self.ao_samples,
             ao_distance: self.ao_distance.unwrap_or(diagonal * AO_RADIUS),
             // A hair off the surface, so the rays do not find the triangle they leave.

@@ -3,7 +3,7 @@
 
 use gridrt_shared::camera::primary_ray;
 use gridrt_shared::glam::Vec3;
-use gridrt_shared::layout::{HitRecord, RayRecord};
+use gridrt_shared::layout::{Camera, HitRecord, RayRecord};
 use gridrt_shared::ray::T_FAR;
 use gridrt_shared::sample::{cosine_direction, hash, unit_float};
 
@@ -29,15 +29,22 @@ fn record(origin: Vec3, dir: Vec3, t_max: f32) -> RayRecord {
 pub fn primary_rays(bounds: &Aabb, views: u32, width: u32, height: u32) -> Vec<RayRecord> {
     let mut rays = Vec::with_capacity((views * width * height) as usize);
     for v in 0..views {
-        let cam = camera::orbit(bounds, v, views, width, height);
-        for y in 0..height {
-            for x in 0..width {
-                let r = primary_ray(&cam, x, y);
-                rays.push(record(r.origin, r.dir, T_FAR));
-            }
-        }
+        rays.extend(view_rays(&camera::orbit(bounds, v, views, width, height)));
     }
     rays
+}
+
+/// The primary ray of every pixel `camera` renders, row-major, top row first: the rays a
+/// render traces first, for [`crate::backend::Backend::trace`].
+pub fn view_rays(camera: &Camera) -> Vec<RayRecord> {
+    let (width, height) = (camera.width, camera.height);
+    let pixels = (0..height).flat_map(|y| (0..width).map(move |x| (x, y)));
+    pixels
+        .map(|(x, y)| {
+            let r = primary_ray(camera, x, y);
+            record(r.origin, r.dir, T_FAR)
+        })
+        .collect()
 }
 
 /// `samples` cosine-distributed rays over the hemisphere of each primary hit, on the side the

@@ -1,12 +1,12 @@
 //! A scene ready to trace, in either representation, and how to trace it on the CPU.
 
-use gridrt_shared::buffer::{Chunks, Split};
+use gridrt_shared::buffer::{Buffer, Chunks, Split};
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::grid_index::MICRO_TRIANGLES;
-use gridrt_shared::layout::{BvhNode, Camera, FrameParams, GridParams, Hit, GRID_NODES, TRIANGLE_NODES};
+use gridrt_shared::layout::{BvhNode, Camera, FrameParams, GridParams, Hit, GRID_NODES, SHADE_COST, TRIANGLE_NODES};
 use gridrt_shared::ray::{Ray, T_FAR};
-use gridrt_shared::shade::render_pixel;
-use gridrt_shared::traverse::TriangleMesh;
+use gridrt_shared::shade::{cost_pixel, render_pixel};
+use gridrt_shared::traverse::{LeafPrimitives, TriangleMesh};
 use gridrt_shared::triangle::{intersect_triangle, triangle_normal};
 use gridrt_shared::{grid_traverse, grid_traverse::trace_grids, traverse::trace_triangles};
 use rayon::prelude::*;
@@ -154,8 +154,8 @@ fn reference_t(ray: &Ray, [a, b, c]: [Vec3; 3]) -> Option<f64> {
 /// Renders on the CPU, rows in parallel: packed RGBA8, row-major, top row first.
 pub fn render_cpu(scene: &Scene, frame: &FrameParams) -> Vec<u32> {
     match scene {
-        Scene::Triangles(s) => render_rows(frame, |x, y| render_pixel(frame, s.nodes.as_slice(), &s.view(), x, y)),
-        Scene::Grids(s) => render_rows(frame, |x, y| render_pixel(frame, s.nodes.as_slice(), &s.view(), x, y)),
+        Scene::Triangles(s) => render_pixels(frame, s.nodes.as_slice(), &s.view()),
+        Scene::Grids(s) => render_pixels(frame, s.nodes.as_slice(), &s.view()),
     }
 }
 
@@ -167,12 +167,26 @@ pub fn render_cpu_split(scene: &Scene, split: &SplitScene, frame: &FrameParams) 
     match scene {
         Scene::Triangles(_) => {
             let mesh = TriangleMesh::split(&chunks, &split.params);
-            render_rows(frame, |x, y| render_pixel(frame, nodes(TRIANGLE_NODES), &mesh, x, y))
+            render_pixels(frame, nodes(TRIANGLE_NODES), &mesh)
         }
         Scene::Grids(s) => {
             let grids = grid_traverse::GridScene::split(&chunks, &split.params, &MICRO_TRIANGLES, s.params);
-            render_rows(frame, |x, y| render_pixel(frame, nodes(GRID_NODES), &grids, x, y))
+            render_pixels(frame, nodes(GRID_NODES), &grids)
         }
+    }
+}
+
+/// Every pixel of the frame as the kernels make it: coloured, or its ray's packed costs for
+/// the heat map.
+fn render_pixels<N: Buffer<BvhNode> + Sync, P: LeafPrimitives + Sync>(
+    frame: &FrameParams,
+    nodes: N,
+    prims: &P,
+) -> Vec<u32> {
+    if frame.shading == SHADE_COST {
+        render_rows(frame, |x, y| cost_pixel(frame, nodes, prims, x, y))
+    } else {
+        render_rows(frame, |x, y| render_pixel(frame, nodes, prims, x, y))
     }
 }
 

@@ -14,7 +14,7 @@ use gridrt_shared::layout::{
     TRIANGLE_NODES, WORKGROUP_SIZE,
 };
 use gridrt_shared::ray::Ray;
-use gridrt_shared::shade::render_pixel;
+use gridrt_shared::shade::{cost_pixel, render_pixel};
 use gridrt_shared::traverse::{trace_triangles, TriangleMesh};
 use spirv_std::spirv;
 
@@ -88,6 +88,47 @@ pub fn render_grids(
             params: frame.grid,
         };
         image[i] = render_pixel(frame, nodes, &scene, frame.tile_x + id.x, frame.tile_y + id.y);
+    }
+}
+
+/// [`render_triangles`] for the cost heat map: each pixel the packed tests of its ray.
+#[spirv(compute(threads(8, 8, 1)))]
+pub fn cost_triangles(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] image: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] nodes: &[BvhNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] positions: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] indices: &[u32],
+) {
+    if let Some(i) = tile_index(id, frame) {
+        let mesh = TriangleMesh { positions, indices };
+        image[i] = cost_pixel(frame, nodes, &mesh, frame.tile_x + id.x, frame.tile_y + id.y);
+    }
+}
+
+/// [`render_grids`] for the cost heat map.
+#[allow(clippy::too_many_arguments)] // one per binding
+#[spirv(compute(threads(8, 8, 1)))]
+pub fn cost_grids(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] image: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] micro_triangles: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[BvhNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] headers: &[GridHeader],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] vertices: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] radii: &[u32],
+) {
+    if let Some(i) = tile_index(id, frame) {
+        let scene = GridScene {
+            headers,
+            vertices,
+            radii,
+            micro_triangles,
+            params: frame.grid,
+        };
+        image[i] = cost_pixel(frame, nodes, &scene, frame.tile_x + id.x, frame.tile_y + id.y);
     }
 }
 
@@ -212,6 +253,39 @@ split_kernel! {
             let nodes = Split::<BvhNode>::new(&chunks, &frame.split, GRID_NODES);
             let scene = GridScene::split(&chunks, &frame.split, micro_triangles, frame.grid);
             image[i] = render_pixel(frame, nodes, &scene, frame.tile_x + id.x, frame.tile_y + id.y);
+        }
+    }
+}
+
+split_kernel! {
+    /// [`cost_triangles`] over a split scene.
+    #[spirv(compute(threads(8, 8, 1)))]
+    fn cost_triangles_split(
+        #[spirv(global_invocation_id)] id: UVec3,
+        #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
+        #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] image: &mut [u32],
+    ) |chunks| {
+        if let Some(i) = tile_index(id, frame) {
+            let nodes = Split::<BvhNode>::new(&chunks, &frame.split, TRIANGLE_NODES);
+            let mesh = TriangleMesh::split(&chunks, &frame.split);
+            image[i] = cost_pixel(frame, nodes, &mesh, frame.tile_x + id.x, frame.tile_y + id.y);
+        }
+    }
+}
+
+split_kernel! {
+    /// [`cost_grids`] over a split scene.
+    #[spirv(compute(threads(8, 8, 1)))]
+    fn cost_grids_split(
+        #[spirv(global_invocation_id)] id: UVec3,
+        #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
+        #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] image: &mut [u32],
+        #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] micro_triangles: &[u32],
+    ) |chunks| {
+        if let Some(i) = tile_index(id, frame) {
+            let nodes = Split::<BvhNode>::new(&chunks, &frame.split, GRID_NODES);
+            let scene = GridScene::split(&chunks, &frame.split, micro_triangles, frame.grid);
+            image[i] = cost_pixel(frame, nodes, &scene, frame.tile_x + id.x, frame.tile_y + id.y);
         }
     }
 }

@@ -3,6 +3,7 @@
 //! top-level BVH of [`crate::traverse`].
 
 use crate::buffer::{Buffer, Chunks, Split};
+use crate::cost::Tally;
 use crate::footprint::FootprintFrame;
 use crate::glam::Vec3;
 use crate::grid_index::{
@@ -192,7 +193,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     /// each, and only the cells between them are tested: the static list's cell table names
     /// each cell's triangle and its three points.
     #[allow(clippy::too_many_arguments)]
-    fn intersect_leaf_triangles(
+    fn intersect_leaf_triangles<T: Tally>(
         &self,
         open: &OpenGrid,
         corner: [i32; 2],
@@ -203,6 +204,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         ray: &Ray,
         hit: &mut Hit,
         scratch: &mut GridScratch,
+        tally: &mut T,
     ) {
         let m = 1u32 << k;
         // In the sheared frame the ray is the z axis; triangles whose vertices all lie strictly
@@ -266,6 +268,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                     if scratch.sides[i0] & scratch.sides[i1] & scratch.sides[i2] != 0 {
                         continue;
                     }
+                    tally.triangles(1);
                     if let Some(found) =
                         intersect_sheared(scratch.sheared[i0], scratch.sheared[i1], scratch.sheared[i2], closest.0)
                     {
@@ -295,7 +298,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     /// with its sphere entry distance `e.t`: only the part of it the footprint leaves open is
     /// loaded and tested (all of it for a `whole` family).
     #[allow(clippy::too_many_arguments)]
-    fn intersect_child_leaf(
+    fn intersect_child_leaf<T: Tally>(
         &self,
         open: &OpenGrid,
         family: &LeafFamily,
@@ -305,6 +308,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         ray: &Ray,
         hit: &mut Hit,
         scratch: &mut GridScratch,
+        tally: &mut T,
     ) {
         if e.t >= hit.t {
             return;
@@ -321,11 +325,18 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         let corner = child_first_corner(family.corner, family.half, e.child);
         let step = if e.child == 3 { -family.step } else { family.step };
         let first_id = family.grid * triangle_count(self.params.lod) + leaf * triangle_count(family.k);
-        self.intersect_leaf_triangles(open, corner, step, family.k, window, first_id, ray, hit, scratch);
+        self.intersect_leaf_triangles(open, corner, step, family.k, window, first_id, ray, hit, scratch, tally);
     }
 
     /// The bottom level: depth-first, nearest sphere first, over the grid's 4-ary hierarchy.
-    pub fn intersect_grid(&self, grid: u32, ray: &Ray, hit: &mut Hit, scratch: &mut GridScratch) {
+    pub fn intersect_grid<T: Tally>(
+        &self,
+        grid: u32,
+        ray: &Ray,
+        hit: &mut Hit,
+        scratch: &mut GridScratch,
+        tally: &mut T,
+    ) {
         let open = self.open(grid);
         let n = 1u32 << self.params.levels;
         let lod = self.params.lod;
@@ -337,6 +348,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         };
         let inv_dir_len2 = scratch.inv_dir_len2;
         let root_radius = self.radius(grid, 0);
+        tally.spheres(1);
         if intersect_sphere_scaled(open.origin, root_radius, ray, inv_dir_len2, hit.t) == T_FAR {
             return;
         }
@@ -417,6 +429,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                     t: intersect_sphere_scaled(center, r(child), ray, inv_dir_len2, hit.t),
                     child,
                 };
+                tally.spheres(4);
                 e0 = entry(sphere_center(pa, pab, pca), 0);
                 e1 = entry(sphere_center(pab, pb, pbc), 1);
                 e2 = entry(sphere_center(pca, pbc, pc), 2);
@@ -493,7 +506,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                     2 => e1,
                     _ => e0,
                 };
-                self.intersect_child_leaf(&open, &family, &sheared, e, slack, ray, hit, scratch);
+                self.intersect_child_leaf(&open, &family, &sheared, e, slack, ray, hit, scratch, tally);
                 c += 1;
             }
         }
@@ -576,10 +589,18 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> LeafPrimitives for GridScene<'_, H, 
         }
     }
 
-    fn intersect_leaf(&self, first: u32, count: u32, ray: &Ray, hit: &mut Hit, scratch: &mut GridScratch) {
+    fn intersect_leaf<T: Tally>(
+        &self,
+        first: u32,
+        count: u32,
+        ray: &Ray,
+        hit: &mut Hit,
+        scratch: &mut GridScratch,
+        tally: &mut T,
+    ) {
         let mut grid = first;
         while grid < first + count {
-            self.intersect_grid(grid, ray, hit, scratch);
+            self.intersect_grid(grid, ray, hit, scratch, tally);
             grid += 1;
         }
     }

@@ -176,6 +176,10 @@ pub const SHADE_EYE_LIGHT: u32 = 0;
 pub const SHADE_NORMAL: u32 = 1;
 pub const SHADE_PRIMITIVE: u32 = 2;
 pub const SHADE_AMBIENT_OCCLUSION: u32 = 3;
+pub const SHADE_DEPTH: u32 = 4;
+/// Not a colour: each pixel is the packed [`crate::cost::Costs`] of its primary ray, which the
+/// host maps to colours (the cost heat map).
+pub const SHADE_COST: u32 = 5;
 
 /// How the grid buffers are to be read; all zero for a triangle scene.
 #[repr(C)]
@@ -262,6 +266,9 @@ pub struct FrameParams {
     pub ao_samples: u32,
     pub ao_distance: f32,
     pub ao_offset: f32,
+    /// Depth ([`SHADE_DEPTH`]): the distances from the eye shaded brightest and darkest.
+    pub depth_near: f32,
+    pub depth_far: f32,
 }
 
 /// Primitive id of a miss.

@@ -10,6 +10,7 @@ pub use spirv_std::glam;
 pub mod aabb;
 pub mod buffer;
 pub mod camera;
+pub mod cost;
 pub mod footprint;
 pub mod grid_index;
 pub mod grid_traverse;

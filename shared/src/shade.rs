@@ -1,10 +1,11 @@
 use crate::buffer::Buffer;
 use crate::camera::primary_ray;
+use crate::cost::Costs;
 use crate::glam::Vec3;
-use crate::layout::{BvhNode, FrameParams, Hit, SHADE_AMBIENT_OCCLUSION, SHADE_NORMAL, SHADE_PRIMITIVE};
+use crate::layout::{BvhNode, FrameParams, Hit, SHADE_AMBIENT_OCCLUSION, SHADE_DEPTH, SHADE_NORMAL, SHADE_PRIMITIVE};
 use crate::ray::{Ray, T_FAR};
 use crate::sample::{cosine_direction, hash, orthonormal_basis, unit_float};
-use crate::traverse::{trace, LeafPrimitives};
+use crate::traverse::{trace, trace_tallied, LeafPrimitives};
 // On the GPU, float methods come from a trait (GLSL.std.450 underneath); natively from core.
 #[cfg(target_arch = "spirv")]
 use spirv_std::num_traits::Float;
@@ -14,8 +15,10 @@ use spirv_std::num_traits::Float;
 /// - eye light: a two-sided headlight, so the shape reads without any light set-up;
 /// - normal: the unit geometric normal mapped to RGB;
 /// - primitive: a colour hashed from the primitive id, to see the micro-triangles;
-/// - ambient occlusion: the plain material, which [`render_pixel`] darkens by occlusion.
-pub fn shade(hit: &Hit, ray: &Ray, mode: u32) -> Vec3 {
+/// - ambient occlusion: the plain material, which [`render_pixel`] darkens by occlusion;
+/// - depth: white at `frame.depth_near` from the eye to black at `frame.depth_far`.
+pub fn shade(hit: &Hit, ray: &Ray, frame: &FrameParams) -> Vec3 {
+    let mode = frame.shading;
     if !hit.is_hit() {
         // A quiet vertical gradient, so silhouettes stand out.
         let up = 0.5 * (1.0 - ray.dir.normalize().y);
@@ -31,6 +34,15 @@ pub fn shade(hit: &Hit, ray: &Ray, mode: u32) -> Vec3 {
     }
     if mode == SHADE_AMBIENT_OCCLUSION {
         return Vec3::new(0.85, 0.78, 0.62);
+    }
+    if mode == SHADE_DEPTH {
+        let span = frame.depth_far - frame.depth_near;
+        let d = if span > 0.0 {
+            (hit.t - frame.depth_near) / span
+        } else {
+            0.0
+        };
+        return Vec3::splat(1.0 - d.clamp(0.0, 1.0));
     }
     let facing = n.dot(ray.dir.normalize()).abs();
     let base = if mode == SHADE_PRIMITIVE {
@@ -77,12 +89,28 @@ pub fn render_pixel<N: Buffer<BvhNode>, P: LeafPrimitives>(
 ) -> u32 {
     let ray = primary_ray(&frame.camera, x, y);
     let hit = trace(nodes, prims, &ray, T_FAR);
-    let mut color = shade(&hit, &ray, frame.shading);
+    let mut color = shade(&hit, &ray, frame);
     if frame.shading == SHADE_AMBIENT_OCCLUSION && hit.is_hit() {
         let pixel = y * frame.camera.width + x;
         color *= 0.1 + 0.9 * unoccluded(frame, nodes, prims, &ray, &hit, pixel);
     }
     pack_rgba8(color)
+}
+
+/// The tests pixel `(x, y)`'s primary ray makes, packed (see [`Costs::pack`]): what the cost
+/// heat map's kernels and CPU loop run instead of [`render_pixel`].
+#[inline]
+pub fn cost_pixel<N: Buffer<BvhNode>, P: LeafPrimitives>(
+    frame: &FrameParams,
+    nodes: N,
+    prims: &P,
+    x: u32,
+    y: u32,
+) -> u32 {
+    let ray = primary_ray(&frame.camera, x, y);
+    let mut costs = Costs::default();
+    trace_tallied(nodes, prims, &ray, T_FAR, &mut costs);
+    costs.pack()
 }
 
 /// The fraction of `frame.ao_samples` cosine-distributed rays from `hit` (on the side `ray`

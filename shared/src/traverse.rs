@@ -4,6 +4,7 @@
 
 use crate::aabb::intersect_aabb;
 use crate::buffer::{Buffer, Chunks, Split};
+use crate::cost::{Tally, Uncounted};
 use crate::glam::Vec3;
 use crate::layout::{BvhNode, Hit, SplitParams, TRIANGLE_INDICES, TRIANGLE_POSITIONS};
 use crate::ray::{Ray, T_FAR};
@@ -19,8 +20,16 @@ pub trait LeafPrimitives {
     type Scratch;
     fn scratch(&self, ray: &Ray) -> Self::Scratch;
     /// Intersects primitives `first .. first + count`, taking the closest hit closer than
-    /// `hit.t` into `hit`.
-    fn intersect_leaf(&self, first: u32, count: u32, ray: &Ray, hit: &mut Hit, scratch: &mut Self::Scratch);
+    /// `hit.t` into `hit`, and reports its tests to `tally`.
+    fn intersect_leaf<T: Tally>(
+        &self,
+        first: u32,
+        count: u32,
+        ray: &Ray,
+        hit: &mut Hit,
+        scratch: &mut Self::Scratch,
+        tally: &mut T,
+    );
     /// Corners of the triangle a hit names `prim`.
     fn triangle(&self, prim: u32) -> [Vec3; 3];
 }
@@ -28,8 +37,19 @@ pub trait LeafPrimitives {
 /// Closest hit along `ray` within `t_max`, with its triangle's normal: found once, after the
 /// traversal, from the closest triangle's corners loaded again.
 pub fn trace<N: Buffer<BvhNode>, P: LeafPrimitives>(nodes: N, prims: &P, ray: &Ray, t_max: f32) -> Hit {
+    trace_tallied(nodes, prims, ray, t_max, &mut Uncounted)
+}
+
+/// [`trace`], reporting every test it makes to `tally`.
+pub fn trace_tallied<N: Buffer<BvhNode>, P: LeafPrimitives, T: Tally>(
+    nodes: N,
+    prims: &P,
+    ray: &Ray,
+    t_max: f32,
+    tally: &mut T,
+) -> Hit {
     let mut hit = Hit::miss(t_max);
-    traverse_bvh(nodes, prims, ray, &mut hit);
+    traverse_bvh(nodes, prims, ray, &mut hit, tally);
     if hit.is_hit() {
         let [a, b, c] = prims.triangle(hit.prim);
         hit.normal = triangle_normal(a, b, c).to_array();
@@ -49,11 +69,18 @@ const NO_NODE: u32 = u32::MAX;
 /// step. On SIMD hardware a group's rays then test their leaves together, and some targets
 /// (lavapipe) run the code under a branch even when none of the group's rays takes it: with
 /// the leaf test inside the node loop, every node step paid for a grid's whole bottom level.
-pub fn traverse_bvh<N: Buffer<BvhNode>, P: LeafPrimitives>(nodes: N, prims: &P, ray: &Ray, hit: &mut Hit) {
+pub fn traverse_bvh<N: Buffer<BvhNode>, P: LeafPrimitives, T: Tally>(
+    nodes: N,
+    prims: &P,
+    ray: &Ray,
+    hit: &mut Hit,
+    tally: &mut T,
+) {
     if nodes.is_empty() {
         return;
     }
     let root = nodes.load(0);
+    tally.nodes(1);
     if intersect_aabb(Vec3::from(root.min), Vec3::from(root.max), ray, hit.t) == T_FAR {
         // Before any working memory is made: clearing it would cost a missing ray more than
         // the box test.
@@ -72,6 +99,7 @@ pub fn traverse_bvh<N: Buffer<BvhNode>, P: LeafPrimitives>(nodes: N, prims: &P, 
         while !at_leaf {
             let left = nodes.load(n.first);
             let right = nodes.load(n.first + 1);
+            tally.nodes(2);
             let tl = intersect_aabb(Vec3::from(left.min), Vec3::from(left.max), ray, hit.t);
             let tr = intersect_aabb(Vec3::from(right.min), Vec3::from(right.max), ray, hit.t);
             let next = if tl == T_FAR && tr == T_FAR {
@@ -98,7 +126,7 @@ pub fn traverse_bvh<N: Buffer<BvhNode>, P: LeafPrimitives>(nodes: N, prims: &P, 
         if !at_leaf {
             break;
         }
-        prims.intersect_leaf(n.first, n.count, ray, hit, &mut scratch);
+        prims.intersect_leaf(n.first, n.count, ray, hit, &mut scratch, tally);
         node = pop_closer(&stack, &stack_t, &mut sp, hit.t);
     }
 }
@@ -176,7 +204,8 @@ impl<F: Buffer<f32>, I: Buffer<u32>> LeafPrimitives for TriangleMesh<F, I> {
 
     fn scratch(&self, _ray: &Ray) {}
 
-    fn intersect_leaf(&self, first: u32, count: u32, ray: &Ray, hit: &mut Hit, _scratch: &mut ()) {
+    fn intersect_leaf<T: Tally>(&self, first: u32, count: u32, ray: &Ray, hit: &mut Hit, _: &mut (), tally: &mut T) {
+        tally.triangles(count);
         // The closest hit in plain locals, as in the grids' leaves.
         let mut closest = (hit.t, 0.0, 0.0);
         let mut closest_tri = 0;

@@ -626,3 +626,44 @@ fn creases_keep_a_cube_sharp() {
         &["--crease-angle", "between 0 and 180"],
     );
 }
+
+/// `--shading depth` and `--shading cost` render pictures; the heat map prints its scale
+/// (the 99th percentile's tests, or `--heat-white`'s) and how many tests of each kind a pixel
+/// makes on average.
+#[test]
+fn depth_and_cost_shading_render_and_cost_prints_its_scale() {
+    let dir = scratch("shading");
+    render_ok(
+        &["--backend", "cpu", "--levels", "2", "--shading", "depth"],
+        &dir.join("depth.png"),
+        96,
+        64,
+    );
+    let cost = dir.join("cost.png");
+    for (white, expect) in [
+        (None, "99th percentile"),
+        (Some("500"), "white 500 tests (--heat-white"),
+    ] {
+        let mut args = vec!["--backend", "cpu", "--levels", "2", "--shading", "cost"];
+        if let Some(w) = white {
+            args.extend(["--heat-white", w]);
+        }
+        let mut all = vec!["render"];
+        all.extend(&args);
+        all.extend(["--width", "96", "--height", "64", "-o", cost.to_str().unwrap()]);
+        let o = gridrt(&all);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let err = stderr(&o);
+        let line = err
+            .lines()
+            .find(|l| l.starts_with("cost per pixel"))
+            .unwrap_or_else(|| panic!("no scale in {err}"));
+        assert!(line.contains(expect) && line.contains("spheres"), "{line}");
+        check_png(&cost, 96, 64);
+    }
+    fails_with(
+        &["render", "--shading", "cost", "--heat-white", "0"],
+        &[],
+        &["--heat-white"],
+    );
+}

@@ -6,6 +6,7 @@ use gridrt::image_io::fraction_within;
 use gridrt::mesh;
 use gridrt::pipeline::{BuildOptions, RenderOptions, Representation, Shading};
 use gridrt::scene::{render_cpu, Scene};
+use gridrt_shared::layout::NO_HIT;
 use gridrt_tests::gpu_or_skip;
 
 /// The GPU backend, or `None` where the tests skip it.
@@ -108,5 +109,124 @@ fn ambient_occlusion_agrees_across_backends_and_darkens() {
             darker > image.pixels.len() / 50,
             "{representation:?}: only {darker} pixels occluded"
         );
+    }
+}
+
+/// Every shading mode through the pipeline: a picture that is not blank, the same on the GPU
+/// as on the CPU (2/255 on 99.5% of pixels, as in `gpu_vs_cpu`), and each mode a picture of
+/// its own.
+#[test]
+fn every_shading_mode_agrees_across_backends() {
+    let gpu = gpu_backend("every_shading_mode_agrees_across_backends");
+    let modes = [
+        Shading::EyeLight,
+        Shading::Normal,
+        Shading::Primitive,
+        Shading::AmbientOcclusion,
+        Shading::Depth,
+        Shading::Cost,
+    ];
+    for (representation, scene) in both_scenes() {
+        let view = camera::frame(&scene.bounds(), 96, 72);
+        let mut pictures = Vec::new();
+        for shading in modes {
+            let options = RenderOptions {
+                shading,
+                ao_samples: 4,
+                ..RenderOptions::default()
+            };
+            let image = Backend::CPU.render(&scene, &view, &options).unwrap();
+            let background = image.pixels[0];
+            let covered = image.pixels.iter().filter(|&&p| p != background).count();
+            assert!(
+                covered > image.pixels.len() / 10,
+                "{representation:?} {shading:?}: blank"
+            );
+            if let Some(gpu) = &gpu {
+                let on_gpu = gpu.render(&scene, &view, &options).unwrap();
+                let within = fraction_within(&on_gpu.pixels, &image.pixels, 2);
+                assert!(
+                    within >= 0.995,
+                    "{representation:?} {shading:?}: {:.3}% agree",
+                    100.0 * within
+                );
+            }
+            pictures.push(image);
+        }
+        for (a, b) in (0..modes.len()).flat_map(|a| (a + 1..modes.len()).map(move |b| (a, b))) {
+            assert!(
+                fraction_within(&pictures[a].pixels, &pictures[b].pixels, 2) < 0.9,
+                "{representation:?}: {:?} looks like {:?}",
+                modes[a],
+                modes[b]
+            );
+        }
+    }
+}
+
+/// The heat map counts what each traversal does: a ray that misses the scene's box tests one
+/// node and nothing else; grids test spheres, the baseline none; every hit tests a triangle;
+/// and the counts are the GPU's too.
+#[test]
+fn the_cost_heat_map_counts_each_traversals_tests() {
+    let gpu = gpu_backend("the_cost_heat_map_counts_each_traversals_tests");
+    for (representation, scene) in both_scenes() {
+        // Far enough that the corners miss the scene's box.
+        let bounds = scene.bounds();
+        let far = camera::Viewpoint {
+            distance: Some(2.0 * (bounds.max - bounds.min).length()),
+            ..camera::Viewpoint::default()
+        };
+        let view = camera::view(&bounds, &far, 64, 48).unwrap();
+        let costs = Backend::CPU.render_costs(&scene, &view).unwrap();
+        let corner = costs.costs[0];
+        assert_eq!((corner.nodes, corner.spheres, corner.triangles), (1, 0, 0));
+        let hits = Backend::CPU.trace(&scene, &gridrt::rays::view_rays(&view)).unwrap();
+        assert!(hits.iter().any(|h| h.prim != NO_HIT));
+        for (c, hit) in costs.costs.iter().zip(&hits) {
+            if hit.prim != NO_HIT {
+                assert!(
+                    c.triangles > 0 && c.nodes > 1,
+                    "{representation:?}: a hit without tests"
+                );
+            }
+            match representation {
+                Representation::Grids => assert!(c.triangles == 0 || c.spheres > 0),
+                Representation::Triangles => assert_eq!(c.spheres, 0),
+            }
+        }
+        let summary = costs.summary();
+        assert!(summary.p99_total <= summary.max_total && summary.mean_triangles > 0.0);
+        if let Some(gpu) = &gpu {
+            let on_gpu = gpu.render_costs(&scene, &view).unwrap();
+            let same = on_gpu.costs.iter().zip(&costs.costs).filter(|(a, b)| a == b).count();
+            assert!(
+                same as f64 >= 0.99 * costs.costs.len() as f64,
+                "{representation:?}: {same} of {} pixels count alike",
+                costs.costs.len()
+            );
+        }
+    }
+}
+
+/// `Backend::trace` takes any rays: the primary rays of a view find the scene in both
+/// representations, and the GPU finds the same hits.
+#[test]
+fn the_backends_trace_ray_lists_alike() {
+    let gpu = gpu_backend("the_backends_trace_ray_lists_alike");
+    for (representation, scene) in both_scenes() {
+        let rays = gridrt::rays::view_rays(&camera::frame(&scene.bounds(), 64, 48));
+        let hits = Backend::CPU.trace(&scene, &rays).unwrap();
+        assert_eq!(hits.len(), rays.len());
+        let found = hits.iter().filter(|h| h.prim != NO_HIT).count();
+        assert!(found > rays.len() / 10, "{representation:?}: {found} hits");
+        if let Some(gpu) = &gpu {
+            let on_gpu = gpu.trace(&scene, &rays).unwrap();
+            let same = on_gpu.iter().zip(&hits).filter(|(a, b)| a.prim == b.prim).count();
+            assert!(
+                same as f64 >= 0.999 * rays.len() as f64,
+                "{representation:?}: {same} agree"
+            );
+        }
     }
 }

@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand, ValueEnum};
 use gridrt::backend::{Backend, BackendChoice};
 use gridrt::bvh::Aabb;
 use gridrt::camera::Viewpoint;
+use gridrt::heat_map::CostSummary;
 use gridrt::mesh::frame::LocalFrame;
 use gridrt::mesh::{self, Input, Mesh};
 use gridrt::pipeline::{BuildOptions, RenderOptions, Representation, Shading};
@@ -114,6 +115,10 @@ pub enum ShadingArg {
     Primitive,
     /// Ambient occlusion (--ao-samples rays per pixel, looking --ao-distance far).
     Ao,
+    /// Distance from the eye, white near to black far.
+    Depth,
+    /// Cost heat map: BVH nodes, spheres and micro-triangles tested per pixel (scale printed).
+    Cost,
 }
 
 impl ShadingArg {
@@ -123,6 +128,8 @@ impl ShadingArg {
             ShadingArg::Normal => Shading::Normal,
             ShadingArg::Primitive => Shading::Primitive,
             ShadingArg::Ao => Shading::AmbientOcclusion,
+            ShadingArg::Depth => Shading::Depth,
+            ShadingArg::Cost => Shading::Cost,
         }
     }
 }
@@ -215,6 +222,10 @@ pub struct RenderArgs {
     /// bounding-box diagonal when absent.
     #[arg(long, value_parser = parse_positive, allow_hyphen_values = true)]
     pub ao_distance: Option<f64>,
+    /// Tests per pixel shown white by `--shading cost` (to compare pictures on one scale);
+    /// the frame's 99th percentile when absent.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    pub heat_white: Option<u32>,
     #[command(flatten)]
     pub camera: CameraArgs,
     /// Render N frames around the target (the azimuth turning by 360/N degrees each), written
@@ -489,6 +500,7 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
         shading: args.shading.shading(),
         ao_samples: args.ao_samples,
         ao_distance: args.ao_distance.map(|d| (d * frame.scale) as f32),
+        heat_white: args.heat_white,
     };
     let frames = args.turntable.unwrap_or(1);
     for k in 0..frames {
@@ -498,7 +510,15 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
             ..viewpoint
         };
         let view = camera::view(&scene.bounds(), &turned, args.width, args.height)?;
-        let image = stages.run("render", || backend.render(&scene, &view, &render))?;
+        let image = if render.shading == Shading::Cost {
+            let costs = stages.run("render", || backend.render_costs(&scene, &view))?;
+            let summary = costs.summary();
+            let white = render.heat_white.unwrap_or(summary.p99_total);
+            stages.say(describe_costs(&summary, white, render.heat_white.is_none()));
+            costs.heat_map(white)
+        } else {
+            stages.run("render", || backend.render(&scene, &view, &render))?
+        };
         let output = frame_path(&args.output, k, args.turntable);
         stages.run("write", || image.write_png(&output))?;
         stages.say(format!(
@@ -511,6 +531,20 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
     }
     stages.report();
     Ok(())
+}
+
+/// The heat map's scale and what it shows, in one line.
+fn describe_costs(s: &CostSummary, white: u32, percentile: bool) -> String {
+    let why = if percentile {
+        format!("the 99th percentile; the costliest pixel {}", s.max_total)
+    } else {
+        format!("--heat-white; the costliest pixel {}", s.max_total)
+    };
+    format!(
+        "cost per pixel: {:.1} BVH nodes, {:.1} spheres, {:.1} triangles tested on average; \
+         black 0 to white {white} tests ({why})",
+        s.mean_nodes, s.mean_spheres, s.mean_triangles
+    )
 }
 
 /// Where frame `k` goes: `output` itself, or for a turntable `output`'s name with the frame
