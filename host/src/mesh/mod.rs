@@ -97,16 +97,9 @@ impl Mesh {
 pub const DEGENERATE: &str = "a repeated vertex, or the same three vertices as an earlier triangle";
 
 /// Loads .obj, .ply, .gltf or .glb (case-insensitive extension) and validates it. Every error is one line that starts with the
-/// file path. Dropped degenerate triangles are reported as one warning line on stderr.
+/// file path. Degenerate triangles are dropped silently: [`load_mesh_quiet`] and [`open`] say how many.
 pub fn load_mesh(path: &Path) -> anyhow::Result<Mesh> {
-    let (mesh, dropped) = load_mesh_quiet(path)?;
-    if dropped > 0 {
-        eprintln!(
-            "warning: {}: dropped {dropped} degenerate triangles ({DEGENERATE})",
-            path.display()
-        );
-    }
-    Ok(mesh)
+    Ok(load_mesh_quiet(path)?.0)
 }
 
 /// A mesh ready for the pipeline, and where it came from.
