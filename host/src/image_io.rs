@@ -19,7 +19,7 @@ pub fn check_writable(path: &Path) -> Result<()> {
         bail!("{name}: cannot write: folder {} does not exist", parent.display());
     }
     let probe = temporary_sibling(path);
-    std::fs::File::create(&probe).map_err(|e| anyhow!("{name}: cannot write: {}", crate::mesh::io_reason(&e)))?;
+    std::fs::File::create(&probe).map_err(|e| anyhow!("{name}: cannot write: {}", io_reason(&e)))?;
     let _ = std::fs::remove_file(&probe);
     Ok(())
 }
@@ -101,4 +101,13 @@ pub fn fraction_within(a: &[u32], b: &[u32], tolerance: u32) -> f64 {
         .filter(|(x, y)| pixel_difference(**x, **y) <= tolerance)
         .count();
     close as f64 / a.len().max(1) as f64
+}
+
+/// The OS reason without Rust's " (os error 2)" suffix: `No such file or directory`.
+pub fn io_reason(e: &std::io::Error) -> String {
+    let s = e.to_string();
+    match s.rfind(" (os error ") {
+        Some(i) => s[..i].to_string(),
+        None => s,
+    }
 }

@@ -1,19 +1,17 @@
 //! A scene ready to trace, in either representation, and how to trace it on the CPU.
 
-use gridrt_shared::buffer::{Buffer, Chunks, Split};
+use gridrt_shared::buffer::Buffer;
 use gridrt_shared::glam::Vec3;
-use gridrt_shared::grid_index::MICRO_TRIANGLES;
-use gridrt_shared::layout::{BvhNode, Camera, FrameParams, GridParams, Hit, GRID_NODES, SHADE_COST, TRIANGLE_NODES};
+use gridrt_shared::layout::{BvhNode, Camera, FrameParams, GridParams, Hit, SHADE_COST};
 use gridrt_shared::ray::{Ray, T_FAR};
 use gridrt_shared::shade::{cost_pixel, render_pixel};
-use gridrt_shared::traverse::{LeafPrimitives, TriangleMesh};
+use gridrt_shared::traverse::LeafPrimitives;
 use gridrt_shared::triangle::{intersect_triangle, triangle_normal};
-use gridrt_shared::{grid_traverse, grid_traverse::trace_grids, traverse::trace_triangles};
+use gridrt_shared::{grid_traverse::trace_grids, traverse::trace_triangles};
 use rayon::prelude::*;
 
 use crate::bvh::Aabb;
 use crate::grid::GridScene;
-use crate::split::SplitScene;
 use crate::triangles::TriangleScene;
 
 pub enum Scene {
@@ -159,26 +157,9 @@ pub fn render_cpu(scene: &Scene, frame: &FrameParams) -> Vec<u32> {
     }
 }
 
-/// Renders on the CPU from a scene's buffers cut into chunks, read the way the GPU reads a
-/// split scene: the same image as [`render_cpu`], by other addressing.
-pub fn render_cpu_split(scene: &Scene, split: &SplitScene, frame: &FrameParams) -> Vec<u32> {
-    let chunks = Chunks::from_slices(&split.chunks);
-    let nodes = |b| Split::<BvhNode>::new(&chunks, &split.params, b);
-    match scene {
-        Scene::Triangles(_) => {
-            let mesh = TriangleMesh::split(&chunks, &split.params);
-            render_pixels(frame, nodes(TRIANGLE_NODES), &mesh)
-        }
-        Scene::Grids(s) => {
-            let grids = grid_traverse::GridScene::split(&chunks, &split.params, &MICRO_TRIANGLES, s.params);
-            render_pixels(frame, nodes(GRID_NODES), &grids)
-        }
-    }
-}
-
 /// Every pixel of the frame as the kernels make it: coloured, or its ray's packed costs for
 /// the heat map.
-fn render_pixels<N: Buffer<BvhNode> + Sync, P: LeafPrimitives + Sync>(
+pub(crate) fn render_pixels<N: Buffer<BvhNode> + Sync, P: LeafPrimitives + Sync>(
     frame: &FrameParams,
     nodes: N,
     prims: &P,

@@ -5,11 +5,14 @@
 //! them through the same shared code to check it.
 
 use anyhow::{bail, Result};
-use gridrt_shared::buffer::SPLIT_CHUNKS;
-use gridrt_shared::layout::SplitParams;
+use gridrt_shared::buffer::{Chunks, Split, SPLIT_CHUNKS};
+use gridrt_shared::grid_index::MICRO_TRIANGLES;
+use gridrt_shared::grid_traverse;
+use gridrt_shared::layout::{BvhNode, FrameParams, SplitParams, GRID_NODES, TRIANGLE_NODES};
+use gridrt_shared::traverse::TriangleMesh;
 
 use crate::limits::BufferSize;
-use crate::scene::Scene;
+use crate::scene::{render_pixels, Scene};
 
 /// One of a scene's large buffers, as words.
 pub struct SceneBuffer<'a> {
@@ -130,6 +133,23 @@ pub fn split<'a>(scene: &'a Scene, chunk_words: u32, device: &str) -> Result<Spl
         }
     }
     Ok(SplitScene { params, chunks })
+}
+
+/// Renders on the CPU from a scene's buffers cut into chunks, read the way the GPU reads a
+/// split scene: the same image as [`crate::scene::render_cpu`], by other addressing.
+pub fn render_cpu_split(scene: &Scene, split: &SplitScene, frame: &FrameParams) -> Vec<u32> {
+    let chunks = Chunks::from_slices(&split.chunks);
+    let nodes = |b| Split::<BvhNode>::new(&chunks, &split.params, b);
+    match scene {
+        Scene::Triangles(_) => {
+            let mesh = TriangleMesh::split(&chunks, &split.params);
+            render_pixels(frame, nodes(TRIANGLE_NODES), &mesh)
+        }
+        Scene::Grids(s) => {
+            let grids = grid_traverse::GridScene::split(&chunks, &split.params, &MICRO_TRIANGLES, s.params);
+            render_pixels(frame, nodes(GRID_NODES), &grids)
+        }
+    }
 }
 
 #[cfg(test)]

@@ -6,8 +6,8 @@
 use gridrt::camera;
 use gridrt::mesh::scene::default_scene;
 use gridrt::rays::{primary_rays, trace_cpu};
-use gridrt::scene::{render_cpu, render_cpu_split, Scene};
-use gridrt::split::split;
+use gridrt::scene::{render_cpu, Scene};
+use gridrt::split::{render_cpu_split, split};
 use gridrt::subdiv::Scheme;
 use gridrt_shared::layout::{FrameParams, SHADE_PRIMITIVE};
 use gridrt_tests::{build_pair, gpu_or_skip, Pair};

@@ -181,14 +181,7 @@ pub fn load_mesh_quiet(path: &Path) -> anyhow::Result<(Mesh, usize)> {
     mesh.validate(&name)
 }
 
-/// The OS reason without Rust's " (os error 2)" suffix: `No such file or directory`.
-pub fn io_reason(e: &std::io::Error) -> String {
-    let s = e.to_string();
-    match s.rfind(" (os error ") {
-        Some(i) => s[..i].to_string(),
-        None => s,
-    }
-}
+pub use crate::image_io::io_reason;
 
 /// Guards the one-line promise against messages that quote file content.
 fn one_line(s: &str) -> String {
