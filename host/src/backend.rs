@@ -128,7 +128,7 @@ impl Backend {
     pub fn render(&self, scene: &Scene, camera: &Camera, options: &RenderOptions) -> Result<Image> {
         if options.shading == Shading::Cost {
             let costs = self.render_costs(scene, camera)?;
-            let white = options.heat_white.unwrap_or_else(|| costs.summary().p99_total);
+            let white = costs.summary().white(options.heat_white);
             return Ok(costs.heat_map(white));
         }
         let pixels = self.render_frame(scene, &options.frame(scene, camera))?;

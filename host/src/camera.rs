@@ -161,13 +161,7 @@ fn fitting_distance(bounds: &Aabb, target: Vec3, back: Vec3, up: Vec3, fov_degre
     let tan_v = (fov_degrees.to_radians() * 0.5).tan() * FILL;
     let tan_h = tan_v * aspect;
     let mut distance = 0f32;
-    for k in 0..8 {
-        let pick = |bit: u32, lo: f32, hi: f32| if k & bit == 0 { lo } else { hi };
-        let corner = Vec3::new(
-            pick(1, bounds.min.x, bounds.max.x),
-            pick(2, bounds.min.y, bounds.max.y),
-            pick(4, bounds.min.z, bounds.max.z),
-        );
+    for corner in bounds.corners() {
         let r = corner - target;
         let need = r.dot(back) + (r.dot(right).abs() / tan_h).max(r.dot(up).abs() / tan_v);
         distance = distance.max(need);
@@ -216,12 +210,7 @@ mod tests {
             let (eye, h, vv) = (Vec3::from(c.origin), Vec3::from(c.horizontal), Vec3::from(c.vertical));
             let normal = h.cross(vv).normalize();
             let mut widest = 0f32;
-            for k in 0..8 {
-                let p = Vec3::new(
-                    if k & 1 == 0 { b.min.x } else { b.max.x },
-                    if k & 2 == 0 { b.min.y } else { b.max.y },
-                    if k & 4 == 0 { b.min.z } else { b.max.z },
-                );
+            for (k, p) in b.corners().into_iter().enumerate() {
                 // The corner on the image plane, one unit along the view from the eye.
                 let d = p - eye;
                 let on_plane = d / d.dot(normal).abs() * (Vec3::from(c.to_top_left).dot(normal).abs());

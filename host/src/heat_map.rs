@@ -28,6 +28,13 @@ pub struct CostSummary {
     pub max_total: u32,
 }
 
+impl CostSummary {
+    /// Tests shown white: `heat_white` when given, else the 99th percentile.
+    pub fn white(&self, heat_white: Option<u32>) -> u32 {
+        heat_white.unwrap_or(self.p99_total)
+    }
+}
+
 impl CostImage {
     /// The image of packed costs the kernels write.
     pub fn from_packed(width: u32, height: u32, packed: &[u32]) -> CostImage {

@@ -156,16 +156,10 @@ impl RenderOptions {
         // The eye's distances to the box around the scene, and to its farthest corner.
         let eye = Vec3::from(camera.origin);
         let near = (eye - eye.clamp(bounds.min, bounds.max)).length();
-        let far = (0..8)
-            .map(|k| {
-                let pick = |bit: u32, lo: f32, hi: f32| if k & bit != 0 { hi } else { lo };
-                let corner = Vec3::new(
-                    pick(1, bounds.min.x, bounds.max.x),
-                    pick(2, bounds.min.y, bounds.max.y),
-                    pick(4, bounds.min.z, bounds.max.z),
-                );
-                (corner - eye).length()
-            })
+        let far = bounds
+            .corners()
+            .iter()
+            .map(|&c| (c - eye).length())
             .fold(near, f32::max);
         FrameParams {
             depth_near: near,

@@ -113,8 +113,8 @@ fn ambient_occlusion_agrees_across_backends_and_darkens() {
 }
 
 /// Every shading mode through the pipeline: a picture that is not blank, the same on the GPU
-/// as on the CPU (2/255 on 99.5% of pixels, as in `gpu_vs_cpu`), and each mode a picture of
-/// its own.
+/// as on the CPU (within the tolerance `gpu_vs_cpu` explains), and each mode a picture of its
+/// own.
 #[test]
 fn every_shading_mode_agrees_across_backends() {
     let gpu = gpu_backend("every_shading_mode_agrees_across_backends");

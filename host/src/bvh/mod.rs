@@ -51,6 +51,19 @@ impl Aabb {
         }
     }
 
+    /// The eight corners: corner `k` takes x from bit 0 of `k`, y from bit 1, z from bit 2
+    /// (clear: the minimum, set: the maximum).
+    pub fn corners(&self) -> [Vec3; 8] {
+        std::array::from_fn(|k| {
+            let pick = |bit: usize, lo: f32, hi: f32| if k & bit == 0 { lo } else { hi };
+            Vec3::new(
+                pick(1, self.min.x, self.max.x),
+                pick(2, self.min.y, self.max.y),
+                pick(4, self.min.z, self.max.z),
+            )
+        })
+    }
+
     #[inline]
     pub fn center(&self) -> Vec3 {
         (self.min + self.max) * 0.5

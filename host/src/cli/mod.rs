@@ -513,7 +513,7 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
         let image = if render.shading == Shading::Cost {
             let costs = stages.run("render", || backend.render_costs(&scene, &view))?;
             let summary = costs.summary();
-            let white = render.heat_white.unwrap_or(summary.p99_total);
+            let white = summary.white(render.heat_white);
             stages.say(describe_costs(&summary, white, render.heat_white.is_none()));
             costs.heat_map(white)
         } else {
@@ -571,10 +571,7 @@ fn export(args: &ExportArgs, stages: &mut Stages) -> Result<()> {
         "use fewer --levels",
     )?;
     let sub = stages.run("subdivide", || {
-        let creases = match args.crease_angle {
-            Some(degrees) => subdiv::Creases::from_angle(&mesh, degrees),
-            None => subdiv::Creases::none(),
-        };
+        let creases = subdiv::Creases::chosen(&mesh, args.crease_angle);
         subdiv::subdivide_creased(&mesh, args.levels, args.subdivision.scheme(), &creases)
     });
     let triangles = sub.micro_triangles(args.levels);

@@ -70,10 +70,7 @@ impl GridBuild {
 
     /// The creases chosen on `base` by [`GridBuild::crease_angle`].
     pub fn creases(&self, base: &Mesh) -> Creases {
-        match self.crease_angle {
-            Some(degrees) => Creases::from_angle(base, degrees),
-            None => Creases::none(),
-        }
+        Creases::chosen(base, self.crease_angle)
     }
 }
 

@@ -69,6 +69,11 @@ impl Creases {
         Creases { bits }
     }
 
+    /// [`Creases::from_angle`] for `Some(degrees)`, [`Creases::none`] for `None`.
+    pub fn chosen(mesh: &Mesh, degrees: Option<f32>) -> Self {
+        degrees.map_or_else(Creases::none, |d| Creases::from_angle(mesh, d))
+    }
+
     /// Crease bits of base triangle `t`.
     #[inline]
     pub fn of(&self, t: usize) -> u8 {
