@@ -50,131 +50,6 @@ fn record(hit: &Hit) -> HitRecord {
     }
 }
 
-/// The baseline: a triangle BVH over an indexed triangle list.
-#[spirv(compute(threads(8, 8, 1)))]
-pub fn render_triangles(
-    #[spirv(global_invocation_id)] id: UVec3,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] image: &mut [u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] nodes: &[BvhNode],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] positions: &[f32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] indices: &[u32],
-) {
-    if let Some(i) = tile_index(id, frame) {
-        let mesh = TriangleMesh { positions, indices };
-        image[i] = render_pixel(frame, nodes, &mesh, frame.tile_x + id.x, frame.tile_y + id.y);
-    }
-}
-
-/// Grid primitives: top-level BVH over grids, sphere hierarchy inside each.
-#[allow(clippy::too_many_arguments)] // one per binding
-#[spirv(compute(threads(8, 8, 1)))]
-pub fn render_grids(
-    #[spirv(global_invocation_id)] id: UVec3,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] image: &mut [u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] micro_triangles: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[BvhNode],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] headers: &[GridHeader],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] vertices: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] radii: &[u32],
-) {
-    if let Some(i) = tile_index(id, frame) {
-        let scene = GridScene {
-            headers,
-            vertices,
-            radii,
-            micro_triangles,
-            params: frame.grid,
-        };
-        image[i] = render_pixel(frame, nodes, &scene, frame.tile_x + id.x, frame.tile_y + id.y);
-    }
-}
-
-/// [`render_triangles`] for the cost heat map: each pixel the packed tests of its ray.
-#[spirv(compute(threads(8, 8, 1)))]
-pub fn cost_triangles(
-    #[spirv(global_invocation_id)] id: UVec3,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] image: &mut [u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] nodes: &[BvhNode],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] positions: &[f32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] indices: &[u32],
-) {
-    if let Some(i) = tile_index(id, frame) {
-        let mesh = TriangleMesh { positions, indices };
-        image[i] = cost_pixel(frame, nodes, &mesh, frame.tile_x + id.x, frame.tile_y + id.y);
-    }
-}
-
-/// [`render_grids`] for the cost heat map.
-#[allow(clippy::too_many_arguments)] // one per binding
-#[spirv(compute(threads(8, 8, 1)))]
-pub fn cost_grids(
-    #[spirv(global_invocation_id)] id: UVec3,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] image: &mut [u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] micro_triangles: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[BvhNode],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] headers: &[GridHeader],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] vertices: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] radii: &[u32],
-) {
-    if let Some(i) = tile_index(id, frame) {
-        let scene = GridScene {
-            headers,
-            vertices,
-            radii,
-            micro_triangles,
-            params: frame.grid,
-        };
-        image[i] = cost_pixel(frame, nodes, &scene, frame.tile_x + id.x, frame.tile_y + id.y);
-    }
-}
-
-/// A list of rays against the baseline (benchmarks, and anything that brings its own rays).
-#[spirv(compute(threads(64, 1, 1)))]
-pub fn trace_triangles_rays(
-    #[spirv(global_invocation_id)] id: UVec3,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[RayRecord],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] hits: &mut [HitRecord],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[BvhNode],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] positions: &[f32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] indices: &[u32],
-) {
-    if let Some(i) = ray_index(id, params) {
-        let mesh = TriangleMesh { positions, indices };
-        hits[i] = record(&trace_triangles(nodes, &mesh, &ray_of(&rays[i]), rays[i].t_max));
-    }
-}
-
-/// A list of rays against grid primitives.
-#[allow(clippy::too_many_arguments)] // one per binding
-#[spirv(compute(threads(64, 1, 1)))]
-pub fn trace_grids_rays(
-    #[spirv(global_invocation_id)] id: UVec3,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[RayRecord],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] hits: &mut [HitRecord],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] micro_triangles: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] nodes: &[BvhNode],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] headers: &[GridHeader],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] vertices: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] radii: &[u32],
-) {
-    if let Some(i) = ray_index(id, params) {
-        let scene = GridScene {
-            headers,
-            vertices,
-            radii,
-            micro_triangles,
-            params: params.grid,
-        };
-        hits[i] = record(&trace_grids(nodes, &scene, &ray_of(&rays[i]), rays[i].t_max));
-    }
-}
-
 /// Declares a kernel whose scene is split into chunks: its own bindings in set 0, then one
 /// binding per chunk in set 1, gathered into `Chunks` named `$chunks` for the body.
 macro_rules! split_kernel {
@@ -224,69 +99,131 @@ macro_rules! split_kernel {
     };
 }
 
-split_kernel! {
-    /// [`render_triangles`] over a split scene.
-    #[spirv(compute(threads(8, 8, 1)))]
-    fn render_triangles_split(
-        #[spirv(global_invocation_id)] id: UVec3,
-        #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
-        #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] image: &mut [u32],
-    ) |chunks| {
-        if let Some(i) = tile_index(id, frame) {
-            let nodes = Split::<BvhNode>::new(&chunks, &frame.split, TRIANGLE_NODES);
-            let mesh = TriangleMesh::split(&chunks, &frame.split);
-            image[i] = render_pixel(frame, nodes, &mesh, frame.tile_x + id.x, frame.tile_y + id.y);
+/// Declares the four kernels that colour a frame's pixels by `$pixel` (a `gridrt_shared::shade`
+/// function of the frame, the BVH, the primitives and the pixel): over the baseline and over
+/// grids, each reading whole buffers and a split scene.
+macro_rules! image_kernels {
+    ($pixel:path: $triangles:ident, $grids:ident, $triangles_split:ident, $grids_split:ident) => {
+        /// The baseline: a triangle BVH over an indexed triangle list.
+        #[spirv(compute(threads(8, 8, 1)))]
+        pub fn $triangles(
+            #[spirv(global_invocation_id)] id: UVec3,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] image: &mut [u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] nodes: &[BvhNode],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] positions: &[f32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] indices: &[u32],
+        ) {
+            if let Some(i) = tile_index(id, frame) {
+                let mesh = TriangleMesh { positions, indices };
+                image[i] = $pixel(frame, nodes, &mesh, frame.tile_x + id.x, frame.tile_y + id.y);
+            }
         }
+
+        /// Grid primitives: top-level BVH over grids, sphere hierarchy inside each.
+        #[allow(clippy::too_many_arguments)] // one per binding
+        #[spirv(compute(threads(8, 8, 1)))]
+        pub fn $grids(
+            #[spirv(global_invocation_id)] id: UVec3,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] image: &mut [u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] micro_triangles: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[BvhNode],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] headers: &[GridHeader],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] vertices: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] radii: &[u32],
+        ) {
+            if let Some(i) = tile_index(id, frame) {
+                let scene = GridScene {
+                    headers,
+                    vertices,
+                    radii,
+                    micro_triangles,
+                    params: frame.grid,
+                };
+                image[i] = $pixel(frame, nodes, &scene, frame.tile_x + id.x, frame.tile_y + id.y);
+            }
+        }
+
+        split_kernel! {
+            /// The baseline over a split scene.
+            #[spirv(compute(threads(8, 8, 1)))]
+            fn $triangles_split(
+                #[spirv(global_invocation_id)] id: UVec3,
+                #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
+                #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] image: &mut [u32],
+            ) |chunks| {
+                if let Some(i) = tile_index(id, frame) {
+                    let nodes = Split::<BvhNode>::new(&chunks, &frame.split, TRIANGLE_NODES);
+                    let mesh = TriangleMesh::split(&chunks, &frame.split);
+                    image[i] = $pixel(frame, nodes, &mesh, frame.tile_x + id.x, frame.tile_y + id.y);
+                }
+            }
+        }
+
+        split_kernel! {
+            /// Grid primitives over a split scene.
+            #[spirv(compute(threads(8, 8, 1)))]
+            fn $grids_split(
+                #[spirv(global_invocation_id)] id: UVec3,
+                #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
+                #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] image: &mut [u32],
+                #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] micro_triangles: &[u32],
+            ) |chunks| {
+                if let Some(i) = tile_index(id, frame) {
+                    let nodes = Split::<BvhNode>::new(&chunks, &frame.split, GRID_NODES);
+                    let scene = GridScene::split(&chunks, &frame.split, micro_triangles, frame.grid);
+                    image[i] = $pixel(frame, nodes, &scene, frame.tile_x + id.x, frame.tile_y + id.y);
+                }
+            }
+        }
+    };
+}
+
+// Pictures, and the cost heat map's counts (packed `Costs` per pixel, coloured on the host).
+image_kernels!(render_pixel: render_triangles, render_grids, render_triangles_split, render_grids_split);
+image_kernels!(cost_pixel: cost_triangles, cost_grids, cost_triangles_split, cost_grids_split);
+
+/// A list of rays against the baseline (benchmarks, and anything that brings its own rays).
+#[spirv(compute(threads(64, 1, 1)))]
+pub fn trace_triangles_rays(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[RayRecord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] hits: &mut [HitRecord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[BvhNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] positions: &[f32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] indices: &[u32],
+) {
+    if let Some(i) = ray_index(id, params) {
+        let mesh = TriangleMesh { positions, indices };
+        hits[i] = record(&trace_triangles(nodes, &mesh, &ray_of(&rays[i]), rays[i].t_max));
     }
 }
 
-split_kernel! {
-    /// [`render_grids`] over a split scene.
-    #[spirv(compute(threads(8, 8, 1)))]
-    fn render_grids_split(
-        #[spirv(global_invocation_id)] id: UVec3,
-        #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
-        #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] image: &mut [u32],
-        #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] micro_triangles: &[u32],
-    ) |chunks| {
-        if let Some(i) = tile_index(id, frame) {
-            let nodes = Split::<BvhNode>::new(&chunks, &frame.split, GRID_NODES);
-            let scene = GridScene::split(&chunks, &frame.split, micro_triangles, frame.grid);
-            image[i] = render_pixel(frame, nodes, &scene, frame.tile_x + id.x, frame.tile_y + id.y);
-        }
-    }
-}
-
-split_kernel! {
-    /// [`cost_triangles`] over a split scene.
-    #[spirv(compute(threads(8, 8, 1)))]
-    fn cost_triangles_split(
-        #[spirv(global_invocation_id)] id: UVec3,
-        #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
-        #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] image: &mut [u32],
-    ) |chunks| {
-        if let Some(i) = tile_index(id, frame) {
-            let nodes = Split::<BvhNode>::new(&chunks, &frame.split, TRIANGLE_NODES);
-            let mesh = TriangleMesh::split(&chunks, &frame.split);
-            image[i] = cost_pixel(frame, nodes, &mesh, frame.tile_x + id.x, frame.tile_y + id.y);
-        }
-    }
-}
-
-split_kernel! {
-    /// [`cost_grids`] over a split scene.
-    #[spirv(compute(threads(8, 8, 1)))]
-    fn cost_grids_split(
-        #[spirv(global_invocation_id)] id: UVec3,
-        #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
-        #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] image: &mut [u32],
-        #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] micro_triangles: &[u32],
-    ) |chunks| {
-        if let Some(i) = tile_index(id, frame) {
-            let nodes = Split::<BvhNode>::new(&chunks, &frame.split, GRID_NODES);
-            let scene = GridScene::split(&chunks, &frame.split, micro_triangles, frame.grid);
-            image[i] = cost_pixel(frame, nodes, &scene, frame.tile_x + id.x, frame.tile_y + id.y);
-        }
+/// A list of rays against grid primitives.
+#[allow(clippy::too_many_arguments)] // one per binding
+#[spirv(compute(threads(64, 1, 1)))]
+pub fn trace_grids_rays(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[RayRecord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] hits: &mut [HitRecord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] micro_triangles: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] nodes: &[BvhNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] headers: &[GridHeader],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] vertices: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] radii: &[u32],
+) {
+    if let Some(i) = ray_index(id, params) {
+        let scene = GridScene {
+            headers,
+            vertices,
+            radii,
+            micro_triangles,
+            params: params.grid,
+        };
+        hits[i] = record(&trace_grids(nodes, &scene, &ray_of(&rays[i]), rays[i].t_max));
     }
 }
 
