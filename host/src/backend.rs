@@ -126,8 +126,9 @@ impl Backend {
 
     /// Renders `scene` as `camera` sees it.
     pub fn render(&self, scene: &Scene, camera: &Camera, options: &RenderOptions) -> Result<Image> {
+        options.check(scene)?;
         if options.shading == Shading::Cost {
-            let costs = self.render_costs(scene, camera)?;
+            let costs = self.render_costs(scene, camera, options)?;
             let white = costs.summary().white(options.heat_white);
             return Ok(costs.heat_map(white));
         }
@@ -139,12 +140,14 @@ impl Backend {
         })
     }
 
-    /// The tests each pixel's primary ray makes, for the cost heat map.
-    pub fn render_costs(&self, scene: &Scene, camera: &Camera) -> Result<CostImage> {
+    /// The tests each pixel's primary ray makes, for the cost heat map (of `options`, only
+    /// the level of detail counts).
+    pub fn render_costs(&self, scene: &Scene, camera: &Camera, options: &RenderOptions) -> Result<CostImage> {
         let options = RenderOptions {
             shading: Shading::Cost,
-            ..RenderOptions::default()
+            ..*options
         };
+        options.check(scene)?;
         let packed = self.render_frame(scene, &options.frame(scene, camera))?;
         Ok(CostImage::from_packed(camera.width, camera.height, &packed))
     }

@@ -34,6 +34,7 @@ pub mod grid;
 pub mod heat_map;
 pub mod image_io;
 pub mod limits;
+pub mod lod;
 pub mod mesh;
 pub mod pipeline;
 pub mod quantize;

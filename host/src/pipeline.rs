@@ -8,7 +8,7 @@ use std::path::Path;
 use anyhow::{bail, Result};
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::layout::{
-    Camera, FrameParams, SHADE_AMBIENT_OCCLUSION, SHADE_COST, SHADE_DEPTH, SHADE_EYE_LIGHT, SHADE_NORMAL,
+    Camera, FrameParams, SHADE_AMBIENT_OCCLUSION, SHADE_COST, SHADE_DEPTH, SHADE_EYE_LIGHT, SHADE_LEVEL, SHADE_NORMAL,
     SHADE_PRIMITIVE,
 };
 
@@ -108,6 +108,9 @@ pub enum Shading {
     /// The cost heat map: the tests each pixel's ray makes (see [`crate::heat_map`] and
     /// [`RenderOptions::heat_white`]).
     Cost,
+    /// Each grid coloured by the depth it is rendered at (see [`RenderOptions::lod_pixels`]);
+    /// grids only.
+    Level,
 }
 
 impl Shading {
@@ -120,6 +123,7 @@ impl Shading {
             Shading::AmbientOcclusion => SHADE_AMBIENT_OCCLUSION,
             Shading::Depth => SHADE_DEPTH,
             Shading::Cost => SHADE_COST,
+            Shading::Level => SHADE_LEVEL,
         }
     }
 }
@@ -135,6 +139,11 @@ pub struct RenderOptions {
     pub ao_distance: Option<f32>,
     /// Tests per pixel the cost heat map shows white; `None`: the frame's 99th percentile.
     pub heat_white: Option<u32>,
+    /// Level of detail per grid: with `Some(p)` each grid is rendered at the shallowest depth
+    /// (up to the scene's) whose micro-triangles span at most `p` pixels on screen (see
+    /// [`gridrt_shared::lod::grid_level`] and [`crate::lod::LodReport`]); `None`: every grid at
+    /// the scene's depth. Grids only.
+    pub lod_pixels: Option<f32>,
 }
 
 impl Default for RenderOptions {
@@ -144,11 +153,30 @@ impl Default for RenderOptions {
             ao_samples: 16,
             ao_distance: None,
             heat_white: None,
+            lod_pixels: None,
         }
     }
 }
 
 impl RenderOptions {
+    /// Refuses options `scene` cannot be rendered with: those that need grids, on the baseline.
+    pub fn check(&self, scene: &Scene) -> Result<()> {
+        if let Scene::Triangles(_) = scene {
+            if self.lod_pixels.is_some() {
+                bail!("a level of detail per grid needs grids; the baseline has one depth, fixed when it is built");
+            }
+            if self.shading == Shading::Level {
+                bail!("level colouring shows each grid's depth; the baseline has one depth, fixed when it is built");
+            }
+        }
+        if let Some(pixels) = self.lod_pixels {
+            if !(pixels.is_finite() && pixels > 0.0) {
+                bail!("the target micro-triangle size must be a number of pixels above zero, not {pixels}");
+            }
+        }
+        Ok(())
+    }
+
     /// The dispatch parameters of `scene` seen by `camera` with these options.
     pub fn frame(&self, scene: &Scene, camera: &Camera) -> FrameParams {
         let bounds = scene.bounds();
@@ -161,7 +189,7 @@ impl RenderOptions {
             .iter()
             .map(|&c| (c - eye).length())
             .fold(near, f32::max);
-        FrameParams {
+        let mut frame = FrameParams {
             depth_near: near,
             depth_far: far,
             ao_samples: self.ao_samples,
@@ -169,8 +197,20 @@ impl RenderOptions {
             // A hair off the surface, so the rays do not find the triangle they leave.
             ao_offset: diagonal * 1e-5,
             ..scene.frame(*camera, self.shading.code())
+        };
+        if let (Some(pixels), Scene::Grids(_)) = (self.lod_pixels, scene) {
+            frame.grid.lod_auto = 1;
+            frame.grid.lod_eye = camera.origin;
+            frame.grid.lod_scale = pixels_per_unit(camera) / pixels;
         }
+        frame
     }
+}
+
+/// Pixels that one unit of length spans one unit in front of `camera`'s eye (the image plane
+/// is one unit away, `vertical` its height).
+pub fn pixels_per_unit(camera: &Camera) -> f32 {
+    camera.height as f32 / Vec3::from(camera.vertical).length()
 }
 
 /// A rendered frame: packed RGBA8 (red in the low byte), row-major, top row first.

@@ -73,11 +73,12 @@ impl Scene {
         }
     }
 
-    /// Corners of a hit's triangle, by its primitive id.
+    /// Corners of a hit's triangle, by its primitive id (a grid hit at the scene's depth, see
+    /// [`gridrt_shared::layout::Hit`]).
     pub fn triangle(&self, prim: u32) -> [Vec3; 3] {
         match self {
             Scene::Triangles(s) => s.view().corners(prim),
-            Scene::Grids(s) => s.view().micro_triangle(prim),
+            Scene::Grids(s) => s.view().micro_triangle(prim, s.params.lod),
         }
     }
 
@@ -153,7 +154,8 @@ fn reference_t(ray: &Ray, [a, b, c]: [Vec3; 3]) -> Option<f64> {
 pub fn render_cpu(scene: &Scene, frame: &FrameParams) -> Vec<u32> {
     match scene {
         Scene::Triangles(s) => render_pixels(frame, s.nodes.as_slice(), &s.view()),
-        Scene::Grids(s) => render_pixels(frame, s.nodes.as_slice(), &s.view()),
+        // Read as the frame says (its level of detail), as the kernels do.
+        Scene::Grids(s) => render_pixels(frame, s.nodes.as_slice(), &s.view_as(frame.grid)),
     }
 }
 

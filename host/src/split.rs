@@ -145,8 +145,8 @@ pub fn render_cpu_split(scene: &Scene, split: &SplitScene, frame: &FrameParams) 
             let mesh = TriangleMesh::split(&chunks, &split.params);
             render_pixels(frame, nodes(TRIANGLE_NODES), &mesh)
         }
-        Scene::Grids(s) => {
-            let grids = grid_traverse::GridScene::split(&chunks, &split.params, &MICRO_TRIANGLES, s.params);
+        Scene::Grids(_) => {
+            let grids = grid_traverse::GridScene::split(&chunks, &split.params, &MICRO_TRIANGLES, frame.grid);
             render_pixels(frame, nodes(GRID_NODES), &grids)
         }
     }

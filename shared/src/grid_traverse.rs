@@ -13,6 +13,7 @@ use crate::grid_index::{
 use crate::layout::{
     BvhNode, GridHeader, GridIds, GridParams, Hit, SplitParams, GRID_HEADERS, GRID_RADII, GRID_VERTICES,
 };
+use crate::lod::grid_level;
 use crate::quantize::{dequantize, read_half, read_half_triple, unit_from_exponent};
 use crate::ray::{Ray, T_FAR};
 use crate::sphere::{decode_radius, intersect_sphere_scaled};
@@ -191,7 +192,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     /// axes (negative for an inverted sub-triangle). Only its lattice points inside `window`
     /// (`[la_lo, la_hi, lb_lo, lb_hi]`, see [`FootprintFrame::leaf_window`]) are loaded, once
     /// each, and only the cells between them are tested: the static list's cell table names
-    /// each cell's triangle and its three points.
+    /// each cell's triangle and its three points. A hit is numbered by `ids`.
     #[allow(clippy::too_many_arguments)]
     fn intersect_leaf_triangles<T: Tally>(
         &self,
@@ -200,7 +201,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         step: i32,
         k: u32,
         window: [u32; 4],
-        first_id: u32,
+        ids: LeafIds,
         ray: &Ray,
         hit: &mut Hit,
         scratch: &mut GridScratch,
@@ -281,16 +282,19 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             lb += 1;
         }
         if closest.0 < hit.t {
-            record_hit(hit, closest, first_id + (closest_entry >> 24));
+            record_hit(hit, closest, ids.first + ((closest_entry >> 24) << ids.shift));
+            hit.level = ids.level;
         }
     }
 
-    /// Corners of micro-triangle `prim`, numbered as hits number them: `grid * 4^lod` plus its
-    /// index in recursion order, whose digits walk down to its corners.
-    pub fn micro_triangle(&self, prim: u32) -> [Vec3; 3] {
+    /// Corners of the micro-triangle a hit at depth `level` names `prim` (see [`Hit`]): its
+    /// grid, and its index at that depth in recursion order, whose digits walk down to its
+    /// corners.
+    pub fn micro_triangle(&self, prim: u32, level: u32) -> [Vec3; 3] {
         let per_grid = triangle_count(self.params.lod);
         let open = self.open(prim / per_grid);
-        let [a, b, c] = sub_triangle(1 << self.params.levels, self.params.lod, prim % per_grid);
+        let t = (prim % per_grid) >> (2 * (self.params.lod - level));
+        let [a, b, c] = sub_triangle(1 << self.params.levels, level, t);
         [self.vertex(&open, a), self.vertex(&open, b), self.vertex(&open, c)]
     }
 
@@ -324,8 +328,15 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         }
         let corner = child_first_corner(family.corner, family.half, e.child);
         let step = if e.child == 3 { -family.step } else { family.step };
-        let first_id = family.grid * triangle_count(self.params.lod) + leaf * triangle_count(family.k);
-        self.intersect_leaf_triangles(open, corner, step, family.k, window, first_id, ray, hit, scratch, tally);
+        // Numbered as at depth `lod`: each of this depth's triangles by the first of the
+        // `4^(lod - level)` it would split into.
+        let shift = 2 * (self.params.lod - family.level);
+        let ids = LeafIds {
+            first: family.grid * triangle_count(self.params.lod) + ((leaf * triangle_count(family.k)) << shift),
+            shift,
+            level: family.level,
+        };
+        self.intersect_leaf_triangles(open, corner, step, family.k, window, ids, ray, hit, scratch, tally);
     }
 
     /// The bottom level: depth-first, nearest sphere first, over the grid's 4-ary hierarchy.
@@ -339,7 +350,8 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     ) {
         let open = self.open(grid);
         let n = 1u32 << self.params.levels;
-        let lod = self.params.lod;
+        let root_radius = self.radius(grid, 0);
+        let lod = grid_level(&self.params, open.origin, root_radius);
         // At a coarse level of detail the hierarchy is cut where the rendered triangles are.
         let leaf_level = if self.params.leaf_level < lod {
             self.params.leaf_level
@@ -347,7 +359,6 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             lod
         };
         let inv_dir_len2 = scratch.inv_dir_len2;
-        let root_radius = self.radius(grid, 0);
         tally.spheres(1);
         if intersect_sphere_scaled(open.origin, root_radius, ray, inv_dir_len2, hit.t) == T_FAR {
             return;
@@ -385,6 +396,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                 k: lod - level,
                 step: d * (size >> (lod - level)),
                 whole: 1,
+                level: lod,
             };
             let mut sheared = [Vec3::ZERO; 6];
             let mut e0 = Entry { t: T_FAR, child: 0 };
@@ -479,6 +491,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                         k,
                         step: ((size / 2) >> k) * d,
                         whole: 0,
+                        level: lod,
                     };
                     leaves =
                         (e0.t < T_FAR) as u32 + (e1.t < T_FAR) as u32 + (e2.t < T_FAR) as u32 + (e3.t < T_FAR) as u32;
@@ -546,7 +559,8 @@ fn pack_corner(a: [i32; 2], inverted: bool) -> u32 {
 /// Four sibling leaves: their parent's grid, the index of its first child, its first corner
 /// `corner` and half its edge `half` (signed, see [`GridScene::intersect_grid`]), and each
 /// leaf's depth `k` and lattice step; or, with `whole` set, one leaf (child 0, `half` 0)
-/// tested whole, without a footprint (`repr(C)`: naga rejects members out of offset order).
+/// tested whole, without a footprint; `level` is the depth the grid is rendered at (`repr(C)`:
+/// naga rejects members out of offset order).
 #[repr(C)]
 struct LeafFamily {
     grid: u32,
@@ -556,6 +570,17 @@ struct LeafFamily {
     k: u32,
     step: i32,
     whole: u32,
+    level: u32,
+}
+
+/// How a leaf's hits are numbered (see [`Hit`]): the id of its first triangle, the shift of
+/// each triangle's index within the leaf, and the depth to record.
+#[repr(C)]
+#[derive(Copy, Clone)]
+struct LeafIds {
+    first: u32,
+    shift: u32,
+    level: u32,
 }
 
 /// A child sphere's entry distance and which child it is.
@@ -606,8 +631,8 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> LeafPrimitives for GridScene<'_, H, 
     }
 
     #[inline]
-    fn triangle(&self, prim: u32) -> [Vec3; 3] {
-        self.micro_triangle(prim)
+    fn triangle(&self, prim: u32, level: u32) -> [Vec3; 3] {
+        self.micro_triangle(prim, level)
     }
 }
 

@@ -180,6 +180,8 @@ pub const SHADE_DEPTH: u32 = 4;
 /// Not a colour: each pixel is the packed [`crate::cost::Costs`] of its primary ray, which the
 /// host maps to colours (the cost heat map).
 pub const SHADE_COST: u32 = 5;
+/// Each grid coloured by the depth it was rendered at (level of detail).
+pub const SHADE_LEVEL: u32 = 6;
 
 /// How the grid buffers are to be read; all zero for a triangle scene.
 #[repr(C)]
@@ -188,7 +190,8 @@ pub const SHADE_COST: u32 = 5;
 pub struct GridParams {
     /// Subdivision depth `L` the grids were built at.
     pub levels: u32,
-    /// Depth `D <= L` rendered (level of detail).
+    /// Depth `D <= L` rendered (level of detail); with `lod_auto`, the deepest any grid is
+    /// rendered at.
     pub lod: u32,
     /// Deepest level of the sphere hierarchy, `max(L - excluded, 0)`: its sub-triangles are
     /// the leaves whose micro-triangles are tested directly.
@@ -220,7 +223,14 @@ pub struct GridParams {
     /// Whether each grid's ids take two wide headers rather than one packed header (see
     /// [`GridHeader`]).
     pub wide_headers: u32,
-    pub _pad: u32,
+    /// Whether each grid chooses its own depth from its size on screen (see
+    /// [`crate::lod::grid_level`]) rather than every grid rendering depth `lod`.
+    pub lod_auto: u32,
+    /// The eye that `lod_auto` measures distances from.
+    pub lod_eye: [f32; 3],
+    /// Pixels per unit of length one unit away from the eye, over the target micro-triangle
+    /// size in pixels (`lod_auto`).
+    pub lod_scale: f32,
 }
 
 /// Where a split scene's buffers lie among its chunks (see [`crate::buffer`]): buffer `b`
@@ -275,7 +285,9 @@ pub struct FrameParams {
 pub const NO_HIT: u32 = u32::MAX;
 
 /// Closest hit found so far. `prim` is the index of the triangle in the (reordered) triangle
-/// buffer, or `grid_slot * 4^lod + micro-triangle id` for grids.
+/// buffer, or for grids `grid_slot * 4^lod + t * 4^(lod - level)`, `t` the micro-triangle's
+/// index (recursion order) among the grid's `4^level`: numbered as at depth `lod` whatever
+/// depth the grid was rendered at.
 #[repr(C)]
 #[derive(Copy, Clone)]
 #[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable, Debug, PartialEq))]
@@ -286,7 +298,8 @@ pub struct Hit {
     pub prim: u32,
     /// Unnormalised geometric normal of the hit triangle.
     pub normal: [f32; 3],
-    pub _pad: u32,
+    /// Depth of the grid's micro-triangles the hit is on (0 for the baseline).
+    pub level: u32,
 }
 
 impl Hit {
@@ -298,7 +311,7 @@ impl Hit {
             v: 0.0,
             prim: NO_HIT,
             normal: [0.0; 3],
-            _pad: 0,
+            level: 0,
         }
     }
 

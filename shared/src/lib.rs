@@ -15,6 +15,7 @@ pub mod footprint;
 pub mod grid_index;
 pub mod grid_traverse;
 pub mod layout;
+pub mod lod;
 pub mod quantize;
 pub mod ray;
 pub mod sample;

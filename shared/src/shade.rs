@@ -2,7 +2,9 @@ use crate::buffer::Buffer;
 use crate::camera::primary_ray;
 use crate::cost::Costs;
 use crate::glam::Vec3;
-use crate::layout::{BvhNode, FrameParams, Hit, SHADE_AMBIENT_OCCLUSION, SHADE_DEPTH, SHADE_NORMAL, SHADE_PRIMITIVE};
+use crate::layout::{
+    BvhNode, FrameParams, Hit, SHADE_AMBIENT_OCCLUSION, SHADE_DEPTH, SHADE_LEVEL, SHADE_NORMAL, SHADE_PRIMITIVE,
+};
 use crate::ray::{Ray, T_FAR};
 use crate::sample::{cosine_direction, hash, orthonormal_basis, unit_float};
 use crate::traverse::{trace, trace_tallied, LeafPrimitives};
@@ -16,7 +18,9 @@ use spirv_std::num_traits::Float;
 /// - normal: the unit geometric normal mapped to RGB;
 /// - primitive: a colour hashed from the primitive id, to see the micro-triangles;
 /// - ambient occlusion: the plain material, which [`render_pixel`] darkens by occlusion;
-/// - depth: white at `frame.depth_near` from the eye to black at `frame.depth_far`.
+/// - depth: white at `frame.depth_near` from the eye to black at `frame.depth_far`;
+/// - level: a colour per depth of the micro-triangles hit (see [`level_color`]), lit by the
+///   headlight.
 pub fn shade(hit: &Hit, ray: &Ray, frame: &FrameParams) -> Vec3 {
     let mode = frame.shading;
     if !hit.is_hit() {
@@ -47,10 +51,26 @@ pub fn shade(hit: &Hit, ray: &Ray, frame: &FrameParams) -> Vec3 {
     let facing = n.dot(ray.dir.normalize()).abs();
     let base = if mode == SHADE_PRIMITIVE {
         hash_color(hit.prim)
+    } else if mode == SHADE_LEVEL {
+        level_color(hit.level)
     } else {
         Vec3::new(0.85, 0.78, 0.62)
     };
     base * (0.15 + 0.85 * facing)
+}
+
+/// Colour of a level of detail: from blue (depth 0, one triangle per grid) through green to
+/// red (depth 6), so coarser reads cooler.
+pub fn level_color(level: u32) -> Vec3 {
+    match level {
+        0 => Vec3::new(0.25, 0.2, 0.9),
+        1 => Vec3::new(0.15, 0.5, 0.95),
+        2 => Vec3::new(0.1, 0.8, 0.8),
+        3 => Vec3::new(0.3, 0.85, 0.25),
+        4 => Vec3::new(0.95, 0.85, 0.15),
+        5 => Vec3::new(0.98, 0.5, 0.1),
+        _ => Vec3::new(0.9, 0.15, 0.15),
+    }
 }
 
 fn hash_color(id: u32) -> Vec3 {

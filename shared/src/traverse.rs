@@ -30,8 +30,8 @@ pub trait LeafPrimitives {
         scratch: &mut Self::Scratch,
         tally: &mut T,
     );
-    /// Corners of the triangle a hit names `prim`.
-    fn triangle(&self, prim: u32) -> [Vec3; 3];
+    /// Corners of the triangle a hit names `prim` at depth `level` (see [`Hit`]).
+    fn triangle(&self, prim: u32, level: u32) -> [Vec3; 3];
 }
 
 /// Closest hit along `ray` within `t_max`, with its triangle's normal: found once, after the
@@ -51,7 +51,7 @@ pub fn trace_tallied<N: Buffer<BvhNode>, P: LeafPrimitives, T: Tally>(
     let mut hit = Hit::miss(t_max);
     traverse_bvh(nodes, prims, ray, &mut hit, tally);
     if hit.is_hit() {
-        let [a, b, c] = prims.triangle(hit.prim);
+        let [a, b, c] = prims.triangle(hit.prim, hit.level);
         hit.normal = triangle_normal(a, b, c).to_array();
     }
     hit
@@ -224,7 +224,7 @@ impl<F: Buffer<f32>, I: Buffer<u32>> LeafPrimitives for TriangleMesh<F, I> {
     }
 
     #[inline]
-    fn triangle(&self, prim: u32) -> [Vec3; 3] {
+    fn triangle(&self, prim: u32, _level: u32) -> [Vec3; 3] {
         self.corners(prim)
     }
 }

@@ -667,3 +667,45 @@ fn depth_and_cost_shading_render_and_cost_prints_its_scale() {
         &["--heat-white"],
     );
 }
+
+#[test]
+fn lod_auto_states_its_depths_and_cracks() {
+    let dir = scratch("lod");
+    let out = dir.join("level.png");
+    let args = [
+        "render",
+        "--backend",
+        "cpu",
+        "--levels",
+        "4",
+        "--lod",
+        "auto",
+        "--lod-pixels",
+        "3",
+        "--shading",
+        "level",
+        "--width",
+        "96",
+        "--height",
+        "64",
+        "-o",
+    ];
+    let o = gridrt(&[&args[..], &[out.to_str().unwrap()]].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let err = stderr(&o);
+    let line = err
+        .lines()
+        .find(|l| l.starts_with("level of detail (3 px): grids "))
+        .unwrap_or_else(|| panic!("no level of detail line in {err}"));
+    assert!(line.contains("widest crack") && line.contains(" px"), "{line}");
+    check_png(&out, 96, 64);
+    for (flag, value) in [("--lod", "auto"), ("--shading", "level")] {
+        fails_with(&["render", "--mode", "triangles", flag, value], &[], &[flag, "grids"]);
+    }
+    fails_with(&["render", "--lod", "coarse"], &[], &["--lod", "auto"]);
+    fails_with(
+        &["render", "--lod", "auto", "--lod-pixels", "0"],
+        &[],
+        &["--lod-pixels"],
+    );
+}

@@ -9,6 +9,7 @@ use gridrt::backend::{Backend, BackendChoice};
 use gridrt::bvh::Aabb;
 use gridrt::camera::Viewpoint;
 use gridrt::heat_map::CostSummary;
+use gridrt::lod::LodReport;
 use gridrt::mesh::frame::LocalFrame;
 use gridrt::mesh::{self, Input, Mesh};
 use gridrt::pipeline::{BuildOptions, RenderOptions, Representation, Shading};
@@ -119,6 +120,8 @@ pub enum ShadingArg {
     Depth,
     /// Cost heat map: BVH nodes, spheres and micro-triangles tested per pixel (scale printed).
     Cost,
+    /// Each grid coloured by the depth it renders at, blue (0) to red (6): see --lod auto.
+    Level,
 }
 
 impl ShadingArg {
@@ -130,6 +133,7 @@ impl ShadingArg {
             ShadingArg::Ao => Shading::AmbientOcclusion,
             ShadingArg::Depth => Shading::Depth,
             ShadingArg::Cost => Shading::Cost,
+            ShadingArg::Level => Shading::Level,
         }
     }
 }
@@ -206,9 +210,13 @@ pub struct RenderArgs {
     pub mode: Mode,
     #[command(flatten)]
     pub build: BuildArgs,
-    /// Depth to render, at most L (level of detail from the same data); L when absent.
-    #[arg(long)]
-    pub lod: Option<u32>,
+    /// Depth to render, at most L (level of detail from the same data), or `auto`: each grid
+    /// as deep as its size on screen asks (see --lod-pixels). L when absent.
+    #[arg(long, value_name = "DEPTH|auto", value_parser = parse_lod)]
+    pub lod: Option<LodArg>,
+    /// With --lod auto: the size on screen, in pixels, that micro-triangles are kept within.
+    #[arg(long, default_value_t = DEFAULT_LOD_PIXELS, value_parser = parse_positive_f32, allow_hyphen_values = true)]
+    pub lod_pixels: f32,
     #[arg(long, default_value_t = 960, value_parser = clap::value_parser!(u32).range(1..))]
     pub width: u32,
     #[arg(long, default_value_t = 720, value_parser = clap::value_parser!(u32).range(1..))]
@@ -292,6 +300,30 @@ fn parse_point(text: &str) -> std::result::Result<DVec3, String> {
     }
 }
 
+/// `--lod`: a depth, or each grid's own.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LodArg {
+    Depth(u32),
+    Auto,
+}
+
+/// Micro-triangle size on screen that `--lod auto` aims at, in pixels.
+pub const DEFAULT_LOD_PIXELS: f32 = 1.0;
+
+fn parse_lod(text: &str) -> std::result::Result<LodArg, String> {
+    match text.trim() {
+        "auto" => Ok(LodArg::Auto),
+        t => t
+            .parse()
+            .map(LodArg::Depth)
+            .map_err(|_| format!("expected a depth (0, 1, 2, ...) or auto, found {text:?}")),
+    }
+}
+
+fn parse_positive_f32(text: &str) -> std::result::Result<f32, String> {
+    parse_positive(text).map(|v| v as f32)
+}
+
 /// A finite number above zero.
 fn parse_positive(text: &str) -> std::result::Result<f64, String> {
     match text.trim().parse::<f64>() {
@@ -314,8 +346,37 @@ impl RenderArgs {
                 Mode::Triangles => Representation::Triangles,
             },
             grid: self.build.grid_build(),
-            lod: self.lod,
+            lod: match self.lod {
+                Some(LodArg::Depth(depth)) => Some(depth),
+                Some(LodArg::Auto) | None => None,
+            },
         }
+    }
+
+    /// The library's render options for these arguments; lengths are in the file's units,
+    /// `frame` takes them to the mesh's local frame.
+    pub fn render_options(&self, frame: &LocalFrame) -> RenderOptions {
+        RenderOptions {
+            shading: self.shading.shading(),
+            ao_samples: self.ao_samples,
+            ao_distance: self.ao_distance.map(|d| (d * frame.scale) as f32),
+            heat_white: self.heat_white,
+            lod_pixels: (self.lod == Some(LodArg::Auto)).then_some(self.lod_pixels),
+        }
+    }
+
+    /// Refuses, before any work, what needs grids asked of the baseline.
+    fn check_mode(&self) -> Result<()> {
+        if self.mode == Mode::Triangles {
+            let needs_grids = [
+                (self.lod == Some(LodArg::Auto), "--lod auto"),
+                (self.shading == ShadingArg::Level, "--shading level"),
+            ];
+            if let Some((_, flag)) = needs_grids.iter().find(|(asked, _)| *asked) {
+                bail!("{flag} needs grids (--mode grid): the baseline has one depth, fixed when it is built");
+            }
+        }
+        Ok(())
     }
 }
 
@@ -460,6 +521,7 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
     if lod > args.build.levels {
         bail!("--lod {lod} is deeper than --levels {}", args.build.levels);
     }
+    args.check_mode()?;
     image_io::check_png_path(&args.output)?;
     let paths: Vec<&Path> = args.meshes.iter().map(PathBuf::as_path).collect();
     let Input { name, mesh, frame, .. } = stages.run("load", || load_all(&paths))?;
@@ -490,18 +552,14 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
         Scene::Grids(_) => limits::micro_triangles(mesh.triangles.len(), args.build.levels),
         Scene::Triangles(_) => micro,
     };
+    let up_to = if args.lod == Some(LodArg::Auto) { "up to " } else { "" };
     stages.say(format!(
-        "{name}: {} base triangles, {micro} micro-triangles at depth {lod}, {} ({:.2} B per micro-triangle)",
+        "{name}: {} base triangles, {micro} micro-triangles at depth {up_to}{lod}, {} ({:.2} B per micro-triangle)",
         mesh.triangles.len(),
         limits::human(scene.memory() as u64),
         scene.memory() as f64 / stored as f64
     ));
-    let render = RenderOptions {
-        shading: args.shading.shading(),
-        ao_samples: args.ao_samples,
-        ao_distance: args.ao_distance.map(|d| (d * frame.scale) as f32),
-        heat_white: args.heat_white,
-    };
+    let render = args.render_options(&frame);
     let frames = args.turntable.unwrap_or(1);
     for k in 0..frames {
         // A turntable turns the orbit's azimuth by equal steps, the first frame the plain view.
@@ -510,8 +568,12 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
             ..viewpoint
         };
         let view = camera::view(&scene.bounds(), &turned, args.width, args.height)?;
+        if let (Scene::Grids(grids), Some(_)) = (&scene, render.lod_pixels) {
+            let report = LodReport::measure(grids, &render.frame(&scene, &view));
+            stages.say(describe_lod(&report, args.lod_pixels));
+        }
         let image = if render.shading == Shading::Cost {
-            let costs = stages.run("render", || backend.render_costs(&scene, &view))?;
+            let costs = stages.run("render", || backend.render_costs(&scene, &view, &render))?;
             let summary = costs.summary();
             let white = summary.white(render.heat_white);
             stages.say(describe_costs(&summary, white, render.heat_white.is_none()));
@@ -531,6 +593,24 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
     }
     stages.report();
     Ok(())
+}
+
+/// How many grids render at each depth, and the cracks between them, in one line.
+fn describe_lod(report: &LodReport, pixels: f32) -> String {
+    let depths: Vec<String> = report
+        .grids_per_level
+        .iter()
+        .enumerate()
+        .filter(|(_, &n)| n > 0)
+        .map(|(d, n)| format!("{n} at {d}"))
+        .collect();
+    format!(
+        "level of detail ({pixels} px): grids {}; {} base edges between grids of different depths, \
+         widest crack {:.2} px",
+        depths.join(", "),
+        report.mismatched_edges,
+        report.widest_crack_pixels
+    )
 }
 
 /// The heat map's scale and what it shows, in one line.

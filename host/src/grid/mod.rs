@@ -81,6 +81,12 @@ impl GridScene {
         }
     }
 
+    /// The scene as the traversal reads it under `params` (this scene's, with a frame's level
+    /// of detail).
+    pub fn view_as(&self, params: GridParams) -> gridrt_shared::grid_traverse::GridScene<'_, &[GridHeader], &[u32]> {
+        gridrt_shared::grid_traverse::GridScene { params, ..self.view() }
+    }
+
     /// Number of grids (base triangles).
     pub fn grid_count(&self) -> usize {
         self.base_triangle.len()
@@ -622,7 +628,7 @@ fn assemble(shape: &GridShape, ids: &[GridIds], per_grid: &PerGrid, mut vertices
             radius_scale,
             thickness_word,
             wide_headers: shape.wide_headers as u32,
-            _pad: 0,
+            ..Default::default()
         },
         base_triangle: top.order,
     }
