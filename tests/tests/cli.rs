@@ -19,6 +19,17 @@ fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
+/// Runs gridrt, which must succeed, and returns the line of its report starting with `prefix`.
+fn report_line(args: &[&str], prefix: &str) -> String {
+    let o = gridrt(args);
+    let err = stderr(&o);
+    assert!(o.status.success(), "gridrt {args:?} failed: {err}");
+    err.lines()
+        .find(|l| l.starts_with(prefix))
+        .unwrap_or_else(|| panic!("gridrt {args:?}: no line starting {prefix:?} in {err}"))
+        .to_string()
+}
+
 /// A PNG of the asked size that is not a single flat colour.
 fn check_png(path: &Path, width: u32, height: u32) {
     let img = image::open(path)
@@ -651,13 +662,7 @@ fn depth_and_cost_shading_render_and_cost_prints_its_scale() {
         let mut all = vec!["render"];
         all.extend(&args);
         all.extend(["--width", "96", "--height", "64", "-o", cost.to_str().unwrap()]);
-        let o = gridrt(&all);
-        assert!(o.status.success(), "{}", stderr(&o));
-        let err = stderr(&o);
-        let line = err
-            .lines()
-            .find(|l| l.starts_with("cost per pixel"))
-            .unwrap_or_else(|| panic!("no scale in {err}"));
+        let line = report_line(&all, "cost per pixel");
         assert!(line.contains(expect) && line.contains("spheres"), "{line}");
         check_png(&cost, 96, 64);
     }
@@ -690,13 +695,10 @@ fn lod_auto_states_its_depths_and_cracks() {
         "64",
         "-o",
     ];
-    let o = gridrt(&[&args[..], &[out.to_str().unwrap()]].concat());
-    assert!(o.status.success(), "{}", stderr(&o));
-    let err = stderr(&o);
-    let line = err
-        .lines()
-        .find(|l| l.starts_with("level of detail (3 px): grids "))
-        .unwrap_or_else(|| panic!("no level of detail line in {err}"));
+    let line = report_line(
+        &[&args[..], &[out.to_str().unwrap()]].concat(),
+        "level of detail (3 px): grids ",
+    );
     assert!(line.contains("widest crack") && line.contains(" px"), "{line}");
     check_png(&out, 96, 64);
     for (flag, value) in [("--lod", "auto"), ("--shading", "level")] {
