@@ -1,6 +1,7 @@
 //! What the fuzz targets check, as plain functions: the targets are one-line wrappers, and the
 //! same checks can run over the committed corpus without libFuzzer.
 
+use gridrt::error::{Error, ErrorKind, Result};
 use gridrt::grid::{self, GridOptions};
 use gridrt::mesh::Mesh;
 use gridrt::scene::{closest_hit_slack, hit_uncertainty, hits_only_by_rounding, Scene};
@@ -9,9 +10,10 @@ use gridrt::triangles;
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::ray::{Ray, T_FAR};
 
-/// Every error gridrt prints is one line.
-fn assert_one_line(e: &anyhow::Error) {
-    let text = format!("{e:#}");
+/// Every error gridrt prints is one line, and a loader's is about the input.
+fn assert_one_line(e: &Error) {
+    assert_eq!(e.kind(), ErrorKind::Input, "{e}");
+    let text = e.to_string();
     assert!(
         !text.contains('\n') && !text.contains('\r'),
         "error on several lines: {text:?}"
@@ -20,7 +22,7 @@ fn assert_one_line(e: &anyhow::Error) {
 
 /// A loader's result: an error on one line, or a mesh that validation accepts or refuses on
 /// one line.
-pub fn check_loaded(result: anyhow::Result<Mesh>) {
+pub fn check_loaded(result: Result<Mesh>) {
     match result {
         Err(e) => assert_one_line(&e),
         Ok(mesh) => match mesh.validate("fuzz") {

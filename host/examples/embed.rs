@@ -3,22 +3,41 @@
 //!
 //! `cargo run --release --example embed -- [MESH] [LEVELS]`
 
-use anyhow::Result;
+use std::process::ExitCode;
+
 use gridrt::backend::{Backend, BackendChoice};
-use gridrt::pipeline::{BuildOptions, RenderOptions, Shading};
+use gridrt::error::{ErrorKind, Result};
+use gridrt::pipeline::{BuildOptions, RenderOptions};
 use gridrt::{camera, mesh, scene::Scene};
 
-fn main() -> Result<()> {
+fn main() -> ExitCode {
     let mut args = std::env::args().skip(1);
     let path = args.next();
-    let levels = args.next().map_or(Ok(3), |l| l.parse())?;
+    let Ok(levels) = args.next().map_or(Ok(3), |l| l.parse()) else {
+        eprintln!("LEVELS must be a number");
+        return ExitCode::FAILURE;
+    };
+    match render(path.as_deref(), levels) {
+        Ok(()) => ExitCode::SUCCESS,
+        // Errors say what failed: a broken file is the user's to fix, anything else ours.
+        Err(e) if e.kind() == ErrorKind::Input => {
+            eprintln!("cannot use that mesh: {e}");
+            ExitCode::from(2)
+        }
+        Err(e) => {
+            eprintln!("{e}");
+            ExitCode::FAILURE
+        }
+    }
+}
 
-    let input = mesh::open(path.as_deref().map(std::path::Path::new))?;
+fn render(path: Option<&str>, levels: u32) -> Result<()> {
+    let input = mesh::open(path.map(std::path::Path::new))?;
     let scene = Scene::build(&input.mesh, &BuildOptions::levels(levels))?;
     let view = camera::frame(&scene.bounds(), 640, 480);
     let backend = Backend::open(BackendChoice::Auto)?;
     let options = RenderOptions {
-        shading: Shading::Normal,
+        smooth_normals: true,
         ..RenderOptions::default()
     };
     backend

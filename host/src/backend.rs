@@ -4,16 +4,21 @@
 
 use std::time::Instant;
 
-use anyhow::Result;
-use gridrt_shared::layout::{Camera, FrameParams, HitRecord, RayRecord};
+use crate::error::Result;
+use gridrt_shared::layout::{Camera, FrameParams, HitRecord, RayRecord, AO_MISS};
+use gridrt_shared::shade::ao_pixel;
+use rayon::prelude::*;
 
 #[cfg(feature = "gpu")]
-use crate::gpu::{Gpu, NoAdapter, Timing};
+use crate::gpu::{Gpu, Timing};
 use crate::heat_map::CostImage;
 use crate::limits::BufferSize;
 use crate::pipeline::{Image, RenderOptions, Shading};
 use crate::rays::trace_cpu;
 use crate::scene::{render_cpu, Scene};
+
+/// Most ambient-occlusion samples per pixel one render pass casts.
+pub const AO_SAMPLES_PER_PASS: u32 = 8;
 
 /// Which backend to open.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -47,13 +52,16 @@ impl Backend {
             #[cfg(feature = "gpu")]
             BackendChoice::Auto => match Gpu::new() {
                 Ok(gpu) => Ok(Backend::Gpu(Box::new(gpu))),
-                Err(e) if e.is::<NoAdapter>() => Ok(Backend::Cpu {
+                Err(e) if e.kind() == crate::error::ErrorKind::NoGpu => Ok(Backend::Cpu {
                     fallback: Some(e.to_string()),
                 }),
                 Err(e) => Err(e),
             },
             #[cfg(not(feature = "gpu"))]
-            BackendChoice::Gpu => anyhow::bail!("this gridrt was built without the `gpu` feature; use --backend cpu"),
+            BackendChoice::Gpu => Err(crate::error::error!(
+                NoGpu,
+                "this gridrt was built without the `gpu` feature; use --backend cpu"
+            )),
             #[cfg(not(feature = "gpu"))]
             BackendChoice::Auto => Ok(Backend::CPU),
         }
@@ -126,18 +134,66 @@ impl Backend {
 
     /// Renders `scene` as `camera` sees it.
     pub fn render(&self, scene: &Scene, camera: &Camera, options: &RenderOptions) -> Result<Image> {
+        self.render_reporting(scene, camera, options, &|_| {})
+    }
+
+    /// [`Backend::render`], calling `progress(samples)` with the ambient-occlusion samples per
+    /// pixel cast so far after each pass (ambient occlusion is rendered progressively, at most
+    /// [`AO_SAMPLES_PER_PASS`] samples a pass, so no one dispatch runs long).
+    pub fn render_reporting(
+        &self,
+        scene: &Scene,
+        camera: &Camera,
+        options: &RenderOptions,
+        progress: &dyn Fn(u32),
+    ) -> Result<Image> {
         options.check(scene)?;
         if options.shading == Shading::Cost {
             let costs = self.render_costs(scene, camera, options)?;
             let white = costs.summary().white(options.heat_white);
             return Ok(costs.heat_map(white));
         }
-        let pixels = self.render_frame(scene, &options.frame(scene, camera))?;
+        let frame = options.frame(scene, camera);
+        let pixels = if options.shading == Shading::AmbientOcclusion {
+            self.render_ambient_occlusion(scene, &frame, progress)?
+        } else {
+            self.render_frame(scene, &frame)?
+        };
         Ok(Image {
             width: camera.width,
             height: camera.height,
             pixels,
         })
+    }
+
+    /// Ambient occlusion in passes of at most [`AO_SAMPLES_PER_PASS`] samples per pixel, the
+    /// open rays of each pixel added up over them, then coloured.
+    fn render_ambient_occlusion(&self, scene: &Scene, frame: &FrameParams, progress: &dyn Fn(u32)) -> Result<Vec<u32>> {
+        let samples = frame.ao_samples;
+        let passes: Vec<FrameParams> = (0..samples.div_ceil(AO_SAMPLES_PER_PASS).max(1))
+            .map(|k| {
+                let first = k * AO_SAMPLES_PER_PASS;
+                FrameParams {
+                    ao_first_sample: first,
+                    ao_samples: AO_SAMPLES_PER_PASS.min(samples - first),
+                    ..*frame
+                }
+            })
+            .collect();
+        let mut open = vec![0u32; (frame.camera.width * frame.camera.height) as usize];
+        self.render_frames(scene, &passes, &mut |pass, counts| {
+            // A primary ray misses in every pass or in none.
+            for (sum, count) in open.iter_mut().zip(counts) {
+                *sum = if count == AO_MISS { AO_MISS } else { *sum + count };
+            }
+            progress(passes[pass].ao_first_sample + passes[pass].ao_samples);
+        })?;
+        let width = frame.camera.width;
+        Ok(open
+            .par_iter()
+            .enumerate()
+            .map(|(i, &o)| ao_pixel(frame, i as u32 % width, i as u32 / width, o, samples))
+            .collect())
     }
 
     /// The tests each pixel's primary ray makes, for the cost heat map (of `options`, only
@@ -152,14 +208,39 @@ impl Backend {
         Ok(CostImage::from_packed(camera.width, camera.height, &packed))
     }
 
-    /// Renders one frame as the kernels take it: packed RGBA8 (or packed costs for the heat
-    /// map), row-major, top row first.
+    /// Renders one frame as the kernels take it: packed RGBA8 (packed costs for the heat map,
+    /// counts of open rays for an ambient-occlusion pass: see
+    /// [`gridrt_shared::shade::render_pixel`]), row-major, top row first.
     pub fn render_frame(&self, scene: &Scene, frame: &FrameParams) -> Result<Vec<u32>> {
         match self {
             Backend::Cpu { .. } => Ok(render_cpu(scene, frame)),
             #[cfg(feature = "gpu")]
             Backend::Gpu(gpu) => gpu.render(scene, frame),
         }
+    }
+
+    /// [`Backend::render_frame`] of each of `frames` of one scene (uploaded once), handing
+    /// `each` the frame's index and pixels as they are done.
+    pub fn render_frames(
+        &self,
+        scene: &Scene,
+        frames: &[FrameParams],
+        each: &mut dyn FnMut(usize, Vec<u32>),
+    ) -> Result<()> {
+        match self {
+            Backend::Cpu { .. } => frames
+                .iter()
+                .enumerate()
+                .for_each(|(k, f)| each(k, render_cpu(scene, f))),
+            #[cfg(feature = "gpu")]
+            Backend::Gpu(gpu) => {
+                let uploaded = gpu.upload(scene)?;
+                for (k, f) in frames.iter().enumerate() {
+                    each(k, gpu.render_uploaded(&uploaded, f)?);
+                }
+            }
+        }
+        Ok(())
     }
 
     /// The closest hit of each of `rays`, in order (a miss: `prim` is

@@ -1,7 +1,7 @@
 //! Camera set-up on the host: framing a scene's bounds automatically, or from a
 //! [`Viewpoint`] given in part or in full.
 
-use anyhow::{bail, Result};
+use crate::error::{fail, Result};
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::layout::Camera;
 
@@ -105,7 +105,11 @@ impl Default for Viewpoint {
 pub fn view(bounds: &Aabb, viewpoint: &Viewpoint, width: u32, height: u32) -> Result<Camera> {
     let v = viewpoint;
     if !(v.fov_degrees > 0.0 && v.fov_degrees < 180.0) {
-        bail!("a field of view of {} degrees is not between 0 and 180", v.fov_degrees);
+        fail!(
+            Options,
+            "a field of view of {} degrees is not between 0 and 180",
+            v.fov_degrees
+        );
     }
     let angles = [v.azimuth_degrees, v.elevation_degrees];
     let points_finite = [v.eye, v.target, Some(v.up)]
@@ -113,17 +117,18 @@ pub fn view(bounds: &Aabb, viewpoint: &Viewpoint, width: u32, height: u32) -> Re
         .flatten()
         .all(|p| p.is_finite());
     if !angles.iter().all(|a| a.is_finite()) || !points_finite {
-        bail!("a camera position, direction or angle is not a finite number");
+        fail!(Options, "a camera position, direction or angle is not a finite number");
     }
     if v.distance.is_some_and(|d| !(d.is_finite() && d > 0.0)) {
-        bail!(
+        fail!(
+            Options,
             "a camera distance of {:?} is not a finite length above zero",
             v.distance
         );
     }
     let up = v.up.normalize_or_zero();
     if up == Vec3::ZERO {
-        bail!("the up direction {} has no length", v.up);
+        fail!(Options, "the up direction {} has no length", v.up);
     }
     let target = v.target.unwrap_or_else(|| bounds.center());
     let eye = match v.eye {
@@ -138,10 +143,11 @@ pub fn view(bounds: &Aabb, viewpoint: &Viewpoint, width: u32, height: u32) -> Re
     };
     let forward = (target - eye).normalize_or_zero();
     if forward == Vec3::ZERO {
-        bail!("the eye is on the target: no direction to look in");
+        fail!(Options, "the eye is on the target: no direction to look in");
     }
     if forward.cross(up).length_squared() < 1e-8 {
-        bail!(
+        fail!(
+            Options,
             "the up direction {} is along the view: no way to tell up in the picture",
             v.up
         );

@@ -3,7 +3,7 @@
 
 use std::time::Instant;
 
-use anyhow::{bail, Context, Result};
+use crate::error::{error, fail, Result};
 use gridrt_shared::buffer::SPLIT_CHUNKS;
 use gridrt_shared::grid_index::MICRO_TRIANGLES;
 use gridrt_shared::layout::{
@@ -76,23 +76,6 @@ impl GpuScene<'_> {
     }
 }
 
-/// wgpu found no adapter at all: the one GPU failure that falling back to the CPU answers.
-#[derive(Debug)]
-pub struct NoAdapter(pub String);
-
-impl std::fmt::Display for NoAdapter {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(
-            f,
-            "no GPU adapter found ({}); install a Vulkan driver (Debian: mesa-vulkan-drivers libvulkan1) or use \
-             --backend cpu",
-            self.0
-        )
-    }
-}
-
-impl std::error::Error for NoAdapter {}
-
 /// How a dispatch was timed.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum Timing {
@@ -127,7 +110,13 @@ impl Gpu {
             force_fallback_adapter: false,
             compatible_surface: None,
         }))
-        .map_err(|e| NoAdapter(e.to_string()))?;
+        .map_err(|e| {
+            error!(
+                NoGpu,
+                "no GPU adapter found ({e}); install a Vulkan driver (Debian: mesa-vulkan-drivers libvulkan1) or use \
+                 --backend cpu"
+            )
+        })?;
         let limits = adapter.limits();
         let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
@@ -140,7 +129,7 @@ impl Gpu {
             required_limits: limits.clone(),
             ..Default::default()
         }))
-        .context("cannot open the GPU device")?;
+        .map_err(|e| error!(Gpu, "cannot open the GPU device: {e}"))?;
         // Validation errors become `Err`s here instead of wgpu's default panic.
         device.push_error_scope(wgpu::ErrorFilter::Validation);
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -149,7 +138,7 @@ impl Gpu {
         });
         let whole = kernels(&device, &module);
         if let Some(e) = pollster::block_on(device.pop_error_scope()) {
-            bail!("the GPU driver rejected the gridrt kernels: {}", error_chain(&e));
+            fail!(Gpu, "the GPU driver rejected the gridrt kernels: {}", error_chain(&e));
         }
         let mut gpu = Gpu {
             adapter: adapter.get_info(),
@@ -164,8 +153,12 @@ impl Gpu {
         };
         if let Some(value) = std::env::var_os(BINDING_LIMIT_VAR) {
             let text = value.to_string_lossy();
-            let bytes = parse_bytes(&text)
-                .with_context(|| format!("{BINDING_LIMIT_VAR}={text} is not a size in bytes (such as 64K or 1M)"))?;
+            let bytes = parse_bytes(&text).ok_or_else(|| {
+                error!(
+                    Options,
+                    "{BINDING_LIMIT_VAR}={text} is not a size in bytes (such as 64K or 1M)"
+                )
+            })?;
             gpu.limit_bindings(bytes)?;
         }
         Ok(gpu)
@@ -175,7 +168,10 @@ impl Gpu {
     /// larger scenes are split, images rendered in more tiles and ray lists in more batches.
     pub fn limit_bindings(&mut self, bytes: u64) -> Result<()> {
         if bytes < MIN_BINDING_LIMIT {
-            bail!("a binding limit of {bytes} bytes is below the smallest gridrt takes, {MIN_BINDING_LIMIT} bytes");
+            fail!(
+                Options,
+                "a binding limit of {bytes} bytes is below the smallest gridrt takes, {MIN_BINDING_LIMIT} bytes"
+            );
         }
         self.binding_limit = self.binding_limit.min(bytes);
         Ok(())
@@ -210,7 +206,8 @@ impl Gpu {
     fn check_split_bindings(&self) -> Result<()> {
         let allowed = self.limits.max_storage_buffers_per_shader_stage;
         if allowed < SPLIT_BINDINGS || self.limits.max_bind_groups < 2 {
-            bail!(
+            fail!(
+                Limits,
                 "the scene is larger than one binding of {}, and reading it in chunks takes {SPLIT_BINDINGS} storage \
                  buffers in two bind groups; use fewer levels or --backend cpu",
                 self.describe_limits()
@@ -240,7 +237,11 @@ impl Gpu {
         self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let pipeline = compute_pipeline(&self.device, &self.module, entry);
         if let Some(e) = pollster::block_on(self.device.pop_error_scope()) {
-            bail!("the GPU driver rejected the gridrt kernel {entry}: {}", error_chain(&e));
+            fail!(
+                Gpu,
+                "the GPU driver rejected the gridrt kernel {entry}: {}",
+                error_chain(&e)
+            );
         }
         Ok(self.on_demand[index].get_or_init(|| pipeline))
     }
@@ -400,11 +401,11 @@ impl Gpu {
         }
         self.queue.submit([encoder.finish()]);
         if let Some(e) = pollster::block_on(self.device.pop_error_scope()) {
-            bail!("the GPU rejected the dispatch: {}", error_chain(&e));
+            fail!(Gpu, "the GPU rejected the dispatch: {}", error_chain(&e));
         }
         self.device
             .poll(wgpu::PollType::wait_indefinitely())
-            .context("GPU device lost")?;
+            .map_err(|e| error!(Gpu, "GPU device lost: {e}"))?;
         Ok(())
     }
 
@@ -585,8 +586,10 @@ impl Gpu {
         });
         self.device
             .poll(wgpu::PollType::wait_indefinitely())
-            .context("GPU device lost while reading back")?;
-        rx.recv()?.context("cannot read back from the GPU")?;
+            .map_err(|e| error!(Gpu, "GPU device lost while reading back: {e}"))?;
+        rx.recv()
+            .map_err(|e| error!(Gpu, "cannot read back from the GPU: {e}"))?
+            .map_err(|e| error!(Gpu, "cannot read back from the GPU: {e}"))?;
         let data = slice.get_mapped_range().to_vec();
         buffer.unmap();
         Ok(data)

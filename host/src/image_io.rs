@@ -2,24 +2,28 @@
 
 use std::path::Path;
 
-use anyhow::{anyhow, bail, Context, Result};
+use crate::error::{error, fail, Result};
 
 /// Checks, before any work, that `path` can take a file of the given kind: its parent folder
 /// exists and takes new files, and it is not a folder itself. Leaves nothing behind.
 pub fn check_writable(path: &Path) -> Result<()> {
     let name = path.display();
     if path.is_dir() {
-        bail!("{name}: is a folder, not a file name");
+        fail!(Output, "{name}: is a folder, not a file name");
     }
     let parent = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
     };
     if !parent.is_dir() {
-        bail!("{name}: cannot write: folder {} does not exist", parent.display());
+        fail!(
+            Output,
+            "{name}: cannot write: folder {} does not exist",
+            parent.display()
+        );
     }
     let probe = temporary_sibling(path);
-    std::fs::File::create(&probe).map_err(|e| anyhow!("{name}: cannot write: {}", io_reason(&e)))?;
+    std::fs::File::create(&probe).map_err(|e| error!(Output, "{name}: cannot write: {}", io_reason(&e)))?;
     let _ = std::fs::remove_file(&probe);
     Ok(())
 }
@@ -27,7 +31,7 @@ pub fn check_writable(path: &Path) -> Result<()> {
 /// [`check_writable`] for a file of one format: the name must also end in `.extension`.
 pub fn check_output(path: &Path, extension: &str) -> Result<()> {
     if path.is_dir() {
-        bail!("{}: is a folder, not a file name", path.display());
+        fail!(Output, "{}: is a folder, not a file name", path.display());
     }
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     if ext.as_deref() != Some(extension) {
@@ -35,7 +39,8 @@ pub fn check_output(path: &Path, extension: &str) -> Result<()> {
             Some(e) => format!("'.{e}'"),
             None => "no extension".to_string(),
         };
-        bail!(
+        fail!(
+            Output,
             "{}: unsupported format ({found}); gridrt writes {} here, name the file *.{extension}",
             path.display(),
             extension.to_ascii_uppercase()
@@ -60,8 +65,9 @@ fn temporary_sibling(path: &Path) -> std::path::PathBuf {
 /// never leaves a truncated or empty file under the real name.
 pub fn write_atomically(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
     let temp = temporary_sibling(path);
-    let result = write(&temp)
-        .and_then(|()| std::fs::rename(&temp, path).with_context(|| format!("{}: cannot write", path.display())));
+    let result = write(&temp).and_then(|()| {
+        std::fs::rename(&temp, path).map_err(|e| error!(Output, "{}: cannot write: {}", path.display(), io_reason(&e)))
+    });
     if result.is_err() {
         let _ = std::fs::remove_file(&temp);
     }
@@ -80,7 +86,7 @@ pub fn write_png(path: &Path, pixels: &[u32], width: u32, height: u32) -> Result
             image::ColorType::Rgba8,
             image::ImageFormat::Png,
         )
-        .map_err(|e| anyhow!("{}: cannot write PNG: {e}", path.display()))
+        .map_err(|e| error!(Output, "{}: cannot write PNG: {e}", path.display()))
     })
 }
 

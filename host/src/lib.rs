@@ -17,8 +17,11 @@
 //! // `Backend::open(BackendChoice::Auto)` takes the GPU when there is one.
 //! let image = Backend::CPU.render(&scene, &view, &RenderOptions::default())?;
 //! assert_eq!(image.pixels.len(), 64 * 48);
-//! # Ok::<(), anyhow::Error>(())
+//! # Ok::<(), gridrt::error::Error>(())
 //! ```
+//!
+//! Every fallible call returns an [`error::Error`]: one line, and a kind that says whether the
+//! input, the options, the limits, the GPU or the output failed. The library prints nothing.
 //!
 //! Underneath, data flows one way: [`mesh`] loads a base mesh, [`subdiv`] subdivides it (and
 //! [`quantize`] may snap its inner vertices to 16 bits), [`grid`] and [`triangles`] build the
@@ -28,6 +31,7 @@
 pub mod backend;
 pub mod bvh;
 pub mod camera;
+pub mod error;
 #[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod grid;

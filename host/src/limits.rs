@@ -2,7 +2,7 @@
 //! a clear refusal naming the figure instead of a panic, an allocation failure or the
 //! out-of-memory killer minutes later.
 
-use anyhow::{bail, Result};
+use crate::error::{error, Result};
 
 /// A scene buffer's name and size in bytes, possibly before it exists.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -99,7 +99,10 @@ pub fn available_memory() -> Result<Option<u64>> {
         return Ok(system);
     };
     let limit = parse_bytes(&text).ok_or_else(|| {
-        anyhow::anyhow!("{MEMORY_LIMIT_VAR}={text:?}: expected a byte count such as 8G, 500M or 1000000")
+        error!(
+            Options,
+            "{MEMORY_LIMIT_VAR}={text:?}: expected a byte count such as 8G, 500M or 1000000"
+        )
     })?;
     Ok(Some(system.map_or(limit, |s| s.min(limit))))
 }
@@ -142,12 +145,13 @@ pub fn human(bytes: u64) -> String {
 /// `what` says what needs it, `advice` what to do instead.
 pub fn check_memory(need: u64, available: Option<u64>, what: &str, advice: &str) -> Result<()> {
     match available {
-        Some(have) if need > have => bail!(
+        Some(have) if need > have => Err(error!(
+            Limits,
             "{what} needs about {} of memory, more than the {} available (free memory, or \
              {MEMORY_LIMIT_VAR}); {advice}",
             human(need),
             human(have)
-        ),
+        )),
         _ => Ok(()),
     }
 }

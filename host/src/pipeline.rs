@@ -5,7 +5,7 @@
 
 use std::path::Path;
 
-use anyhow::{bail, Result};
+use crate::error::{fail, Result};
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::layout::{
     Camera, FrameParams, SHADE_AMBIENT_OCCLUSION, SHADE_COST, SHADE_DEPTH, SHADE_EYE_LIGHT, SHADE_LEVEL, SHADE_NORMAL,
@@ -69,7 +69,10 @@ impl Scene {
         let levels = options.grid.levels;
         let lod = options.lod.unwrap_or(levels);
         if lod > levels {
-            bail!("level of detail {lod} is deeper than the {levels} levels built");
+            fail!(
+                Options,
+                "level of detail {lod} is deeper than the {levels} levels built"
+            );
         }
         match options.representation {
             Representation::Grids => {
@@ -144,6 +147,10 @@ pub struct RenderOptions {
     /// [`gridrt_shared::lod::grid_level`] and [`crate::lod::LodReport`]); `None`: every grid at
     /// the scene's depth. Grids only.
     pub lod_pixels: Option<f32>,
+    /// Light grids with smooth normals, interpolated across micro-triangles from the lattice
+    /// around each hit (see [`gridrt_shared::smooth_normal`]), instead of each micro-triangle's
+    /// own. Grids only; ambient occlusion and depth do not use normals to colour.
+    pub smooth_normals: bool,
 }
 
 impl Default for RenderOptions {
@@ -154,6 +161,7 @@ impl Default for RenderOptions {
             ao_distance: None,
             heat_white: None,
             lod_pixels: None,
+            smooth_normals: false,
         }
     }
 }
@@ -163,15 +171,27 @@ impl RenderOptions {
     pub fn check(&self, scene: &Scene) -> Result<()> {
         if let Scene::Triangles(_) = scene {
             if self.lod_pixels.is_some() {
-                bail!("a level of detail per grid needs grids; the baseline has one depth, fixed when it is built");
+                fail!(
+                    Options,
+                    "a level of detail per grid needs grids; the baseline has one depth, fixed when it is built"
+                );
             }
             if self.shading == Shading::Level {
-                bail!("level colouring shows each grid's depth; the baseline has one depth, fixed when it is built");
+                fail!(
+                    Options,
+                    "level colouring shows each grid's depth; the baseline has one depth, fixed when it is built"
+                );
+            }
+            if self.smooth_normals {
+                fail!(Options, "smooth normals come from the grids' lattice; the baseline's triangle list has no neighbours to take them from");
             }
         }
         if let Some(pixels) = self.lod_pixels {
             if !(pixels.is_finite() && pixels > 0.0) {
-                bail!("the target micro-triangle size must be a number of pixels above zero, not {pixels}");
+                fail!(
+                    Options,
+                    "the target micro-triangle size must be a number of pixels above zero, not {pixels}"
+                );
             }
         }
         Ok(())
@@ -196,6 +216,7 @@ impl RenderOptions {
             ao_distance: self.ao_distance.unwrap_or(diagonal * AO_RADIUS),
             // A hair off the surface, so the rays do not find the triangle they leave.
             ao_offset: diagonal * 1e-5,
+            smooth_normals: self.smooth_normals as u32,
             ..scene.frame(*camera, self.shading.code())
         };
         if let (Some(pixels), Scene::Grids(_)) = (self.lod_pixels, scene) {

@@ -4,7 +4,7 @@
 //! buffers, so nothing is copied on the host. The GPU binds them side by side; the CPU reads
 //! them through the same shared code to check it.
 
-use anyhow::{bail, Result};
+use crate::error::{fail, Result};
 use gridrt_shared::buffer::{Chunks, Split, SPLIT_CHUNKS};
 use gridrt_shared::grid_index::MICRO_TRIANGLES;
 use gridrt_shared::grid_traverse;
@@ -79,7 +79,8 @@ pub fn check_chunks(sizes: &[BufferSize], chunk_words: u32, device: &str) -> Res
         .iter()
         .map(|b| format!("{} {}{} bytes", b.name, least(b.at_least), b.bytes))
         .collect();
-    bail!(
+    fail!(
+        Limits,
         "the scene's buffers ({}) need {at_least}{needed} bindings of {} bytes, more than the {SPLIT_CHUNKS} that \
          gridrt binds on {device}; use fewer levels or --backend cpu",
         sizes.join(", "),
@@ -120,7 +121,8 @@ pub fn split<'a>(scene: &'a Scene, chunk_words: u32, device: &str) -> Result<Spl
         params.len[b] = buffer.len;
         // Addresses within a buffer are 32-bit words.
         if buffer.words.len() as u64 > u32::MAX as u64 {
-            bail!(
+            fail!(
+                Limits,
                 "the {} buffer needs {} bytes, more than the 16 GiB a buffer can address; use fewer levels",
                 buffer.name,
                 buffer.words.len() as u64 * 4

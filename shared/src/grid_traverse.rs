@@ -634,6 +634,10 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> LeafPrimitives for GridScene<'_, H, 
     fn triangle(&self, prim: u32, level: u32) -> [Vec3; 3] {
         self.micro_triangle(prim, level)
     }
+
+    fn smooth_normal(&self, hit: &Hit) -> Vec3 {
+        GridScene::smooth_normal(self, hit)
+    }
 }
 
 /// Closest hit among grid primitives under a top-level BVH.

@@ -279,7 +279,19 @@ pub struct FrameParams {
     /// Depth ([`SHADE_DEPTH`]): the distances from the eye shaded brightest and darkest.
     pub depth_near: f32,
     pub depth_far: f32,
+    /// Whether hits are lit with smooth normals (grids: see [`crate::smooth_normal`]) rather
+    /// than their micro-triangle's.
+    pub smooth_normals: u32,
+    /// Progressive ambient occlusion: this pass casts samples `ao_first_sample ..
+    /// ao_first_sample + ao_samples` of each pixel, and the pixel is the count of them that
+    /// meet nothing (see [`crate::shade::render_pixel`]), or [`AO_MISS`] where the primary ray
+    /// misses; zero `ao_passes` renders colours in one pass.
+    pub ao_first_sample: u32,
+    pub ao_passes: u32,
 }
+
+/// The pixel of a progressive ambient-occlusion pass whose primary ray hit nothing.
+pub const AO_MISS: u32 = u32::MAX;
 
 /// Primitive id of a miss.
 pub const NO_HIT: u32 = u32::MAX;

@@ -20,6 +20,7 @@ pub mod quantize;
 pub mod ray;
 pub mod sample;
 pub mod shade;
+pub mod smooth_normal;
 pub mod sphere;
 pub mod traverse;
 pub mod triangle;

@@ -3,7 +3,8 @@ use crate::camera::primary_ray;
 use crate::cost::Costs;
 use crate::glam::Vec3;
 use crate::layout::{
-    BvhNode, FrameParams, Hit, SHADE_AMBIENT_OCCLUSION, SHADE_DEPTH, SHADE_LEVEL, SHADE_NORMAL, SHADE_PRIMITIVE,
+    BvhNode, FrameParams, Hit, AO_MISS, SHADE_AMBIENT_OCCLUSION, SHADE_DEPTH, SHADE_LEVEL, SHADE_NORMAL,
+    SHADE_PRIMITIVE,
 };
 use crate::ray::{Ray, T_FAR};
 use crate::sample::{cosine_direction, hash, orthonormal_basis, unit_float};
@@ -12,12 +13,15 @@ use crate::traverse::{trace, trace_tallied, LeafPrimitives};
 #[cfg(target_arch = "spirv")]
 use spirv_std::num_traits::Float;
 
+/// The plain material ambient occlusion darkens.
+const AO_MATERIAL: Vec3 = Vec3::new(0.85, 0.78, 0.62);
+
 /// Colour of a pixel from its closest hit.
 ///
 /// - eye light: a two-sided headlight, so the shape reads without any light set-up;
 /// - normal: the unit geometric normal mapped to RGB;
 /// - primitive: a colour hashed from the primitive id, to see the micro-triangles;
-/// - ambient occlusion: the plain material, which [`render_pixel`] darkens by occlusion;
+/// - ambient occlusion: the plain material, which [`ao_pixel`] darkens by occlusion;
 /// - depth: white at `frame.depth_near` from the eye to black at `frame.depth_far`;
 /// - level: a colour per depth of the micro-triangles hit (see [`level_color`]), lit by the
 ///   headlight.
@@ -37,7 +41,7 @@ pub fn shade(hit: &Hit, ray: &Ray, frame: &FrameParams) -> Vec3 {
         return n * 0.5 + Vec3::splat(0.5);
     }
     if mode == SHADE_AMBIENT_OCCLUSION {
-        return Vec3::new(0.85, 0.78, 0.62);
+        return AO_MATERIAL;
     }
     if mode == SHADE_DEPTH {
         let span = frame.depth_far - frame.depth_near;
@@ -98,7 +102,13 @@ pub fn pack_rgba8(color: Vec3) -> u32 {
 }
 
 /// One pixel of a frame, packed RGBA8: its primary ray, the closest hit under `nodes` among
-/// `prims`, shaded. The render kernels and the CPU backend both run exactly this.
+/// `prims`, shaded (lit by its smooth normal if `frame.smooth_normals`). The render kernels and
+/// the CPU backend both run exactly this.
+///
+/// Ambient occlusion is progressive: each pass casts some of a pixel's samples (see
+/// `FrameParams::ao_first_sample`), and its pixel is the count of them that meet nothing, or
+/// [`AO_MISS`] where the primary ray misses; [`ao_pixel`] makes the colour from the counts of
+/// every pass.
 #[inline]
 pub fn render_pixel<N: Buffer<BvhNode>, P: LeafPrimitives>(
     frame: &FrameParams,
@@ -109,12 +119,29 @@ pub fn render_pixel<N: Buffer<BvhNode>, P: LeafPrimitives>(
 ) -> u32 {
     let ray = primary_ray(&frame.camera, x, y);
     let hit = trace(nodes, prims, &ray, T_FAR);
-    let mut color = shade(&hit, &ray, frame);
-    if frame.shading == SHADE_AMBIENT_OCCLUSION && hit.is_hit() {
+    if frame.shading == SHADE_AMBIENT_OCCLUSION {
+        if !hit.is_hit() {
+            return AO_MISS;
+        }
         let pixel = y * frame.camera.width + x;
-        color *= 0.1 + 0.9 * unoccluded(frame, nodes, prims, &ray, &hit, pixel);
+        return unoccluded(frame, nodes, prims, &ray, &hit, pixel);
     }
-    pack_rgba8(color)
+    let mut lit = hit;
+    if frame.smooth_normals != 0 && hit.is_hit() {
+        lit.normal = prims.smooth_normal(&hit).to_array();
+    }
+    pack_rgba8(shade(&lit, &ray, frame))
+}
+
+/// The packed colour of pixel `(x, y)` under ambient occlusion from the passes' counts:
+/// `open` of its `samples` rays met nothing, or `open` is [`AO_MISS`] (the background).
+pub fn ao_pixel(frame: &FrameParams, x: u32, y: u32, open: u32, samples: u32) -> u32 {
+    let ray = primary_ray(&frame.camera, x, y);
+    if open == AO_MISS {
+        return pack_rgba8(shade(&Hit::miss(T_FAR), &ray, frame));
+    }
+    let visible = if samples > 0 { open as f32 / samples as f32 } else { 1.0 };
+    pack_rgba8(AO_MATERIAL * (0.1 + 0.9 * visible))
 }
 
 /// The tests pixel `(x, y)`'s primary ray makes, packed (see [`Costs::pack`]): what the cost
@@ -133,9 +160,10 @@ pub fn cost_pixel<N: Buffer<BvhNode>, P: LeafPrimitives>(
     costs.pack()
 }
 
-/// The fraction of `frame.ao_samples` cosine-distributed rays from `hit` (on the side `ray`
-/// came from) that meet nothing within `frame.ao_distance`. The directions come from a hash
-/// of the pixel and the sample, so every run and both backends draw the same ones.
+/// How many of the cosine-distributed rays `frame.ao_first_sample ..` (`frame.ao_samples` of
+/// them) from `hit` (on the side `ray` came from) meet nothing within `frame.ao_distance`; all
+/// of them where the hit has no normal. The directions come from a hash of the pixel and the
+/// sample, so every run, every split into passes and both backends draw the same ones.
 fn unoccluded<N: Buffer<BvhNode>, P: LeafPrimitives>(
     frame: &FrameParams,
     nodes: N,
@@ -143,11 +171,11 @@ fn unoccluded<N: Buffer<BvhNode>, P: LeafPrimitives>(
     ray: &Ray,
     hit: &Hit,
     pixel: u32,
-) -> f32 {
+) -> u32 {
     let n = Vec3::from(hit.normal);
     let len2 = n.dot(n);
-    if len2 == 0.0 || frame.ao_samples == 0 {
-        return 1.0;
+    if len2 == 0.0 {
+        return frame.ao_samples;
     }
     let mut n = n / len2.sqrt();
     if n.dot(ray.dir) > 0.0 {
@@ -156,8 +184,8 @@ fn unoccluded<N: Buffer<BvhNode>, P: LeafPrimitives>(
     let origin = ray.origin + ray.dir * hit.t + n * frame.ao_offset;
     let (t1, t2) = orthonormal_basis(n);
     let mut open = 0u32;
-    let mut s = 0;
-    while s < frame.ao_samples {
+    let mut s = frame.ao_first_sample;
+    while s < frame.ao_first_sample + frame.ao_samples {
         let h = hash(hash(pixel) ^ s.wrapping_mul(0x9e37_79b9));
         let dir = cosine_direction(n, t1, t2, unit_float(h), unit_float(hash(h)));
         if !trace(nodes, prims, &Ray::new(origin, dir), frame.ao_distance).is_hit() {
@@ -165,5 +193,5 @@ fn unoccluded<N: Buffer<BvhNode>, P: LeafPrimitives>(
         }
         s += 1;
     }
-    open as f32 / frame.ao_samples as f32
+    open
 }

@@ -32,6 +32,11 @@ pub trait LeafPrimitives {
     );
     /// Corners of the triangle a hit names `prim` at depth `level` (see [`Hit`]).
     fn triangle(&self, prim: u32, level: u32) -> [Vec3; 3];
+    /// The normal to light `hit` with when smooth shading is asked for: the geometric one
+    /// unless the primitives know their surface better.
+    fn smooth_normal(&self, hit: &Hit) -> Vec3 {
+        Vec3::from(hit.normal)
+    }
 }
 
 /// Closest hit along `ray` within `t_max`, with its triangle's normal: found once, after the

@@ -3,7 +3,8 @@
 use std::path::PathBuf;
 
 use gridrt::bvh::Aabb;
-use gridrt::gpu::{Gpu, NoAdapter};
+use gridrt::error::ErrorKind;
+use gridrt::gpu::Gpu;
 use gridrt::grid;
 use gridrt::mesh::Mesh;
 use gridrt::pipeline::{BuildOptions, Representation};
@@ -20,7 +21,7 @@ pub fn gpu_or_skip(test: &str) -> Option<Gpu> {
             eprintln!("{test}: GPU tests on {}", gpu.describe());
             Some(gpu)
         }
-        Err(e) if !e.is::<NoAdapter>() => panic!("{test}: the GPU backend failed: {e:#}"),
+        Err(e) if e.kind() != ErrorKind::NoGpu => panic!("{test}: the GPU backend failed: {e:#}"),
         Err(e) if std::env::var("CI").is_ok_and(|v| v == "true") => {
             panic!("{test}: CI=true but no GPU adapter: {e:#}")
         }

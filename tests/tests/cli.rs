@@ -711,3 +711,149 @@ fn lod_auto_states_its_depths_and_cracks() {
         &["--lod-pixels"],
     );
 }
+
+/// A hard-surface part as glTF, in millimetres far from the origin: a 40 mm cube on a
+/// 100 x 10 x 60 mm plinth, two primitives of one mesh under a node that moves it by 5 m and
+/// turns it a quarter about y. Returns the document (buffer `uri` given, or none for a GLB)
+/// and its binary buffer.
+fn machined_part(uri: Option<&str>) -> (String, Vec<u8>) {
+    let cube = |min: [f32; 3], max: [f32; 3]| -> Vec<f32> {
+        (0..8)
+            .flat_map(|k| {
+                let pick = |axis: usize| if k >> axis & 1 == 1 { max[axis] } else { min[axis] };
+                [pick(0), pick(1), pick(2)]
+            })
+            .collect()
+    };
+    // Outward-wound faces of a box whose corner k has x, y, z from bits 0, 1, 2 of k.
+    let faces: [u16; 36] = [
+        0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4, 2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7, 5,
+    ];
+    let mut bin = Vec::new();
+    for v in cube([-20.0, 10.0, -20.0], [20.0, 50.0, 20.0])
+        .iter()
+        .chain(&cube([-50.0, 0.0, -30.0], [50.0, 10.0, 30.0]))
+    {
+        bin.extend(v.to_le_bytes());
+    }
+    for i in faces {
+        bin.extend(i.to_le_bytes());
+    }
+    let uri = uri.map_or(String::new(), |u| format!(r#""uri": "{u}", "#));
+    let json = format!(
+        r#"{{
+  "asset": {{"version": "2.0"}},
+  "scene": 0,
+  "scenes": [{{"nodes": [0]}}],
+  "nodes": [{{"mesh": 0, "translation": [5000, 0, 0], "rotation": [0, 0.7071068, 0, 0.7071068]}}],
+  "meshes": [{{"primitives": [
+    {{"attributes": {{"POSITION": 0}}, "indices": 2}},
+    {{"attributes": {{"POSITION": 1}}, "indices": 2}}
+  ]}}],
+  "buffers": [{{{uri}"byteLength": {len}}}],
+  "bufferViews": [
+    {{"buffer": 0, "byteOffset": 0, "byteLength": 96}},
+    {{"buffer": 0, "byteOffset": 96, "byteLength": 96}},
+    {{"buffer": 0, "byteOffset": 192, "byteLength": 72}}
+  ],
+  "accessors": [
+    {{"bufferView": 0, "componentType": 5126, "count": 8, "type": "VEC3", "min": [-20, 10, -20], "max": [20, 50, 20]}},
+    {{"bufferView": 1, "componentType": 5126, "count": 8, "type": "VEC3", "min": [-50, 0, -30], "max": [50, 10, 30]}},
+    {{"bufferView": 2, "componentType": 5123, "count": 36, "type": "SCALAR"}}
+  ]
+}}"#,
+        len = bin.len()
+    );
+    (json, bin)
+}
+
+/// The same document as a GLB container (chunks padded to four bytes).
+fn glb(json: &str, bin: &[u8]) -> Vec<u8> {
+    let pad = |mut v: Vec<u8>, with: u8| {
+        v.resize(v.len().next_multiple_of(4), with);
+        v
+    };
+    let (json, bin) = (pad(json.as_bytes().to_vec(), b' '), pad(bin.to_vec(), 0));
+    let mut out = Vec::new();
+    out.extend(b"glTF");
+    out.extend(2u32.to_le_bytes());
+    out.extend((12 + 8 + json.len() as u32 + 8 + bin.len() as u32).to_le_bytes());
+    out.extend((json.len() as u32).to_le_bytes());
+    out.extend(b"JSON");
+    out.extend(&json);
+    out.extend((bin.len() as u32).to_le_bytes());
+    out.extend(b"BIN\0");
+    out.extend(&bin);
+    out
+}
+
+/// glTF end to end through the binary: a part with a node transform and two primitives, as
+/// `.gltf` with an external buffer and as `.glb`, renders the same picture creased and
+/// smooth-shaded; the report counts both primitives' triangles.
+#[test]
+fn renders_gltf_files_end_to_end() {
+    let dir = scratch("gltf");
+    let (json, bin) = machined_part(Some("part.bin"));
+    std::fs::write(dir.join("part.bin"), &bin).unwrap();
+    std::fs::write(dir.join("part.gltf"), json).unwrap();
+    let (json, bin) = machined_part(None);
+    std::fs::write(dir.join("part.glb"), glb(&json, &bin)).unwrap();
+    let mut pictures = Vec::new();
+    for file in ["part.gltf", "part.glb"] {
+        let input = dir.join(file);
+        let out = dir.join(file).with_extension("png");
+        let args = [
+            "render",
+            input.to_str().unwrap(),
+            "--backend",
+            "cpu",
+            "--crease-angle",
+            "30",
+            "--smooth",
+            "--width",
+            "96",
+            "--height",
+            "72",
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        let line = report_line(&args, input.to_str().unwrap());
+        assert!(line.contains("24 base triangles"), "{line}");
+        check_png(&out, 96, 72);
+        pictures.push(std::fs::read(&out).unwrap());
+    }
+    assert!(pictures[0] == pictures[1], "the .gltf and the .glb render differently");
+}
+
+/// `--smooth` renders grids and is refused for the baseline; ambient occlusion renders
+/// through its passes.
+#[test]
+fn smooth_shading_and_ambient_occlusion_render() {
+    let dir = scratch("smooth");
+    render_ok(
+        &["--backend", "cpu", "--levels", "2", "--smooth", "--shading", "normal"],
+        &dir.join("smooth.png"),
+        96,
+        64,
+    );
+    render_ok(
+        &[
+            "--backend",
+            "cpu",
+            "--levels",
+            "2",
+            "--shading",
+            "ao",
+            "--ao-samples",
+            "20",
+        ],
+        &dir.join("ao.png"),
+        96,
+        64,
+    );
+    fails_with(
+        &["render", "--mode", "triangles", "--smooth"],
+        &[],
+        &["--smooth", "grids"],
+    );
+}

@@ -1,12 +1,13 @@
 //! The library's front door, as an embedder uses it: open, build, frame, render.
 
-use gridrt::backend::{Backend, BackendChoice};
+use gridrt::backend::{Backend, BackendChoice, AO_SAMPLES_PER_PASS};
 use gridrt::camera;
 use gridrt::image_io::fraction_within;
 use gridrt::mesh;
 use gridrt::pipeline::{BuildOptions, RenderOptions, Representation, Shading};
 use gridrt::scene::{render_cpu, Scene};
-use gridrt_shared::layout::NO_HIT;
+use gridrt_shared::layout::{AO_MISS, NO_HIT};
+use gridrt_shared::shade::ao_pixel;
 use gridrt_tests::gpu_or_skip;
 
 /// The GPU backend, or `None` where the tests skip it.
@@ -110,6 +111,38 @@ fn ambient_occlusion_agrees_across_backends_and_darkens() {
             "{representation:?}: only {darker} pixels occluded"
         );
     }
+}
+
+/// Ambient occlusion renders progressively: passes of samples whose open rays add up to
+/// exactly those of one pass casting them all, the progress reported after each.
+#[test]
+fn ambient_occlusion_passes_add_up_to_one() {
+    let (_, scene) = both_scenes().remove(0);
+    let view = camera::frame(&scene.bounds(), 64, 48);
+    let samples = 2 * AO_SAMPLES_PER_PASS + 3;
+    let options = RenderOptions {
+        shading: Shading::AmbientOcclusion,
+        ao_samples: samples,
+        ..RenderOptions::default()
+    };
+    let reported = std::sync::Mutex::new(Vec::new());
+    let image = Backend::CPU
+        .render_reporting(&scene, &view, &options, &|done| reported.lock().unwrap().push(done))
+        .unwrap();
+    assert_eq!(
+        reported.into_inner().unwrap(),
+        [AO_SAMPLES_PER_PASS, 2 * AO_SAMPLES_PER_PASS, samples]
+    );
+    // One pass of every sample, coloured the same way.
+    let frame = options.frame(&scene, &view);
+    let counts = Backend::CPU.render_frame(&scene, &frame).unwrap();
+    assert!(counts.contains(&AO_MISS) && counts.iter().any(|&c| c > 0 && c < samples));
+    let whole: Vec<u32> = counts
+        .iter()
+        .enumerate()
+        .map(|(i, &c)| ao_pixel(&frame, i as u32 % 64, i as u32 / 64, c, samples))
+        .collect();
+    assert!(image.pixels == whole);
 }
 
 /// Every shading mode through the pipeline: a picture that is not blank, the same on the GPU

@@ -108,7 +108,7 @@ fn check_device(name: &str, mesh: &Mesh, device: &Backend, build: &BuildArgs, ra
     // One representation is uploaded at a time, while both are alive on the host.
     match device.host_upload_bytes(largest) {
         0 => Ok(()),
-        copies => limits::check_build(
+        copies => Ok(limits::check_build(
             &format!(
                 "measuring {name} on {}, which keeps its uploads in host memory,",
                 device.describe()
@@ -118,7 +118,7 @@ fn check_device(name: &str, mesh: &Mesh, device: &Backend, build: &BuildArgs, ra
             limits::Builds::Both,
             ray_bytes.saturating_add(copies),
             "use fewer --levels, or --backend cpu",
-        ),
+        )?),
     }
 }
 

@@ -223,6 +223,10 @@ pub struct RenderArgs {
     pub height: u32,
     #[arg(long, value_enum, default_value_t = ShadingArg::Eye)]
     pub shading: ShadingArg,
+    /// Light grids with smooth normals, interpolated across micro-triangles from the lattice
+    /// around each hit (eye, normal, primitive and level shading).
+    #[arg(long)]
+    pub smooth: bool,
     /// Ambient-occlusion rays per pixel (`--shading ao`).
     #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..=4096))]
     pub ao_samples: u32,
@@ -362,18 +366,25 @@ impl RenderArgs {
             ao_distance: self.ao_distance.map(|d| (d * frame.scale) as f32),
             heat_white: self.heat_white,
             lod_pixels: (self.lod == Some(LodArg::Auto)).then_some(self.lod_pixels),
+            smooth_normals: self.smooth,
         }
     }
 
     /// Refuses, before any work, what needs grids asked of the baseline.
     fn check_mode(&self) -> Result<()> {
         if self.mode == Mode::Triangles {
+            let one_depth = "the baseline has one depth, fixed when it is built";
             let needs_grids = [
-                (self.lod == Some(LodArg::Auto), "--lod auto"),
-                (self.shading == ShadingArg::Level, "--shading level"),
+                (self.lod == Some(LodArg::Auto), "--lod auto", one_depth),
+                (self.shading == ShadingArg::Level, "--shading level", one_depth),
+                (
+                    self.smooth,
+                    "--smooth",
+                    "the baseline's triangle list has no neighbours to take normals from",
+                ),
             ];
-            if let Some((_, flag)) = needs_grids.iter().find(|(asked, _)| *asked) {
-                bail!("{flag} needs grids (--mode grid): the baseline has one depth, fixed when it is built");
+            if let Some((_, flag, why)) = needs_grids.iter().find(|(asked, ..)| *asked) {
+                bail!("{flag} needs grids (--mode grid): {why}");
             }
         }
         Ok(())
@@ -579,7 +590,14 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
             stages.say(describe_costs(&summary, white, render.heat_white.is_none()));
             costs.heat_map(white)
         } else {
-            stages.run("render", || backend.render(&scene, &view, &render))?
+            // Ambient occlusion renders in passes: a bar over its samples.
+            let samples = match render.shading {
+                Shading::AmbientOcclusion => render.ao_samples as u64,
+                _ => 0,
+            };
+            stages.run_counted("render", samples, |bar| {
+                backend.render_reporting(&scene, &view, &render, &|done| bar.set_position(done as u64))
+            })?
         };
         let output = frame_path(&args.output, k, args.turntable);
         stages.run("write", || image.write_png(&output))?;
@@ -678,12 +696,12 @@ fn check_upload_memory(name: &str, sizes: &[limits::BufferSize], device: &Backen
     if copies == 0 {
         return Ok(());
     }
-    limits::check_memory(
+    Ok(limits::check_memory(
         scene.saturating_add(copies).saturating_add(args.image_bytes()),
         limits::available_memory()?,
         &format!("{name} uploaded to {}", device.describe()),
         "use fewer --levels, or --backend cpu",
-    )
+    )?)
 }
 
 /// Refuses a render whose build and image would not fit in memory, before building.
@@ -700,12 +718,12 @@ fn check_render_memory(name: &str, mesh: &Mesh, args: &RenderArgs) -> Result<()>
         &format!("a {}x{} image", args.width, args.height),
         "render a smaller image",
     )?;
-    limits::check_build(
+    Ok(limits::check_build(
         &format!("{name} in {mode} mode"),
         mesh.triangles.len(),
         args.build.levels,
         builds,
         image,
         "use fewer --levels",
-    )
+    )?)
 }

@@ -135,14 +135,14 @@ pub fn measure(
 /// (`extra`: bytes the caller needs besides), or whose grids could not be addressed.
 pub fn check_work(name: &str, mesh: &Mesh, build: &BuildArgs, extra: u64) -> Result<()> {
     build.check_grid_limits(name, mesh)?;
-    limits::check_build(
+    Ok(limits::check_build(
         &format!("measuring both representations of {name}"),
         mesh.triangles.len(),
         build.levels,
         limits::Builds::Both,
         extra,
         "use fewer --levels, or `gridrt render --mode grid` for the grids alone",
-    )
+    )?)
 }
 
 /// A spinner on stderr naming the current step (hidden when stderr is not a terminal, or

@@ -10,7 +10,7 @@
 //! Edge ids are handed out in the order grids first use them, so the edges a run of grids owns
 //! are one contiguous run of the edge area: each parallel task gets its own slice of it.
 
-use anyhow::Result;
+use crate::error::Result;
 use gridrt_shared::glam::{Vec3, Vec3A};
 use gridrt_shared::grid_index::{grid_size, inner_points, inner_vertex_count, lattice_index, Lattice};
 use gridrt_shared::grid_traverse::sphere_center;

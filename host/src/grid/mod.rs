@@ -4,7 +4,7 @@
 
 use std::collections::HashMap;
 
-use anyhow::{bail, Result};
+use crate::error::{fail, Result};
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::grid_index::{
     edge_vertex_count, grid_size, inner_points, inner_vertex_count, sphere_count, triangle_count, GridSlots, Lattice,
@@ -105,7 +105,8 @@ impl GridScene {
     /// Renders depth `lod` instead of the full depth (no rebuild).
     pub fn set_lod(&mut self, lod: u32) -> Result<()> {
         if lod > self.params.levels {
-            bail!(
+            fail!(
+                Options,
                 "level of detail {lod} is deeper than the {} levels built",
                 self.params.levels
             );
@@ -330,28 +331,34 @@ fn least_buffer_sizes(base: &Mesh, edges: u64, build: &GridBuild) -> Vec<BufferS
 fn check_counts(base: &Mesh, edges: u64, levels: u32, options: &GridOptions, quantized: bool) -> Result<()> {
     let leaf_level = levels.saturating_sub(options.excluded_levels);
     if leaf_level > MAX_SPHERE_LEVEL {
-        bail!(
+        fail!(
+            Limits,
             "a sphere hierarchy of {} levels is deeper than the traversal supports ({})",
             leaf_level + 1,
             MAX_SPHERE_LEVEL + 1
         );
     }
     if levels - leaf_level > gridrt_shared::grid_index::MAX_LEAF_DEPTH {
-        bail!(
+        fail!(
+            Limits,
             "leaves of {} micro-triangles are more than the static index list holds",
             triangle_count(levels - leaf_level)
         );
     }
     let grids = base.triangles.len() as u64;
     if grids * triangle_count(levels) as u64 >= u32::MAX as u64 {
-        bail!(
+        fail!(
+            Limits,
             "{grids} grids of {} micro-triangles overflow 32-bit primitive ids; use fewer --levels",
             triangle_count(levels)
         );
     }
     let vertices = base.positions.len() as u64;
     if vertices.max(edges) > u32::MAX as u64 {
-        bail!("{vertices} base vertices and {edges} base edges overflow 32-bit grid header ids");
+        fail!(
+            Limits,
+            "{vertices} base vertices and {edges} base edges overflow 32-bit grid header ids"
+        );
     }
     let inner_count = inner_vertex_count(levels) as u64;
     let inner_words = if quantized {
@@ -365,7 +372,8 @@ fn check_counts(base: &Mesh, edges: u64, levels: u32, options: &GridOptions, qua
     let inner_area = grids * inner_words;
     let words = inner_area + 3 * (vertices + edges * edge_vertex_count(levels) as u64);
     if words >= 1 << 31 || (quantized && 2 * inner_area >= 1 << 31) {
-        bail!(
+        fail!(
+            Limits,
             "{grids} grids of {} micro-triangles need {} of vertices, more than a grid scene can \
              address (8 GiB, of which 4 GiB of 16-bit inner codes); use fewer --levels",
             triangle_count(levels),

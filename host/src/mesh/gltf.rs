@@ -8,7 +8,7 @@
 
 use std::path::Path;
 
-use anyhow::{anyhow, bail, Result};
+use crate::error::{error, fail, Result};
 use gltf::mesh::Mode;
 use gridrt_shared::glam::{DMat4, DVec3, Vec3};
 
@@ -17,8 +17,9 @@ use super::Mesh;
 /// Parses a glTF or GLB file's bytes; external buffers are read relative to `folder`. Errors
 /// carry no file name; the caller adds it.
 pub fn parse_gltf(bytes: &[u8], folder: Option<&Path>) -> Result<Mesh> {
-    let gltf::Gltf { document, blob } = gltf::Gltf::from_slice(bytes).map_err(|e| anyhow!("{e}"))?;
-    let buffers = gltf::import_buffers(&document, folder, blob).map_err(|e| anyhow!("cannot read its buffers: {e}"))?;
+    let gltf::Gltf { document, blob } = gltf::Gltf::from_slice(bytes).map_err(|e| error!(Input, "{e}"))?;
+    let buffers =
+        gltf::import_buffers(&document, folder, blob).map_err(|e| error!(Input, "cannot read its buffers: {e}"))?;
     let mut mesh = Mesh::default();
     let scene = document.default_scene().or_else(|| document.scenes().next());
     match scene {
@@ -39,7 +40,7 @@ pub fn parse_gltf(bytes: &[u8], folder: Option<&Path>) -> Result<Mesh> {
         }
     }
     if mesh.triangles.is_empty() {
-        bail!("no triangle primitives in its scene");
+        fail!(Input, "no triangle primitives in its scene");
     }
     Ok(mesh)
 }
@@ -51,7 +52,7 @@ fn add_node(mesh: &mut Mesh, node: &gltf::Node, parent: DMat4, buffers: &[gltf::
     if let Some(m) = node.mesh() {
         for primitive in m.primitives() {
             add_primitive(mesh, &primitive, &transform, buffers)
-                .map_err(|e| anyhow!("mesh {} primitive {}: {e}", m.index(), primitive.index()))?;
+                .map_err(|e| error!(Input, "mesh {} primitive {}: {e}", m.index(), primitive.index()))?;
         }
     }
     for child in node.children() {
@@ -75,7 +76,7 @@ fn add_primitive(
     let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
     let positions: Vec<Vec3> = reader
         .read_positions()
-        .ok_or_else(|| anyhow!("no POSITION attribute"))?
+        .ok_or_else(|| error!(Input, "no POSITION attribute"))?
         .map(|p| transform.transform_point3(DVec3::from(p.map(f64::from))).as_vec3())
         .collect();
     let count = positions.len() as u32;
@@ -84,7 +85,7 @@ fn add_primitive(
         None => (0..count).collect(),
     };
     if let Some(&bad) = indices.iter().find(|&&i| i >= count) {
-        bail!("index {bad} is out of range ({count} positions)");
+        fail!(Input, "index {bad} is out of range ({count} positions)");
     }
     let base = mesh.positions.len() as u32;
     let mirrored = transform.determinant() < 0.0;

@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use anyhow::{anyhow, bail};
+use crate::error::{error, fail, Result};
 use gridrt_shared::glam::Vec3;
 
 pub mod frame;
@@ -38,10 +38,11 @@ impl Mesh {
     /// Vertices no triangle uses are removed (the others keep their order): a stray point of a
     /// scan would otherwise count in the bounds that frame the picture.
     /// `source` is the file name used in messages.
-    pub fn validate(mut self, source: &str) -> anyhow::Result<(Mesh, usize)> {
+    pub fn validate(mut self, source: &str) -> Result<(Mesh, usize)> {
         if let Some(i) = self.positions.iter().position(|p| !p.is_finite()) {
             let p = self.positions[i];
-            bail!(
+            fail!(
+                Input,
                 "{source}: vertex {i} has a non-finite coordinate ({}, {}, {})",
                 p.x,
                 p.y,
@@ -51,7 +52,10 @@ impl Mesh {
         let n = self.positions.len();
         for (t, tri) in self.triangles.iter().enumerate() {
             if let Some(&i) = tri.iter().find(|&&i| i as usize >= n) {
-                bail!("{source}: triangle {t} refers to vertex {i} but the mesh has {n} vertices");
+                fail!(
+                    Input,
+                    "{source}: triangle {t} refers to vertex {i} but the mesh has {n} vertices"
+                );
             }
         }
         let before = self.triangles.len();
@@ -64,9 +68,12 @@ impl Mesh {
         let dropped = before - self.triangles.len();
         if self.triangles.is_empty() {
             if dropped > 0 {
-                bail!("{source}: no triangles left after dropping {dropped} degenerate triangles ({DEGENERATE})");
+                fail!(
+                    Input,
+                    "{source}: no triangles left after dropping {dropped} degenerate triangles ({DEGENERATE})"
+                );
             }
-            bail!("{source}: no triangles");
+            fail!(Input, "{source}: no triangles");
         }
         self.remove_unused_vertices();
         Ok((self, dropped))
@@ -98,7 +105,7 @@ pub const DEGENERATE: &str = "a repeated vertex, or the same three vertices as a
 
 /// Loads .obj, .ply, .gltf or .glb (case-insensitive extension) and validates it. Every error is one line that starts with the
 /// file path. Degenerate triangles are dropped silently: [`load_mesh_quiet`] and [`open`] say how many.
-pub fn load_mesh(path: &Path) -> anyhow::Result<Mesh> {
+pub fn load_mesh(path: &Path) -> Result<Mesh> {
     Ok(load_mesh_quiet(path)?.0)
 }
 
@@ -117,13 +124,13 @@ pub struct Input {
 
 /// Loads `path` (`.obj`, `.ply`, `.gltf` or `.glb`), or the built-in scene when `None`, and moves it into its
 /// local frame, where everything after loading works. Errors are one line naming the file.
-pub fn open(path: Option<&Path>) -> anyhow::Result<Input> {
+pub fn open(path: Option<&Path>) -> Result<Input> {
     open_all(path.as_slice())
 }
 
 /// Several files as one mesh (each loaded and checked on its own, then put side by side in
 /// the files' common units), or the built-in scene when `paths` is empty; in its local frame.
-pub fn open_all(paths: &[&Path]) -> anyhow::Result<Input> {
+pub fn open_all(paths: &[&Path]) -> Result<Input> {
     let mut all = match paths.first() {
         Some(first) => open_world(first)?,
         None => Input {
@@ -149,7 +156,7 @@ pub fn open_all(paths: &[&Path]) -> anyhow::Result<Input> {
 }
 
 /// A file loaded and checked, still in its own units.
-fn open_world(path: &Path) -> anyhow::Result<Input> {
+fn open_world(path: &Path) -> Result<Input> {
     let (mesh, dropped) = load_mesh_quiet(path)?;
     Ok(Input {
         name: path.display().to_string(),
@@ -160,7 +167,7 @@ fn open_world(path: &Path) -> anyhow::Result<Input> {
 }
 
 /// [`load_mesh`] without the warning: returns the number of dropped degenerate triangles instead.
-pub fn load_mesh_quiet(path: &Path) -> anyhow::Result<(Mesh, usize)> {
+pub fn load_mesh_quiet(path: &Path) -> Result<(Mesh, usize)> {
     let name = path.display().to_string();
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     let folder = path.parent();
@@ -170,14 +177,13 @@ pub fn load_mesh_quiet(path: &Path) -> anyhow::Result<(Mesh, usize)> {
         _ => gltf::parse_gltf(bytes, folder),
     };
     if !matches!(ext.as_deref(), Some("obj" | "ply" | "gltf" | "glb")) {
-        bail!("{name}: unsupported format (expected .obj, .ply, .gltf or .glb)");
+        fail!(Input, "{name}: unsupported format (expected .obj, .ply, .gltf or .glb)");
     }
-    let bytes = std::fs::read(path).map_err(|e| anyhow!("{name}: cannot open: {}", io_reason(&e)))?;
+    let bytes = std::fs::read(path).map_err(|e| error!(Input, "{name}: cannot open: {}", io_reason(&e)))?;
     if bytes.is_empty() {
-        bail!("{name}: no triangles (empty file)");
+        fail!(Input, "{name}: no triangles (empty file)");
     }
-    // `{:#}` flattens any context chain so the message stays on one line.
-    let mesh = parse(&bytes).map_err(|e| anyhow!("{name}: {}", one_line(&format!("{e:#}"))))?;
+    let mesh = parse(&bytes).map_err(|e| error!(Input, "{name}: {}", one_line(&e.to_string())))?;
     mesh.validate(&name)
 }
 

@@ -7,14 +7,14 @@
 
 use std::io::Cursor;
 
-use anyhow::{anyhow, bail};
+use crate::error::{error, fail, Result};
 use gridrt_shared::glam::Vec3;
 
 use super::{is_integer, quote, Mesh};
 
 /// Parses an OBJ file's bytes into positions and counter-clockwise triangles (polygons are fan-triangulated).
 /// Only vertices that some face uses are kept, in order of first use. Errors carry no file name; the caller adds it.
-pub fn parse_obj(bytes: &[u8]) -> anyhow::Result<Mesh> {
+pub fn parse_obj(bytes: &[u8]) -> Result<Mesh> {
     // Lossy, so that stray Latin-1 in comments or names does not reject a file; a damaged number still fails.
     let text = String::from_utf8_lossy(bytes);
     // A byte-order mark would otherwise glue itself to the first line's keyword.
@@ -33,7 +33,7 @@ pub fn parse_obj(bytes: &[u8]) -> anyhow::Result<Mesh> {
     let (models, _) = tobj::load_obj_buf(&mut Cursor::new(canonical), &options, |_| {
         Err(tobj::LoadError::OpenFileFailed)
     })
-    .map_err(|e| anyhow!("{e} (reported by tobj)"))?;
+    .map_err(|e| error!(Input, "{e} (reported by tobj)"))?;
 
     let mut mesh = Mesh::default();
     for model in models {
@@ -47,7 +47,7 @@ pub fn parse_obj(bytes: &[u8]) -> anyhow::Result<Mesh> {
 }
 
 /// Checks that every `v` line starts with three finite numbers; returns how many vertices the file has.
-fn check_vertices(text: &str) -> anyhow::Result<usize> {
+fn check_vertices(text: &str) -> Result<usize> {
     let mut count = 0usize;
     for (line_no, line) in (1..).zip(text.lines()) {
         let mut words = line.split_whitespace();
@@ -58,21 +58,24 @@ fn check_vertices(text: &str) -> anyhow::Result<usize> {
         for axis in ["x", "y", "z"] {
             let word = words
                 .next()
-                .ok_or_else(|| anyhow!("line {line_no}: vertex {count} has no {axis} coordinate"))?;
+                .ok_or_else(|| error!(Input, "line {line_no}: vertex {count} has no {axis} coordinate"))?;
             let value: f64 = word.parse().map_err(|_| {
-                anyhow!(
+                error!(
+                    Input,
                     "line {line_no}: vertex {count} has a non-numeric {axis} coordinate {}",
                     quote(word)
                 )
             })?;
             if !value.is_finite() {
-                bail!(
+                fail!(
+                    Input,
                     "line {line_no}: vertex {count} has a non-finite {axis} coordinate {}",
                     quote(word)
                 );
             }
             if value.abs() > f32::MAX as f64 {
-                bail!(
+                fail!(
+                    Input,
                     "line {line_no}: vertex {count}: {axis} coordinate {} is beyond the 32-bit float range (+-3.4e38)",
                     quote(word)
                 );
@@ -83,7 +86,7 @@ fn check_vertices(text: &str) -> anyhow::Result<usize> {
 }
 
 /// Rewrites the file as `v`/`f` lines only, resolving relative indices and checking every index against `total`.
-fn canonicalize(text: &str, total: usize) -> anyhow::Result<String> {
+fn canonicalize(text: &str, total: usize) -> Result<String> {
     let mut out = String::with_capacity(text.len());
     let mut vertices_so_far = 0usize;
     let mut faces = 0usize;
@@ -103,12 +106,12 @@ fn canonicalize(text: &str, total: usize) -> anyhow::Result<String> {
                 out.push('f');
                 for word in words {
                     let index = resolve(word, vertices_so_far, total)
-                        .map_err(|problem| anyhow!("face {faces} {problem} (line {line_no})"))?;
+                        .map_err(|problem| error!(Input, "face {faces} {problem} (line {line_no})"))?;
                     out.push_str(&format!(" {index}"));
                     refs += 1;
                 }
                 if refs < 3 {
-                    bail!("face {faces} has only {refs} vertices (line {line_no})");
+                    fail!(Input, "face {faces} has only {refs} vertices (line {line_no})");
                 }
                 out.push('\n');
             }
@@ -121,7 +124,7 @@ fn canonicalize(text: &str, total: usize) -> anyhow::Result<String> {
 
 /// Turns one face word (`7`, `7/1`, `7//3`, `-2/...`) into an absolute 1-based vertex index.
 /// `before` is the number of vertices defined above the face, which relative indices count back from.
-fn resolve(word: &str, before: usize, total: usize) -> Result<usize, String> {
+fn resolve(word: &str, before: usize, total: usize) -> std::result::Result<usize, String> {
     let head = word.split('/').next().unwrap_or_default();
     let raw: i64 = match head.parse() {
         Ok(raw) => raw,

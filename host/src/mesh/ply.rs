@@ -3,7 +3,7 @@
 //! Only `vertex` x/y/z and the `face` index list are kept; every other property and element is read and skipped,
 //! because in PLY the only way past data is to decode it. Polygons are fan-triangulated.
 
-use anyhow::{anyhow, bail};
+use crate::error::{error, fail, Error, Result};
 use gridrt_shared::glam::Vec3;
 
 use super::{is_integer, quote, Mesh};
@@ -67,7 +67,7 @@ struct Header {
 }
 
 /// Parses a PLY file's bytes. Errors carry no file name; the caller adds it.
-pub fn parse_ply(bytes: &[u8]) -> anyhow::Result<Mesh> {
+pub fn parse_ply(bytes: &[u8]) -> Result<Mesh> {
     let header = parse_header(bytes)?;
     let roles = Roles::find(&header)?;
     let data = &bytes[header.data_start..];
@@ -94,13 +94,13 @@ pub fn parse_ply(bytes: &[u8]) -> anyhow::Result<Mesh> {
     }
 }
 
-fn parse_header(bytes: &[u8]) -> anyhow::Result<Header> {
+fn parse_header(bytes: &[u8]) -> Result<Header> {
     let (mut pos, mut line_no) = (0, 0);
     let (mut big_endian, mut format_seen) = (None, false);
     let mut elements: Vec<Element> = Vec::new();
     loop {
         if pos >= bytes.len() {
-            bail!("truncated header: no end_header line");
+            fail!(Input, "truncated header: no end_header line");
         }
         let newline = bytes[pos..].iter().position(|&b| b == b'\n');
         let end = newline.map_or(bytes.len(), |n| pos + n);
@@ -109,16 +109,20 @@ fn parse_header(bytes: &[u8]) -> anyhow::Result<Header> {
         pos = end + 1;
         line_no += 1;
         if line_no == 1 && text.trim_end() != "ply" {
-            bail!("bad magic: expected \"ply\" on the first line, found {}", quote(text));
+            fail!(
+                Input,
+                "bad magic: expected \"ply\" on the first line, found {}",
+                quote(text)
+            );
         }
         // A header line cut off by the end of the file would otherwise be misread as a short, wrong line.
         if newline.is_none() && text.trim() != "end_header" {
-            bail!("truncated header: no end_header line");
+            fail!(Input, "truncated header: no end_header line");
         }
         if line_no == 1 {
             continue;
         }
-        let bad = |what: &str| anyhow!("header line {line_no}: {what}: {}", quote(text));
+        let bad = |what: &str| error!(Input, "header line {line_no}: {what}: {}", quote(text));
         let words: Vec<&str> = text.split_whitespace().collect();
         match words.as_slice() {
             [] | ["comment" | "obj_info", ..] => {}
@@ -127,11 +131,11 @@ fn parse_header(bytes: &[u8]) -> anyhow::Result<Header> {
                     "ascii" => None,
                     "binary_little_endian" => Some(false),
                     "binary_big_endian" => Some(true),
-                    _ => bail!(unsupported(text)),
+                    _ => fail!(Input, "{}", unsupported(text)),
                 };
                 format_seen = true;
             }
-            ["format", ..] => bail!(unsupported(text)),
+            ["format", ..] => fail!(Input, "{}", unsupported(text)),
             ["element", name, count] => {
                 let count = count
                     .parse()
@@ -164,7 +168,7 @@ fn parse_header(bytes: &[u8]) -> anyhow::Result<Header> {
         }
     }
     if !format_seen {
-        bail!("header has no format line");
+        fail!(Input, "header has no format line");
     }
     Ok(Header {
         big_endian,
@@ -191,35 +195,41 @@ struct Roles {
 }
 
 impl Roles {
-    fn find(header: &Header) -> anyhow::Result<Roles> {
+    fn find(header: &Header) -> Result<Roles> {
         let elements = &header.elements;
         let vertex = elements
             .iter()
             .position(|e| e.name == "vertex")
-            .ok_or_else(|| anyhow!("header has no 'element vertex'"))?;
+            .ok_or_else(|| error!(Input, "header has no 'element vertex'"))?;
         let props = &elements[vertex].props;
         let mut xyz = [0; 3];
         for (axis, slot) in ["x", "y", "z"].into_iter().zip(&mut xyz) {
             *slot = props
                 .iter()
                 .position(|p| p.name == axis)
-                .ok_or_else(|| anyhow!("vertex element has no property '{axis}'"))?;
+                .ok_or_else(|| error!(Input, "vertex element has no property '{axis}'"))?;
             if !matches!(props[*slot].kind, Kind::Scalar(_)) {
-                bail!("vertex property '{axis}' is a list, expected a number");
+                fail!(Input, "vertex property '{axis}' is a list, expected a number");
             }
         }
-        let face = elements
-            .iter()
-            .position(|e| e.name == "face")
-            .ok_or_else(|| anyhow!("no triangles: header has no 'element face' (point clouds are not supported)"))?;
+        let face = elements.iter().position(|e| e.name == "face").ok_or_else(|| {
+            error!(
+                Input,
+                "no triangles: header has no 'element face' (point clouds are not supported)"
+            )
+        })?;
         let props = &elements[face].props;
         let indices = props
             .iter()
             .position(|p| p.name == "vertex_indices" || p.name == "vertex_index")
-            .ok_or_else(|| anyhow!("face element has no property 'vertex_indices'"))?;
+            .ok_or_else(|| error!(Input, "face element has no property 'vertex_indices'"))?;
         match props[indices].kind {
             Kind::List { item, .. } if !item.is_float() => {}
-            _ => bail!("face property '{}' must be a list of integers", props[indices].name),
+            _ => fail!(
+                Input,
+                "face property '{}' must be a list of integers",
+                props[indices].name
+            ),
         }
         Ok(Roles {
             vertex,
@@ -389,16 +399,22 @@ fn plural(element: &str) -> String {
     }
 }
 
-fn read_error(err: ReadErr, element: &Element, i: usize, property: &str) -> anyhow::Error {
+fn read_error(err: ReadErr, element: &Element, i: usize, property: &str) -> Error {
     let (name, count) = (&element.name, element.count);
     match err {
-        ReadErr::Eof => anyhow!("truncated: expected {count} {}, file ends after {i}", plural(name)),
-        ReadErr::Bad { line, token } => anyhow!(
+        ReadErr::Eof => error!(
+            Input,
+            "truncated: expected {count} {}, file ends after {i}",
+            plural(name)
+        ),
+        ReadErr::Bad { line, token } => error!(
+            Input,
             "line {line}: expected a number for property '{property}' of {name} {i}, found {}",
             quote(&token)
         ),
-        ReadErr::LineEnds { line } => anyhow!("line {line}: {name} {i} ends before its property '{property}'"),
-        ReadErr::Extra { line, token } => anyhow!(
+        ReadErr::LineEnds { line } => error!(Input, "line {line}: {name} {i} ends before its property '{property}'"),
+        ReadErr::Extra { line, token } => error!(
+            Input,
             "line {line}: {name} {i} has more values than the header declares, starting at {}",
             quote(&token)
         ),
@@ -406,20 +422,23 @@ fn read_error(err: ReadErr, element: &Element, i: usize, property: &str) -> anyh
 }
 
 /// A vertex's coordinates must be finite and fit in `f32`.
-fn check_position(xyz: &[f64; 3], i: usize, line: Option<usize>) -> anyhow::Result<()> {
+fn check_position(xyz: &[f64; 3], i: usize, line: Option<usize>) -> Result<()> {
     let at = line.map(|l| format!("line {l}: ")).unwrap_or_default();
     for (axis, &v) in ["x", "y", "z"].into_iter().zip(xyz) {
         if !v.is_finite() {
-            bail!("{at}vertex {i} has a non-finite {axis} coordinate {v}");
+            fail!(Input, "{at}vertex {i} has a non-finite {axis} coordinate {v}");
         }
         if v.abs() > f32::MAX as f64 {
-            bail!("{at}vertex {i}: {axis} coordinate {v:e} is beyond the 32-bit float range (+-3.4e38)");
+            fail!(
+                Input,
+                "{at}vertex {i}: {axis} coordinate {v:e} is beyond the 32-bit float range (+-3.4e38)"
+            );
         }
     }
     Ok(())
 }
 
-fn read_body(src: &mut impl Source, header: &Header, roles: &Roles) -> anyhow::Result<Mesh> {
+fn read_body(src: &mut impl Source, header: &Header, roles: &Roles) -> Result<Mesh> {
     let mut mesh = Mesh::default();
     let mut polygon: Vec<u32> = Vec::new();
     for (e, element) in header.elements.iter().enumerate() {
@@ -450,7 +469,8 @@ fn read_body(src: &mut impl Source, header: &Header, roles: &Roles) -> anyhow::R
                     Kind::List { count, item } => {
                         let n = src.read(count).map_err(fail)?;
                         if n < 0.0 {
-                            bail!(
+                            fail!(
+                                Input,
                                 "{} {i}: property '{}' has a negative length {n}",
                                 element.name,
                                 prop.name
@@ -462,7 +482,7 @@ fn read_body(src: &mut impl Source, header: &Header, roles: &Roles) -> anyhow::R
                             if keep {
                                 if !(0.0..roles.vertex_count as f64).contains(&v) {
                                     let n = roles.vertex_count;
-                                    bail!("face {i} refers to vertex {v} but the file has {n} vertices");
+                                    fail!(Input, "face {i} refers to vertex {v} but the file has {n} vertices");
                                 }
                                 polygon.push(v as u32);
                             }
@@ -477,7 +497,7 @@ fn read_body(src: &mut impl Source, header: &Header, roles: &Roles) -> anyhow::R
                     .push(Vec3::new(xyz[0] as f32, xyz[1] as f32, xyz[2] as f32));
             } else if is_face {
                 if polygon.len() < 3 {
-                    bail!("face {i} has only {} vertices", polygon.len());
+                    fail!(Input, "face {i} has only {} vertices", polygon.len());
                 }
                 mesh.triangles
                     .extend(polygon.windows(2).skip(1).map(|w| [polygon[0], w[0], w[1]]));

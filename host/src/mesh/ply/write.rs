@@ -4,7 +4,7 @@
 use std::io::Write;
 use std::path::Path;
 
-use anyhow::{anyhow, Result};
+use crate::error::{error, Result};
 use gridrt_shared::glam::Vec3;
 
 use crate::image_io::write_atomically;
@@ -12,7 +12,7 @@ use crate::image_io::write_atomically;
 /// Writes `positions` and `triangles` (indices into `positions`) to `path`, through a
 /// temporary file renamed over it.
 pub fn write_ply(path: &Path, positions: &[Vec3], triangles: &[[u32; 3]]) -> Result<()> {
-    let failed = |e: std::io::Error| anyhow!("{}: cannot write: {e}", path.display());
+    let failed = |e: std::io::Error| error!(Output, "{}: cannot write: {e}", path.display());
     write_atomically(path, |temp| {
         let file = std::fs::File::create(temp).map_err(failed)?;
         let mut out = std::io::BufWriter::with_capacity(1 << 20, file);
