@@ -109,6 +109,10 @@ pub fn pack_rgba8(color: Vec3) -> u32 {
 /// `FrameParams::ao_first_sample`), and its pixel is the count of them that meet nothing, or
 /// [`AO_MISS`] where the primary ray misses; [`ao_pixel`] makes the colour from the counts of
 /// every pass.
+///
+/// Every ray, primary or not, goes through one call of the traversal: a shader inlines each
+/// call whole, and two copies of it make a kernel that lavapipe takes minutes to compile when
+/// the scene is split over bindings.
 #[inline]
 pub fn render_pixel<N: Buffer<BvhNode>, P: LeafPrimitives>(
     frame: &FrameParams,
@@ -117,20 +121,55 @@ pub fn render_pixel<N: Buffer<BvhNode>, P: LeafPrimitives>(
     x: u32,
     y: u32,
 ) -> u32 {
-    let ray = primary_ray(&frame.camera, x, y);
-    let hit = trace(nodes, prims, &ray, T_FAR);
-    if frame.shading == SHADE_AMBIENT_OCCLUSION {
-        if !hit.is_hit() {
-            return AO_MISS;
+    let primary = primary_ray(&frame.camera, x, y);
+    let pixel = y * frame.camera.width + x;
+    let mut ray = primary;
+    let mut t_max = T_FAR;
+    let (mut origin, mut n, mut t1, mut t2) = (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, Vec3::ZERO);
+    let mut open = 0u32;
+    // Ray 0 is the primary; under ambient occlusion ray `k > 0` is sample
+    // `ao_first_sample + k - 1`, cosine-distributed from the primary hit (on the side the
+    // primary came from) and looking `ao_distance` far; the directions come from a hash of
+    // the pixel and the sample, so every run, every split into passes and both backends draw
+    // the same ones.
+    let mut k = 0u32;
+    loop {
+        let hit = trace(nodes, prims, &ray, t_max);
+        if k == 0 {
+            if frame.shading != SHADE_AMBIENT_OCCLUSION {
+                let mut lit = hit;
+                if frame.smooth_normals != 0 && hit.is_hit() {
+                    lit.normal = prims.smooth_normal(&hit).to_array();
+                }
+                return pack_rgba8(shade(&lit, &primary, frame));
+            }
+            if !hit.is_hit() {
+                return AO_MISS;
+            }
+            let normal = Vec3::from(hit.normal);
+            let len2 = normal.dot(normal);
+            if len2 == 0.0 {
+                // No side to cast from: counted open.
+                return frame.ao_samples;
+            }
+            n = normal / len2.sqrt();
+            if n.dot(primary.dir) > 0.0 {
+                n = -n;
+            }
+            origin = primary.origin + primary.dir * hit.t + n * frame.ao_offset;
+            (t1, t2) = orthonormal_basis(n);
+            t_max = frame.ao_distance;
+        } else if !hit.is_hit() {
+            open += 1;
         }
-        let pixel = y * frame.camera.width + x;
-        return unoccluded(frame, nodes, prims, &ray, &hit, pixel);
+        if k == frame.ao_samples {
+            return open;
+        }
+        let sample = frame.ao_first_sample + k;
+        let h = hash(hash(pixel) ^ sample.wrapping_mul(0x9e37_79b9));
+        ray = Ray::new(origin, cosine_direction(n, t1, t2, unit_float(h), unit_float(hash(h))));
+        k += 1;
     }
-    let mut lit = hit;
-    if frame.smooth_normals != 0 && hit.is_hit() {
-        lit.normal = prims.smooth_normal(&hit).to_array();
-    }
-    pack_rgba8(shade(&lit, &ray, frame))
 }
 
 /// The packed colour of pixel `(x, y)` under ambient occlusion from the passes' counts:
@@ -158,40 +197,4 @@ pub fn cost_pixel<N: Buffer<BvhNode>, P: LeafPrimitives>(
     let mut costs = Costs::default();
     trace_tallied(nodes, prims, &ray, T_FAR, &mut costs);
     costs.pack()
-}
-
-/// How many of the cosine-distributed rays `frame.ao_first_sample ..` (`frame.ao_samples` of
-/// them) from `hit` (on the side `ray` came from) meet nothing within `frame.ao_distance`; all
-/// of them where the hit has no normal. The directions come from a hash of the pixel and the
-/// sample, so every run, every split into passes and both backends draw the same ones.
-fn unoccluded<N: Buffer<BvhNode>, P: LeafPrimitives>(
-    frame: &FrameParams,
-    nodes: N,
-    prims: &P,
-    ray: &Ray,
-    hit: &Hit,
-    pixel: u32,
-) -> u32 {
-    let n = Vec3::from(hit.normal);
-    let len2 = n.dot(n);
-    if len2 == 0.0 {
-        return frame.ao_samples;
-    }
-    let mut n = n / len2.sqrt();
-    if n.dot(ray.dir) > 0.0 {
-        n = -n;
-    }
-    let origin = ray.origin + ray.dir * hit.t + n * frame.ao_offset;
-    let (t1, t2) = orthonormal_basis(n);
-    let mut open = 0u32;
-    let mut s = frame.ao_first_sample;
-    while s < frame.ao_first_sample + frame.ao_samples {
-        let h = hash(hash(pixel) ^ s.wrapping_mul(0x9e37_79b9));
-        let dir = cosine_direction(n, t1, t2, unit_float(h), unit_float(hash(h)));
-        if !trace(nodes, prims, &Ray::new(origin, dir), frame.ao_distance).is_hit() {
-            open += 1;
-        }
-        s += 1;
-    }
-    open
 }

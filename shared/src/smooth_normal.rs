@@ -136,6 +136,14 @@ fn directions(ijk: [u32; 3]) -> [u32; 2] {
 }
 
 impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
+    /// Zero, read from the scene's parameters (no depth reaches 256), so that a loop bounded
+    /// by a constant plus this keeps one copy of its body in a shader: compilers unroll loops
+    /// of a known trip count.
+    #[inline]
+    fn opaque_zero(&self) -> u32 {
+        self.params.levels >> 8
+    }
+
     /// The unit smooth normal of `open`'s surface at lattice point `p`, differentiated with
     /// steps of `step` lattice units over a lattice `m` steps a side; zero where the
     /// differences vanish (a degenerate patch).
@@ -148,10 +156,10 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         // near it.
         let centre = self.vertex(open, p);
         let mut d = [Vec3::ZERO; 4];
-        // One loop and one vertex read for all four points: each read inlines the buffer
-        // access, which split scenes make long.
+        // One loop and one vertex read for all four points, which the shader compiler must
+        // not unroll: each read inlines the buffer access, which split scenes make long.
         let mut k = 0;
-        while k < 4 {
+        while k < 4 + self.opaque_zero() as usize {
             let offset = stencils[k / 2][k % 2];
             if offset != 0 {
                 let dir = direction(pair[k / 2]);
@@ -174,8 +182,18 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
 
     /// The smooth shading normal at `hit` (a grid hit, see [`Hit`]): the lattice normals of its
     /// micro-triangle's corners at the depth it was rendered at, interpolated with its
-    /// barycentrics; its geometric normal where they vanish.
+    /// barycentrics. A corner whose lattice normal leans more than [`SMOOTH_LIMIT_COS`] away
+    /// from the micro-triangle's own takes the triangle's instead: a sliver's corner, whose
+    /// two edges nearly line up, has no reliable tangent plane of its own, and one wrong
+    /// normal would shade the whole corner of the triangle. Its geometric normal where the
+    /// micro-triangle is degenerate.
     pub fn smooth_normal(&self, hit: &Hit) -> Vec3 {
+        let geometric = Vec3::from(hit.normal);
+        let len2 = geometric.dot(geometric);
+        if len2 == 0.0 {
+            return geometric;
+        }
+        let face = geometric / len2.sqrt();
         let per_grid = triangle_count(self.params.lod);
         let open = self.open(hit.prim / per_grid);
         let level = hit.level;
@@ -185,24 +203,22 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         let weights = [1.0 - hit.u - hit.v, hit.u, hit.v];
         let mut n = Vec3::ZERO;
         let mut c = 0;
-        while c < 3 {
-            n += self.lattice_normal(&open, corners[c], step, 1 << level) * weights[c];
+        while c < 3 + self.opaque_zero() as usize {
+            let mut corner = self.lattice_normal(&open, corners[c], step, 1 << level);
+            if corner.dot(face) < SMOOTH_LIMIT_COS {
+                corner = face;
+            }
+            n += corner * weights[c];
             c += 1;
         }
-        let geometric = Vec3::from(hit.normal);
-        if n.dot(n) > 0.0 {
-            // The lattice and the micro-triangles wind alike; this only guards degenerate
-            // neighbourhoods.
-            if n.dot(geometric) < 0.0 {
-                -n
-            } else {
-                n
-            }
-        } else {
-            geometric
-        }
+        n
     }
 }
+
+/// Cosine of the largest angle between a corner's smooth normal and its micro-triangle's
+/// normal that the smooth normal is used at: 60 degrees, far beyond the facets' angles on a
+/// surface the lattice resolves, and below those of folds it does not.
+pub const SMOOTH_LIMIT_COS: f32 = 0.5;
 
 #[cfg(test)]
 mod tests {
