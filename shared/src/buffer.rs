@@ -72,6 +72,18 @@ macro_rules! declare_chunks {
                 }
             }
 
+            /// Words `offset .. offset + 4` of chunk `chunk`, under one choice of chunk: a
+            /// shader then holds one branch per chunk for a whole header or half a node
+            /// instead of one per word, which shortens lavapipe's compile of a split kernel.
+            #[inline(always)]
+            pub fn word4(&self, chunk: u32, offset: u32) -> [u32; 4] {
+                let o = offset as usize;
+                match chunk {
+                    $($k => [self.$field[o], self.$field[o + 1], self.$field[o + 2], self.$field[o + 3]],)*
+                    _ => [self.$last[o], self.$last[o + 1], self.$last[o + 2], self.$last[o + 3]],
+                }
+            }
+
             /// Chunks from a list of at most [`SPLIT_CHUNKS`] slices; the rest are empty.
             #[cfg(not(target_arch = "spirv"))]
             pub fn from_slices(parts: &[&'a [u32]]) -> Self {
@@ -123,6 +135,14 @@ impl<'a, T> Split<'a, T> {
         self.chunks
             .word(self.first_chunk + (word >> self.shift), (word & mask) + offset)
     }
+
+    /// Words `word .. word + 4`, which lie in one chunk (`word` a multiple of 4: chunks hold
+    /// a power of two words, at least four).
+    #[inline(always)]
+    fn word4(&self, word: u32) -> [u32; 4] {
+        let mask = (1u32 << self.shift) - 1;
+        self.chunks.word4(self.first_chunk + (word >> self.shift), word & mask)
+    }
 }
 
 impl Buffer<u32> for Split<'_, u32> {
@@ -152,13 +172,14 @@ impl Buffer<f32> for Split<'_, f32> {
 impl Buffer<BvhNode> for Split<'_, BvhNode> {
     #[inline(always)]
     fn load(self, index: u32) -> BvhNode {
-        let at = 8 * index;
-        let f = |k: u32| f32::from_bits(self.word(at, k));
+        let [x0, y0, z0, first] = self.word4(8 * index);
+        let [x1, y1, z1, count] = self.word4(8 * index + 4);
+        let f = f32::from_bits;
         BvhNode {
-            min: [f(0), f(1), f(2)],
-            first: self.word(at, 3),
-            max: [f(4), f(5), f(6)],
-            count: self.word(at, 7),
+            min: [f(x0), f(y0), f(z0)],
+            first,
+            max: [f(x1), f(y1), f(z1)],
+            count,
         }
     }
 
@@ -171,10 +192,10 @@ impl Buffer<BvhNode> for Split<'_, BvhNode> {
 impl Buffer<GridHeader> for Split<'_, GridHeader> {
     #[inline(always)]
     fn load(self, index: u32) -> GridHeader {
-        let at = 4 * index;
+        let [e0, e1, c0, c1] = self.word4(4 * index);
         GridHeader {
-            edges: [self.word(at, 0), self.word(at, 1)],
-            corners: [self.word(at, 2), self.word(at, 3)],
+            edges: [e0, e1],
+            corners: [c0, c1],
         }
     }
 
