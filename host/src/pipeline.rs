@@ -1,5 +1,5 @@
 //! The render pipeline in four calls: open a mesh, build a [`Scene`] from it, frame a camera,
-//! render an [`Image`] on a [`Backend`]. The `gridrt` binary is a thin user of it.
+//! render an [`Image`] on a [`Backend`](crate::backend::Backend). The `gridrt` binary is a thin user of it.
 //!
 //! See the crate documentation for the whole chain, and `host/examples/embed.rs`.
 

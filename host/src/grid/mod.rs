@@ -283,8 +283,8 @@ pub fn needs_wide_headers(edges: u64, vertices: u64) -> bool {
 
 /// Refuses, with the reason, a mesh whose grids the layout cannot address: sphere and leaf
 /// depths, 32-bit primitive and header ids, and vertex words below 2^31. From counts alone,
-/// so it runs before the long subdivision; returns the scene's buffer sizes (see
-/// [`least_buffer_sizes`]).
+/// so it runs before the long subdivision; returns the scene's buffer sizes: exact, but for
+/// the top-level BVH's, bounded below by its leaves of at most four grids.
 pub fn check_limits(base: &Mesh, build: &GridBuild) -> Result<Vec<BufferSize>> {
     let edges = base_edge_count(base);
     check_counts(base, edges, build.levels, &build.options, build.quantized)?;
