@@ -94,7 +94,7 @@ fn decode(data: &[u8]) -> (Plan, Mesh, Bytes<'_>) {
         levels,
         lod: (detail & 15) as u32 % (levels + 1),
         scheme: if flags & 4 != 0 { Scheme::Flat } else { Scheme::Loop },
-        crease_angle: (detail >> 4 != 0).then(|| (detail >> 4) as f32 * 12.0 - 6.0),
+        crease_angle: (detail >> 4 != 0).then_some((detail >> 4) as f32 * 12.0 - 6.0),
         quantized: flags & 8 != 0,
         options: GridOptions {
             half_radii: flags & 16 != 0,
