@@ -291,11 +291,17 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     /// grid, and its index at that depth in recursion order, whose digits walk down to its
     /// corners.
     pub fn micro_triangle(&self, prim: u32, level: u32) -> [Vec3; 3] {
+        let (open, [a, b, c]) = self.locate(prim, level);
+        [self.vertex(&open, a), self.vertex(&open, b), self.vertex(&open, c)]
+    }
+
+    /// The grid of the micro-triangle a hit at depth `level` names `prim`, opened, and the
+    /// triangle's lattice corners.
+    pub fn locate(&self, prim: u32, level: u32) -> (OpenGrid, [Lattice; 3]) {
         let per_grid = triangle_count(self.params.lod);
         let open = self.open(prim / per_grid);
         let t = (prim % per_grid) >> (2 * (self.params.lod - level));
-        let [a, b, c] = sub_triangle(1 << self.params.levels, level, t);
-        [self.vertex(&open, a), self.vertex(&open, b), self.vertex(&open, c)]
+        (open, sub_triangle(1 << self.params.levels, level, t))
     }
 
     /// Leaf `e.child` of `family`, reached from its parent (whose six points are `sheared`)

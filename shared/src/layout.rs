@@ -285,9 +285,8 @@ pub struct FrameParams {
     /// Progressive ambient occlusion: this pass casts samples `ao_first_sample ..
     /// ao_first_sample + ao_samples` of each pixel, and the pixel is the count of them that
     /// meet nothing (see [`crate::shade::render_pixel`]), or [`AO_MISS`] where the primary ray
-    /// misses; zero `ao_passes` renders colours in one pass.
+    /// misses.
     pub ao_first_sample: u32,
-    pub ao_passes: u32,
 }
 
 /// The pixel of a progressive ambient-occlusion pass whose primary ray hit nothing.

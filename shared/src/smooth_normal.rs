@@ -18,7 +18,7 @@
 
 use crate::buffer::Buffer;
 use crate::glam::Vec3;
-use crate::grid_index::{sub_triangle, triangle_count, Lattice};
+use crate::grid_index::Lattice;
 use crate::grid_traverse::{GridScene, OpenGrid};
 use crate::layout::{GridHeader, Hit};
 // On the GPU, float methods come from a trait (GLSL.std.450 underneath); natively from core.
@@ -194,11 +194,8 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             return geometric;
         }
         let face = geometric / len2.sqrt();
-        let per_grid = triangle_count(self.params.lod);
-        let open = self.open(hit.prim / per_grid);
         let level = hit.level;
-        let t = (hit.prim % per_grid) >> (2 * (self.params.lod - level));
-        let corners = sub_triangle(1 << self.params.levels, level, t);
+        let (open, corners) = self.locate(hit.prim, level);
         let step = 1 << (self.params.levels - level);
         let weights = [1.0 - hit.u - hit.v, hit.u, hit.v];
         let mut n = Vec3::ZERO;

@@ -5,6 +5,7 @@ use gridrt::backend::{Backend, BackendChoice};
 use gridrt::camera;
 use gridrt::grid::{build_lean, GridBuild, GridScene};
 use gridrt::image_io::fraction_within;
+use gridrt::mesh::scene::octahedron;
 use gridrt::mesh::{self, Mesh};
 use gridrt::pipeline::{BuildOptions, RenderOptions, Representation, Shading};
 use gridrt::scene::Scene;
@@ -140,18 +141,7 @@ fn a_flat_grid_keeps_its_normal() {
 
 /// An octahedron, Loop-subdivided (quantized) to L = 3: a round closed surface.
 fn grid_scene() -> Scene {
-    let positions = vec![Vec3::X, Vec3::NEG_X, Vec3::Y, Vec3::NEG_Y, Vec3::Z, Vec3::NEG_Z];
-    let triangles = vec![
-        [0, 2, 4],
-        [2, 1, 4],
-        [1, 3, 4],
-        [3, 0, 4],
-        [2, 0, 5],
-        [1, 2, 5],
-        [3, 1, 5],
-        [0, 3, 5],
-    ];
-    Scene::build(&Mesh { positions, triangles }, &BuildOptions::levels(3)).unwrap()
+    Scene::build(&octahedron(), &BuildOptions::levels(3)).unwrap()
 }
 
 /// Neighbouring pixels, both at least two pixels inside the surface (`covered`), whose

@@ -3,7 +3,7 @@
 
 use std::fmt::Write as _;
 
-use anyhow::{anyhow, bail, Result};
+use anyhow::{bail, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
@@ -102,7 +102,7 @@ fn check_device(name: &str, mesh: &Mesh, device: &Backend, build: &BuildArgs, ra
     let baseline = triangles::least_buffer_sizes(mesh.positions.len() as u64, micro);
     let mut largest = 0;
     for sizes in [build.check_grid_limits(name, mesh)?, baseline] {
-        device.check_fits(&sizes).map_err(|e| anyhow!("{name}: {e}"))?;
+        device.check_fits(&sizes).map_err(|e| e.prefixed(name))?;
         largest = largest.max(sizes.iter().map(|b| b.bytes).sum::<u64>());
     }
     // One representation is uploaded at a time, while both are alive on the host.

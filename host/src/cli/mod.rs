@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{anyhow, bail, Result};
+use anyhow::{bail, Result};
 use clap::{Parser, Subcommand, ValueEnum};
 
 use gridrt::backend::{Backend, BackendChoice};
@@ -177,7 +177,7 @@ impl BuildArgs {
     /// Refuses, before subdividing, a mesh whose grids could not be addressed at these levels;
     /// returns the sizes their buffers will have (see `grid::check_limits`).
     pub fn check_grid_limits(&self, name: &str, mesh: &Mesh) -> Result<Vec<limits::BufferSize>> {
-        grid::check_limits(mesh, &self.grid_build()).map_err(|e| anyhow!("{name}: {e}"))
+        grid::check_limits(mesh, &self.grid_build()).map_err(|e| e.prefixed(name).into())
     }
 
     /// The grid build these arguments ask for.
@@ -549,7 +549,7 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
         ),
     };
     let backend = stages.run("device", || open_backend(args.backend, "rendering"))?;
-    backend.check_fits(&sizes).map_err(|e| anyhow!("{name}: {e}"))?;
+    backend.check_fits(&sizes).map_err(|e| e.prefixed(&name))?;
     check_upload_memory(&name, &sizes, &backend, args)?;
     let scene = match args.mode {
         Mode::Grid => stages.run_counted("build", mesh.triangles.len() as u64, |bar| {

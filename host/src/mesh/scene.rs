@@ -95,7 +95,7 @@ fn icosahedron() -> Mesh {
 }
 
 /// A regular octahedron with circumradius 1: 6 vertices, 8 triangles.
-fn octahedron() -> Mesh {
+pub fn octahedron() -> Mesh {
     let positions = [Vec3::X, Vec3::NEG_X, Vec3::Y, Vec3::NEG_Y, Vec3::Z, Vec3::NEG_Z].to_vec();
     convex_from_edges(positions, 2f32.sqrt())
 }
