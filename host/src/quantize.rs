@@ -105,7 +105,7 @@ mod tests {
     use super::*;
     use crate::mesh::scene::default_scene;
     use crate::subdiv::{subdivide, Scheme};
-    use gridrt_shared::quantize::{read_half, read_half_triple};
+    use gridrt_shared::quantize::{halves_from_words, read_half};
 
     #[test]
     fn halves_round_trip() {
@@ -120,7 +120,8 @@ mod tests {
         // Triples starting on either half of a word, the last one ending the array.
         for h in 0..values.len() as u32 - 2 {
             let want = [0, 1, 2].map(|d| read_half(words.as_slice(), h + d));
-            assert_eq!(read_half_triple(words.as_slice(), h), want, "triple at half {h}");
+            let (w0, w1) = (words[h as usize / 2], words[h as usize / 2 + 1]);
+            assert_eq!(halves_from_words(w0, w1, h & 1), want, "triple at half {h}");
         }
     }
 

@@ -14,7 +14,7 @@ use crate::layout::{
     BvhNode, GridHeader, GridIds, GridParams, Hit, SplitParams, GRID_HEADERS, GRID_RADII, GRID_VERTICES,
 };
 use crate::lod::grid_level;
-use crate::quantize::{dequantize, read_half, read_half_triple, unit_from_exponent};
+use crate::quantize::{dequantize, halves_from_words, read_half, unit_from_exponent};
 use crate::ray::{Ray, T_FAR};
 use crate::sphere::{decode_radius, intersect_sphere_scaled};
 use crate::traverse::{load_vec3_bits, record_hit, trace, LeafPrimitives};
@@ -109,10 +109,15 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     /// The base edge and corner ids of grid `grid`, from its packed or wide header.
     #[inline]
     pub fn ids(&self, grid: u32) -> GridIds {
-        if self.params.wide_headers != 0 {
-            GridIds::from_wide(self.headers.load(2 * grid), self.headers.load(2 * grid + 1))
+        // The same two reads either way (the second is the first again for packed headers):
+        // SIMD hardware that runs both sides of a branch would otherwise pay three.
+        let wide = (self.params.wide_headers != 0) as u32;
+        let first = self.headers.load(grid << wide);
+        let second = self.headers.load((grid << wide) + wide);
+        if wide != 0 {
+            GridIds::from_wide(first, second)
         } else {
-            self.headers.load(grid).ids()
+            first.ids()
         }
     }
 
@@ -157,22 +162,30 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     #[inline(always)]
     pub fn vertex(&self, grid: &OpenGrid, p: Lattice) -> Vec3 {
         let at = grid.slots.slot(p);
-        if at & INNER_CODES == 0 {
-            return load_vec3_bits(self.vertices, at);
-        }
+        let codes = at & INNER_CODES != 0;
         let h = at & !INNER_CODES;
-        dequantize(grid.origin, read_half_triple(self.vertices, h), grid.unit)
+        // One read of three words either way: an `f32` triple, or the two words that hold a
+        // code triple (the third is never past the buffer's end: the corner area comes after
+        // every inner area). On SIMD hardware that runs both sides of a branch, two separate
+        // reads cost every vertex both.
+        let [x, y, z] = self.vertices.load3(if codes { h / 2 } else { at });
+        if !codes {
+            return Vec3::new(f32::from_bits(x), f32::from_bits(y), f32::from_bits(z));
+        }
+        dequantize(grid.origin, halves_from_words(x, y, h & 1), grid.unit)
     }
 
     /// Radius of sphere `node` (breadth-first id) of `grid`.
     #[inline]
     pub fn radius(&self, grid: u32, node: u32) -> f32 {
         let k = grid * self.params.sphere_count + node;
-        if self.params.half_radii == 0 {
-            return f32::from_bits(self.radii.load(k));
+        // One read either way (see `ids`).
+        let half_radii = self.params.half_radii != 0;
+        let word = self.radii.load(if half_radii { k / 2 } else { k });
+        if !half_radii {
+            return f32::from_bits(word);
         }
-        let half = (self.radii.load(k / 2) >> (16 * (k & 1))) & 0xffff;
-        decode_radius(half, self.params.radius_scale)
+        decode_radius((word >> (16 * (k & 1))) & 0xffff, self.params.radius_scale)
     }
 
     /// Thickness of leaf `leaf` (its index at the stored leaf level) of `grid`, whose sphere
@@ -212,11 +225,16 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         // on one side of it (right, left, above or below: one bit each) cannot be crossed. A
         // leaf whose loaded vertices all agree is done before any triangle test.
         let mut one_side = 0xfu32;
-        let mut lb = window[2];
-        while lb <= window[3] {
-            let mut la = window[0];
-            let la_end = if window[1] < m - lb { window[1] } else { m - lb };
-            while la <= la_end {
+        // Each loop walks its points or cells row by row as one flat loop rather than a loop
+        // per row: in SIMD groups a nested loop runs every row as long as the group's longest,
+        // and each inner loop costs a pass even where no ray of the group has a row left.
+        let (la_lo, la_hi, lb_lo, lb_hi) = (window[0], window[1], window[2], window[3]);
+        let row_end = |lb: u32| if la_hi < m - lb { la_hi } else { m - lb };
+        let mut la = la_lo;
+        let mut lb = lb_lo;
+        while lb <= lb_hi {
+            let la_end = row_end(lb);
+            if la <= la_end {
                 let p = [
                     (corner[0] + la as i32 * step) as u32,
                     (corner[1] + lb as i32 * step) as u32,
@@ -230,9 +248,12 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                     | ((sv.y < 0.0) as u32) << 3;
                 scratch.sides[slot] = side;
                 one_side &= side;
-                la += 1;
             }
-            lb += 1;
+            la += 1;
+            if la > la_end {
+                la = la_lo;
+                lb += 1;
+            }
         }
         if one_side != 0 {
             return;
@@ -243,32 +264,24 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         // a branch costs at every cell.
         let mut closest = (hit.t, 0.0, 0.0);
         let mut closest_entry = 0;
-        // Cells anchored at `(la, lb)` with all their points loaded: the upright one needs
-        // `la + 1 <= la_hi`, `lb + 1 <= lb_hi` and `la + lb + 1 <= m`, the inverted one also
-        // `la + lb + 2 <= m`.
-        let mut lb = window[2];
-        while lb < window[3] {
-            let mut la = window[0];
-            let la_end = if window[1] < m - lb { window[1] } else { m - lb };
-            while la < la_end {
-                let first_cell = 2 * lattice_index(la, lb, m);
-                let end_cell = if la + lb + 2 <= m {
-                    first_cell + 2
-                } else {
-                    first_cell + 1
-                };
-                let mut cell = first_cell;
-                while cell < end_cell {
-                    let entry = self.micro_triangles[(cells + cell) as usize];
-                    cell += 1;
-                    let i0 = corner_slot(entry, 0);
-                    let i1 = corner_slot(entry, 1);
-                    let i2 = corner_slot(entry, 2);
-                    // The same side test per triangle: many fail it, for three loads instead of
-                    // nine and no edge functions.
-                    if scratch.sides[i0] & scratch.sides[i1] & scratch.sides[i2] != 0 {
-                        continue;
-                    }
+        // Cells anchored at `(la, lb)` with all their points loaded: the upright one (`second`
+        // 0) needs `la + 1 <= la_hi`, `lb + 1 <= lb_hi` and `la + lb + 1 <= m`, the inverted
+        // one (`second` 1) also `la + lb + 2 <= m`.
+        let mut la = la_lo;
+        let mut lb = lb_lo;
+        let mut second = 0;
+        while lb < lb_hi {
+            let la_end = row_end(lb);
+            let in_row = la < la_end;
+            let has_inverted = la + lb + 2 <= m;
+            if in_row {
+                let entry = self.micro_triangles[(cells + 2 * lattice_index(la, lb, m) + second) as usize];
+                let i0 = corner_slot(entry, 0);
+                let i1 = corner_slot(entry, 1);
+                let i2 = corner_slot(entry, 2);
+                // The same side test per triangle: many fail it, for three loads instead of
+                // nine and no edge functions.
+                if scratch.sides[i0] & scratch.sides[i1] & scratch.sides[i2] == 0 {
                     tally.triangles(1);
                     if let Some(found) =
                         intersect_sheared(scratch.sheared[i0], scratch.sheared[i1], scratch.sheared[i2], closest.0)
@@ -277,9 +290,17 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                         closest_entry = entry;
                     }
                 }
-                la += 1;
             }
-            lb += 1;
+            if in_row && second == 0 && has_inverted {
+                second = 1;
+            } else {
+                second = 0;
+                la += 1;
+                if la >= la_end {
+                    la = la_lo;
+                    lb += 1;
+                }
+            }
         }
         if closest.0 < hit.t {
             record_hit(hit, closest, ids.first + ((closest_entry >> 24) << ids.shift));
@@ -327,10 +348,8 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         let m = 1u32 << family.k;
         let mut window = [0, m, 0, m];
         if family.whole == 0 {
-            let radius = self.radius(family.grid, level_start(self.params.leaf_level) + leaf);
-            let thickness = self.thickness(family.grid, leaf, radius);
             let [ca, cb, cc] = child_corners(sheared, e.child);
-            window = scratch.frame.leaf_window(ca, cb, cc, m, thickness, slack);
+            window = scratch.frame.leaf_window(ca, cb, cc, m, e.thickness, slack);
         }
         let corner = child_first_corner(family.corner, family.half, e.child);
         let step = if e.child == 3 { -family.step } else { family.step };
@@ -405,12 +424,25 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                 level: lod,
             };
             let mut sheared = [Vec3::ZERO; 6];
-            let mut e0 = Entry { t: T_FAR, child: 0 };
-            let mut e1 = Entry { t: T_FAR, child: 1 };
-            let mut e2 = Entry { t: T_FAR, child: 2 };
+            let mut e0 = Entry {
+                t: T_FAR,
+                child: 0,
+                thickness: 0.0,
+            };
+            let mut e1 = Entry {
+                t: T_FAR,
+                child: 1,
+                thickness: 0.0,
+            };
+            let mut e2 = Entry {
+                t: T_FAR,
+                child: 2,
+                thickness: 0.0,
+            };
             let mut e3 = Entry {
                 t: scratch.stack_t[sp],
                 child: 0,
+                thickness: 0.0,
             };
             let mut leaves = 1;
             if level != leaf_level {
@@ -442,10 +474,16 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                 // Test the four children, sort them by entry distance with a fixed network (no
                 // dynamically indexed arrays: those are slow on GPUs), then push the hit ones
                 // farthest first so the nearest is popped next, or test them here.
-                let r = |c: u32| self.radius(grid, first_child + c);
+                let r = [
+                    self.radius(grid, first_child),
+                    self.radius(grid, first_child + 1),
+                    self.radius(grid, first_child + 2),
+                    self.radius(grid, first_child + 3),
+                ];
                 let entry = |center: Vec3, child: u32| Entry {
-                    t: intersect_sphere_scaled(center, r(child), ray, inv_dir_len2, hit.t),
+                    t: intersect_sphere_scaled(center, r[child as usize], ray, inv_dir_len2, hit.t),
                     child,
+                    thickness: 0.0,
                 };
                 tally.spheres(4);
                 e0 = entry(sphere_center(pa, pab, pca), 0);
@@ -464,18 +502,22 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                         shear(pbc, ray),
                         shear(pca, ray),
                     ];
-                    let thick = |c: u32| self.thickness(grid, 4 * index + c, r(c));
+                    // Each child's thickness goes with it to its leaf test.
+                    e0.thickness = self.thickness(grid, 4 * index, r[0]);
+                    e1.thickness = self.thickness(grid, 4 * index + 1, r[1]);
+                    e2.thickness = self.thickness(grid, 4 * index + 2, r[2]);
+                    e3.thickness = self.thickness(grid, 4 * index + 3, r[3]);
                     let [sa, sb, sc, sab, sbc, sca] = sheared;
-                    if e0.t < T_FAR && !frame.overlaps(sa, sab, sca, thick(0), slack) {
+                    if e0.t < T_FAR && !frame.overlaps(sa, sab, sca, e0.thickness, slack) {
                         e0.t = T_FAR;
                     }
-                    if e1.t < T_FAR && !frame.overlaps(sab, sb, sbc, thick(1), slack) {
+                    if e1.t < T_FAR && !frame.overlaps(sab, sb, sbc, e1.thickness, slack) {
                         e1.t = T_FAR;
                     }
-                    if e2.t < T_FAR && !frame.overlaps(sca, sbc, sc, thick(2), slack) {
+                    if e2.t < T_FAR && !frame.overlaps(sca, sbc, sc, e2.thickness, slack) {
                         e2.t = T_FAR;
                     }
-                    if e3.t < T_FAR && !frame.overlaps(sbc, sca, sab, thick(3), slack) {
+                    if e3.t < T_FAR && !frame.overlaps(sbc, sca, sab, e3.thickness, slack) {
                         e3.t = T_FAR;
                     }
                 }
@@ -589,12 +631,14 @@ struct LeafIds {
     level: u32,
 }
 
-/// A child sphere's entry distance and which child it is.
+/// A child sphere's entry distance, which child it is, and its leaf's thickness when it is a
+/// stored leaf tested with its footprint.
 #[repr(C)]
 #[derive(Copy, Clone)]
 struct Entry {
     t: f32,
     child: u32,
+    thickness: f32,
 }
 
 /// Orders two children so the farther comes first.

@@ -38,16 +38,13 @@ pub fn read_half<W: Buffer<u32>>(words: W, h: u32) -> i32 {
     ((w << 16) as i32) >> 16
 }
 
-/// The three signed 16-bit halves `h, h + 1, h + 2` of a packed word array, from the two
-/// words that hold them.
+/// The three signed 16-bit halves that start at the low (`odd == 0`) or high (`odd == 1`) half
+/// of `w0`, from `w0` and the word after it.
 #[inline]
-pub fn read_half_triple<W: Buffer<u32>>(words: W, h: u32) -> [i32; 3] {
-    let w0 = words.load(h / 2);
-    let w1 = words.load(h / 2 + 1);
-    let odd = h & 1 != 0;
-    let s = 16 * (h & 1);
+pub fn halves_from_words(w0: u32, w1: u32, odd: u32) -> [i32; 3] {
+    let s = 16 * odd;
     let sext = |w: u32| ((w << 16) as i32) >> 16;
-    [sext(w0 >> s), sext(if odd { w1 } else { w0 >> 16 }), sext(w1 >> s)]
+    [sext(w0 >> s), sext(if odd != 0 { w1 } else { w0 >> 16 }), sext(w1 >> s)]
 }
 
 /// The unit `2^(biased - 127)` from its biased exponent.
