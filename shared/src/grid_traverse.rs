@@ -424,26 +424,10 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                 level: lod,
             };
             let mut sheared = [Vec3::ZERO; 6];
-            let mut e0 = Entry {
-                t: T_FAR,
-                child: 0,
-                thickness: 0.0,
-            };
-            let mut e1 = Entry {
-                t: T_FAR,
-                child: 1,
-                thickness: 0.0,
-            };
-            let mut e2 = Entry {
-                t: T_FAR,
-                child: 2,
-                thickness: 0.0,
-            };
-            let mut e3 = Entry {
-                t: scratch.stack_t[sp],
-                child: 0,
-                thickness: 0.0,
-            };
+            let mut e0 = Entry::new(T_FAR, 0);
+            let mut e1 = Entry::new(T_FAR, 1);
+            let mut e2 = Entry::new(T_FAR, 2);
+            let mut e3 = Entry::new(scratch.stack_t[sp], 0);
             let mut leaves = 1;
             if level != leaf_level {
                 leaves = 0;
@@ -480,10 +464,11 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                     self.radius(grid, first_child + 2),
                     self.radius(grid, first_child + 3),
                 ];
-                let entry = |center: Vec3, child: u32| Entry {
-                    t: intersect_sphere_scaled(center, r[child as usize], ray, inv_dir_len2, hit.t),
-                    child,
-                    thickness: 0.0,
+                let entry = |center: Vec3, child: u32| {
+                    Entry::new(
+                        intersect_sphere_scaled(center, r[child as usize], ray, inv_dir_len2, hit.t),
+                        child,
+                    )
                 };
                 tally.spheres(4);
                 e0 = entry(sphere_center(pa, pab, pca), 0);
@@ -639,6 +624,18 @@ struct Entry {
     t: f32,
     child: u32,
     thickness: f32,
+}
+
+impl Entry {
+    /// Child `child` entered at `t`, its thickness not yet read.
+    #[inline]
+    fn new(t: f32, child: u32) -> Entry {
+        Entry {
+            t,
+            child,
+            thickness: 0.0,
+        }
+    }
 }
 
 /// Orders two children so the farther comes first.
