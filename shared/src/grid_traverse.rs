@@ -230,29 +230,36 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         // and each inner loop costs a pass even where no ray of the group has a row left.
         let (la_lo, la_hi, lb_lo, lb_hi) = (window[0], window[1], window[2], window[3]);
         let row_end = |lb: u32| if la_hi < m - lb { la_hi } else { m - lb };
+        // Both loops test their condition at the bottom, behind a test that they have a first
+        // pass (see `traverse_bvh`).
         let mut la = la_lo;
         let mut lb = lb_lo;
-        while lb <= lb_hi {
-            let la_end = row_end(lb);
-            if la <= la_end {
-                let p = [
-                    (corner[0] + la as i32 * step) as u32,
-                    (corner[1] + lb as i32 * step) as u32,
-                ];
-                let sv = shear(self.vertex(open, p), ray);
-                let slot = lattice_index(la, lb, m) as usize;
-                scratch.sheared[slot] = sv;
-                let side = (sv.x > 0.0) as u32
-                    | ((sv.x < 0.0) as u32) << 1
-                    | ((sv.y > 0.0) as u32) << 2
-                    | ((sv.y < 0.0) as u32) << 3;
-                scratch.sides[slot] = side;
-                one_side &= side;
-            }
-            la += 1;
-            if la > la_end {
-                la = la_lo;
-                lb += 1;
+        if lb_lo <= lb_hi {
+            loop {
+                let la_end = row_end(lb);
+                if la <= la_end {
+                    let p = [
+                        (corner[0] + la as i32 * step) as u32,
+                        (corner[1] + lb as i32 * step) as u32,
+                    ];
+                    let sv = shear(self.vertex(open, p), ray);
+                    let slot = lattice_index(la, lb, m) as usize;
+                    scratch.sheared[slot] = sv;
+                    let side = (sv.x > 0.0) as u32
+                        | ((sv.x < 0.0) as u32) << 1
+                        | ((sv.y > 0.0) as u32) << 2
+                        | ((sv.y < 0.0) as u32) << 3;
+                    scratch.sides[slot] = side;
+                    one_side &= side;
+                }
+                la += 1;
+                if la > la_end {
+                    la = la_lo;
+                    lb += 1;
+                }
+                if lb > lb_hi {
+                    break;
+                }
             }
         }
         if one_side != 0 {
@@ -270,35 +277,40 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         let mut la = la_lo;
         let mut lb = lb_lo;
         let mut second = 0;
-        while lb < lb_hi {
-            let la_end = row_end(lb);
-            let in_row = la < la_end;
-            let has_inverted = la + lb + 2 <= m;
-            if in_row {
-                let entry = self.micro_triangles[(cells + 2 * lattice_index(la, lb, m) + second) as usize];
-                let i0 = corner_slot(entry, 0);
-                let i1 = corner_slot(entry, 1);
-                let i2 = corner_slot(entry, 2);
-                // The same side test per triangle: many fail it, for three loads instead of
-                // nine and no edge functions.
-                if scratch.sides[i0] & scratch.sides[i1] & scratch.sides[i2] == 0 {
-                    tally.triangles(1);
-                    if let Some(found) =
-                        intersect_sheared(scratch.sheared[i0], scratch.sheared[i1], scratch.sheared[i2], closest.0)
-                    {
-                        closest = found;
-                        closest_entry = entry;
+        if lb_lo < lb_hi {
+            loop {
+                let la_end = row_end(lb);
+                let in_row = la < la_end;
+                let has_inverted = la + lb + 2 <= m;
+                if in_row {
+                    let entry = self.micro_triangles[(cells + 2 * lattice_index(la, lb, m) + second) as usize];
+                    let i0 = corner_slot(entry, 0);
+                    let i1 = corner_slot(entry, 1);
+                    let i2 = corner_slot(entry, 2);
+                    // The same side test per triangle: many fail it, for three loads instead of
+                    // nine and no edge functions.
+                    if scratch.sides[i0] & scratch.sides[i1] & scratch.sides[i2] == 0 {
+                        tally.triangles(1);
+                        if let Some(found) =
+                            intersect_sheared(scratch.sheared[i0], scratch.sheared[i1], scratch.sheared[i2], closest.0)
+                        {
+                            closest = found;
+                            closest_entry = entry;
+                        }
                     }
                 }
-            }
-            if in_row && second == 0 && has_inverted {
-                second = 1;
-            } else {
-                second = 0;
-                la += 1;
-                if la >= la_end {
-                    la = la_lo;
-                    lb += 1;
+                if in_row && second == 0 && has_inverted {
+                    second = 1;
+                } else {
+                    second = 0;
+                    la += 1;
+                    if la >= la_end {
+                        la = la_lo;
+                        lb += 1;
+                    }
+                }
+                if lb >= lb_hi {
+                    break;
                 }
             }
         }
@@ -374,7 +386,6 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         tally: &mut T,
     ) {
         let open = self.open(grid);
-        let n = 1u32 << self.params.levels;
         let root_radius = self.radius(grid, 0);
         let lod = grid_level(&self.params, open.origin, root_radius);
         // At a coarse level of detail the hierarchy is cut where the rendered triangles are.
@@ -388,164 +399,199 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         if intersect_sphere_scaled(open.origin, root_radius, ray, inv_dir_len2, hit.t) == T_FAR {
             return;
         }
-        // Every vertex of the grid lies within the root sphere.
-        let frame = scratch.frame;
-        let slack = FootprintFrame::slack((open.origin - ray.origin).abs().max_element() + root_radius);
+        let visit = GridVisit {
+            grid,
+            open,
+            lod,
+            leaf_level,
+            // Every vertex of the grid lies within the root sphere.
+            slack: FootprintFrame::slack((open.origin - ray.origin).abs().max_element() + root_radius),
+        };
         let mut sp = 1usize;
         scratch.stack[0] = 0;
         scratch.stack_corner[0] = pack_corner([0, 0], false);
         scratch.stack_t[0] = 0.0;
-        while sp > 0 {
+        // Tested at the bottom (see `traverse_bvh`): the root is always there to pop, and a
+        // pass more would cost every group a sub-triangle's whole work.
+        loop {
             sp -= 1;
-            if scratch.stack_t[sp] >= hit.t {
-                continue;
+            if scratch.stack_t[sp] < hit.t {
+                sp = self.visit_sub_triangle(&visit, sp, ray, hit, scratch, tally);
             }
-            let level = scratch.stack[sp] & 0xf;
-            let index = scratch.stack[sp] >> 4;
-            // A sub-triangle is its first corner `a`, its edge length and its orientation:
-            // `b = a + d (s, 0)`, `c = a + d (0, s)`, `d = -1` for the inverted ones.
-            let packed = scratch.stack_corner[sp];
-            let a = [(packed & 0xff) as i32, ((packed >> 8) & 0xff) as i32];
-            let inverted = packed >> 16 != 0;
-            let d = if inverted { -1 } else { 1 };
-            let size = (n >> level) as i32;
-            // The leaves this round tests, through one call site below (rust-gpu inlines every
-            // call: each copy of the leaf test costs the GPU kernel, and lavapipe runs the code
-            // of a branch even when none of its rays takes it): the popped sub-triangle itself
-            // when it is a leaf, or its children when they are stored leaves.
-            let mut family = LeafFamily {
-                grid,
-                first_leaf: index,
-                corner: a,
-                half: 0,
-                k: lod - level,
-                step: d * (size >> (lod - level)),
-                whole: 1,
-                level: lod,
+            if sp == 0 {
+                break;
+            }
+        }
+    }
+
+    /// The sub-triangle at `scratch.stack[sp]`, just popped: its children's spheres are
+    /// tested and the hit ones pushed, nearest on top, or tested here when they are leaves (or
+    /// it is one). Returns the stack's new height.
+    fn visit_sub_triangle<T: Tally>(
+        &self,
+        visit: &GridVisit,
+        mut sp: usize,
+        ray: &Ray,
+        hit: &mut Hit,
+        scratch: &mut GridScratch,
+        tally: &mut T,
+    ) -> usize {
+        let GridVisit {
+            grid,
+            open,
+            lod,
+            leaf_level,
+            slack,
+        } = *visit;
+        let n = 1u32 << self.params.levels;
+        let inv_dir_len2 = scratch.inv_dir_len2;
+        let frame = scratch.frame;
+        let level = scratch.stack[sp] & 0xf;
+        let index = scratch.stack[sp] >> 4;
+        // A sub-triangle is its first corner `a`, its edge length and its orientation:
+        // `b = a + d (s, 0)`, `c = a + d (0, s)`, `d = -1` for the inverted ones.
+        let packed = scratch.stack_corner[sp];
+        let a = [(packed & 0xff) as i32, ((packed >> 8) & 0xff) as i32];
+        let inverted = packed >> 16 != 0;
+        let d = if inverted { -1 } else { 1 };
+        let size = (n >> level) as i32;
+        // The leaves this round tests, through one call site below (rust-gpu inlines every
+        // call: each copy of the leaf test costs the GPU kernel, and lavapipe runs the code
+        // of a branch even when none of its rays takes it): the popped sub-triangle itself
+        // when it is a leaf, or its children when they are stored leaves.
+        let mut family = LeafFamily {
+            grid,
+            first_leaf: index,
+            corner: a,
+            half: 0,
+            k: lod - level,
+            step: d * (size >> (lod - level)),
+            whole: 1,
+            level: lod,
+        };
+        let mut sheared = [Vec3::ZERO; 6];
+        let mut e0 = Entry::new(T_FAR, 0);
+        let mut e1 = Entry::new(T_FAR, 1);
+        let mut e2 = Entry::new(T_FAR, 2);
+        let mut e3 = Entry::new(scratch.stack_t[sp], 0);
+        let mut leaves = 1;
+        if level != leaf_level {
+            leaves = 0;
+            // The four children share six vertices: three corners and three midpoints.
+            let (s, h) = (d * size, d * size / 2);
+            let at = |x: i32, y: i32| [(a[0] + x) as u32, (a[1] + y) as u32];
+            // The root's corners are the grid's, already loaded.
+            let pa = if level == 0 {
+                open.corners[0]
+            } else {
+                self.vertex(&open, at(0, 0))
             };
-            let mut sheared = [Vec3::ZERO; 6];
-            let mut e0 = Entry::new(T_FAR, 0);
-            let mut e1 = Entry::new(T_FAR, 1);
-            let mut e2 = Entry::new(T_FAR, 2);
-            let mut e3 = Entry::new(scratch.stack_t[sp], 0);
-            let mut leaves = 1;
-            if level != leaf_level {
-                leaves = 0;
-                // The four children share six vertices: three corners and three midpoints.
-                let (s, h) = (d * size, d * size / 2);
-                let at = |x: i32, y: i32| [(a[0] + x) as u32, (a[1] + y) as u32];
-                // The root's corners are the grid's, already loaded.
-                let pa = if level == 0 {
-                    open.corners[0]
-                } else {
-                    self.vertex(&open, at(0, 0))
-                };
-                let pb = if level == 0 {
-                    open.corners[1]
-                } else {
-                    self.vertex(&open, at(s, 0))
-                };
-                let pc = if level == 0 {
-                    open.corners[2]
-                } else {
-                    self.vertex(&open, at(0, s))
-                };
-                let pab = self.vertex(&open, at(h, 0));
-                let pbc = self.vertex(&open, at(h, h));
-                let pca = self.vertex(&open, at(0, h));
-                // Children in `child_corners` order; their radii are adjacent in BFS order.
-                let first_child = level_start(level + 1) + 4 * index;
-                // Test the four children, sort them by entry distance with a fixed network (no
-                // dynamically indexed arrays: those are slow on GPUs), then push the hit ones
-                // farthest first so the nearest is popped next, or test them here.
-                let r = [
-                    self.radius(grid, first_child),
-                    self.radius(grid, first_child + 1),
-                    self.radius(grid, first_child + 2),
-                    self.radius(grid, first_child + 3),
+            let pb = if level == 0 {
+                open.corners[1]
+            } else {
+                self.vertex(&open, at(s, 0))
+            };
+            let pc = if level == 0 {
+                open.corners[2]
+            } else {
+                self.vertex(&open, at(0, s))
+            };
+            let pab = self.vertex(&open, at(h, 0));
+            let pbc = self.vertex(&open, at(h, h));
+            let pca = self.vertex(&open, at(0, h));
+            // Children in `child_corners` order; their radii are adjacent in BFS order.
+            let first_child = level_start(level + 1) + 4 * index;
+            // Test the four children, sort them by entry distance with a fixed network (no
+            // dynamically indexed arrays: those are slow on GPUs), then push the hit ones
+            // farthest first so the nearest is popped next, or test them here.
+            let r = [
+                self.radius(grid, first_child),
+                self.radius(grid, first_child + 1),
+                self.radius(grid, first_child + 2),
+                self.radius(grid, first_child + 3),
+            ];
+            let entry = |center: Vec3, child: u32| {
+                Entry::new(
+                    intersect_sphere_scaled(center, r[child as usize], ray, inv_dir_len2, hit.t),
+                    child,
+                )
+            };
+            tally.spheres(4);
+            e0 = entry(sphere_center(pa, pab, pca), 0);
+            e1 = entry(sphere_center(pab, pb, pbc), 1);
+            e2 = entry(sphere_center(pca, pbc, pc), 2);
+            e3 = entry(sphere_center(pbc, pca, pab), 3);
+            let children_are_leaves = level + 1 == leaf_level && leaf_level == self.params.leaf_level;
+            if self.params.leaf_footprint != 0 && children_are_leaves {
+                // The children are stored leaves: drop those whose footprint misses the ray
+                // before their vertices are loaded.
+                sheared = [
+                    shear(pa, ray),
+                    shear(pb, ray),
+                    shear(pc, ray),
+                    shear(pab, ray),
+                    shear(pbc, ray),
+                    shear(pca, ray),
                 ];
-                let entry = |center: Vec3, child: u32| {
-                    Entry::new(
-                        intersect_sphere_scaled(center, r[child as usize], ray, inv_dir_len2, hit.t),
-                        child,
-                    )
-                };
-                tally.spheres(4);
-                e0 = entry(sphere_center(pa, pab, pca), 0);
-                e1 = entry(sphere_center(pab, pb, pbc), 1);
-                e2 = entry(sphere_center(pca, pbc, pc), 2);
-                e3 = entry(sphere_center(pbc, pca, pab), 3);
-                let children_are_leaves = level + 1 == leaf_level && leaf_level == self.params.leaf_level;
-                if self.params.leaf_footprint != 0 && children_are_leaves {
-                    // The children are stored leaves: drop those whose footprint misses the ray
-                    // before their vertices are loaded.
-                    sheared = [
-                        shear(pa, ray),
-                        shear(pb, ray),
-                        shear(pc, ray),
-                        shear(pab, ray),
-                        shear(pbc, ray),
-                        shear(pca, ray),
-                    ];
-                    // Each child's thickness goes with it to its leaf test.
-                    e0.thickness = self.thickness(grid, 4 * index, r[0]);
-                    e1.thickness = self.thickness(grid, 4 * index + 1, r[1]);
-                    e2.thickness = self.thickness(grid, 4 * index + 2, r[2]);
-                    e3.thickness = self.thickness(grid, 4 * index + 3, r[3]);
-                    let [sa, sb, sc, sab, sbc, sca] = sheared;
-                    if e0.t < T_FAR && !frame.overlaps(sa, sab, sca, e0.thickness, slack) {
-                        e0.t = T_FAR;
-                    }
-                    if e1.t < T_FAR && !frame.overlaps(sab, sb, sbc, e1.thickness, slack) {
-                        e1.t = T_FAR;
-                    }
-                    if e2.t < T_FAR && !frame.overlaps(sca, sbc, sc, e2.thickness, slack) {
-                        e2.t = T_FAR;
-                    }
-                    if e3.t < T_FAR && !frame.overlaps(sbc, sca, sab, e3.thickness, slack) {
-                        e3.t = T_FAR;
-                    }
+                // Each child's thickness goes with it to its leaf test.
+                e0.thickness = self.thickness(grid, 4 * index, r[0]);
+                e1.thickness = self.thickness(grid, 4 * index + 1, r[1]);
+                e2.thickness = self.thickness(grid, 4 * index + 2, r[2]);
+                e3.thickness = self.thickness(grid, 4 * index + 3, r[3]);
+                let [sa, sb, sc, sab, sbc, sca] = sheared;
+                if e0.t < T_FAR && !frame.overlaps(sa, sab, sca, e0.thickness, slack) {
+                    e0.t = T_FAR;
                 }
-                sort_descending(&mut e0, &mut e1);
-                sort_descending(&mut e2, &mut e3);
-                sort_descending(&mut e0, &mut e2);
-                sort_descending(&mut e1, &mut e3);
-                sort_descending(&mut e1, &mut e2);
-                if self.params.leaf_footprint != 0 && children_are_leaves {
-                    // They would be popped next, nearest first: test them here instead, where
-                    // their sheared corners are at hand to find the part of each the ray can
-                    // cross. Only the children still in (sorted last) go round.
-                    let k = lod - leaf_level;
-                    family = LeafFamily {
-                        grid,
-                        first_leaf: 4 * index,
-                        corner: a,
-                        half: h,
-                        k,
-                        step: ((size / 2) >> k) * d,
-                        whole: 0,
-                        level: lod,
-                    };
-                    leaves =
-                        (e0.t < T_FAR) as u32 + (e1.t < T_FAR) as u32 + (e2.t < T_FAR) as u32 + (e3.t < T_FAR) as u32;
-                } else {
-                    let child_corner = |c: u32| pack_corner(child_first_corner(a, h, c), inverted != (c == 3));
-                    let mut push = |e: &Entry| {
-                        if e.t < T_FAR {
-                            scratch.stack[sp] = ((4 * index + e.child) << 4) | (level + 1);
-                            scratch.stack_corner[sp] = child_corner(e.child);
-                            scratch.stack_t[sp] = e.t;
-                            sp += 1;
-                        }
-                    };
-                    push(&e0);
-                    push(&e1);
-                    push(&e2);
-                    push(&e3);
+                if e1.t < T_FAR && !frame.overlaps(sab, sb, sbc, e1.thickness, slack) {
+                    e1.t = T_FAR;
+                }
+                if e2.t < T_FAR && !frame.overlaps(sca, sbc, sc, e2.thickness, slack) {
+                    e2.t = T_FAR;
+                }
+                if e3.t < T_FAR && !frame.overlaps(sbc, sca, sab, e3.thickness, slack) {
+                    e3.t = T_FAR;
                 }
             }
+            sort_descending(&mut e0, &mut e1);
+            sort_descending(&mut e2, &mut e3);
+            sort_descending(&mut e0, &mut e2);
+            sort_descending(&mut e1, &mut e3);
+            sort_descending(&mut e1, &mut e2);
+            if self.params.leaf_footprint != 0 && children_are_leaves {
+                // They would be popped next, nearest first: test them here instead, where
+                // their sheared corners are at hand to find the part of each the ray can
+                // cross. Only the children still in (sorted last) go round.
+                let k = lod - leaf_level;
+                family = LeafFamily {
+                    grid,
+                    first_leaf: 4 * index,
+                    corner: a,
+                    half: h,
+                    k,
+                    step: ((size / 2) >> k) * d,
+                    whole: 0,
+                    level: lod,
+                };
+                leaves = (e0.t < T_FAR) as u32 + (e1.t < T_FAR) as u32 + (e2.t < T_FAR) as u32 + (e3.t < T_FAR) as u32;
+            } else {
+                let child_corner = |c: u32| pack_corner(child_first_corner(a, h, c), inverted != (c == 3));
+                let mut push = |e: &Entry| {
+                    if e.t < T_FAR {
+                        scratch.stack[sp] = ((4 * index + e.child) << 4) | (level + 1);
+                        scratch.stack_corner[sp] = child_corner(e.child);
+                        scratch.stack_t[sp] = e.t;
+                        sp += 1;
+                    }
+                };
+                push(&e0);
+                push(&e1);
+                push(&e2);
+                push(&e3);
+            }
+        }
+        if leaves > 0 {
             let mut c = 0;
-            while c < leaves {
+            loop {
                 let e = match c {
                     0 => e3,
                     1 => e2,
@@ -554,8 +600,12 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                 };
                 self.intersect_child_leaf(&open, &family, &sheared, e, slack, ray, hit, scratch, tally);
                 c += 1;
+                if c >= leaves {
+                    break;
+                }
             }
         }
+        sp
     }
 }
 
@@ -616,6 +666,17 @@ struct LeafIds {
     level: u32,
 }
 
+/// What every sub-triangle of one grid visit shares: the grid, opened, the depth it is
+/// rendered at, where its hierarchy is cut, and the rounding room of its footprint tests.
+#[derive(Copy, Clone)]
+struct GridVisit {
+    grid: u32,
+    open: OpenGrid,
+    lod: u32,
+    leaf_level: u32,
+    slack: f32,
+}
+
 /// A child sphere's entry distance, which child it is, and its leaf's thickness when it is a
 /// stored leaf tested with its footprint.
 #[repr(C)]
@@ -671,9 +732,14 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> LeafPrimitives for GridScene<'_, H, 
         tally: &mut T,
     ) {
         let mut grid = first;
-        while grid < first + count {
+        // Tested at the bottom (see `traverse_bvh`): a pass more would be a whole grid visit.
+        // The builder makes no empty leaves.
+        loop {
             self.intersect_grid(grid, ray, hit, scratch, tally);
             grid += 1;
+            if grid >= first + count {
+                break;
+            }
         }
     }
 

@@ -96,43 +96,54 @@ pub fn traverse_bvh<N: Buffer<BvhNode>, P: LeafPrimitives, T: Tally>(
     let mut sp = 0usize;
     let mut scratch = prims.scratch(ray);
     let mut node = 0u32;
-    while node != NO_NODE {
+    // Every loop here tests its condition at the bottom: in lockstep a loop tested at the top
+    // runs its body once more than any ray needs (with every lane masked off), and for the
+    // outer loop that pass is a whole leaf test.
+    loop {
         // Down to the next leaf: dead ends (both children missed) pop and go on here, so every
         // round of the outer loop tests a leaf for each ray still going.
         let mut n = nodes.load(node);
         let mut at_leaf = n.is_leaf();
-        while !at_leaf {
-            let left = nodes.load(n.first);
-            let right = nodes.load(n.first + 1);
-            tally.nodes(2);
-            let tl = intersect_aabb(Vec3::from(left.min), Vec3::from(left.max), ray, hit.t);
-            let tr = intersect_aabb(Vec3::from(right.min), Vec3::from(right.max), ray, hit.t);
-            let next = if tl == T_FAR && tr == T_FAR {
-                pop_closer(&stack, &stack_t, &mut sp, hit.t)
-            } else {
-                let (near, far, t_far) = if tl <= tr {
-                    (n.first, n.first + 1, tr)
+        if !at_leaf {
+            loop {
+                let left = nodes.load(n.first);
+                let right = nodes.load(n.first + 1);
+                tally.nodes(2);
+                let tl = intersect_aabb(Vec3::from(left.min), Vec3::from(left.max), ray, hit.t);
+                let tr = intersect_aabb(Vec3::from(right.min), Vec3::from(right.max), ray, hit.t);
+                let next = if tl == T_FAR && tr == T_FAR {
+                    pop_closer(&stack, &stack_t, &mut sp, hit.t)
                 } else {
-                    (n.first + 1, n.first, tl)
+                    let (near, far, t_far) = if tl <= tr {
+                        (n.first, n.first + 1, tr)
+                    } else {
+                        (n.first + 1, n.first, tl)
+                    };
+                    if t_far < T_FAR && sp < MAX_BVH_DEPTH {
+                        stack[sp] = far;
+                        stack_t[sp] = t_far;
+                        sp += 1;
+                    }
+                    near
                 };
-                if t_far < T_FAR && sp < MAX_BVH_DEPTH {
-                    stack[sp] = far;
-                    stack_t[sp] = t_far;
-                    sp += 1;
+                if next == NO_NODE {
+                    break;
                 }
-                near
-            };
-            if next == NO_NODE {
-                break;
+                n = nodes.load(next);
+                at_leaf = n.is_leaf();
+                if at_leaf {
+                    break;
+                }
             }
-            n = nodes.load(next);
-            at_leaf = n.is_leaf();
         }
         if !at_leaf {
             break;
         }
         prims.intersect_leaf(n.first, n.count, ray, hit, &mut scratch, tally);
         node = pop_closer(&stack, &stack_t, &mut sp, hit.t);
+        if node == NO_NODE {
+            break;
+        }
     }
 }
 
@@ -215,13 +226,17 @@ impl<F: Buffer<f32>, I: Buffer<u32>> LeafPrimitives for TriangleMesh<F, I> {
         let mut closest = (hit.t, 0.0, 0.0);
         let mut closest_tri = 0;
         let mut tri = first;
-        while tri < first + count {
+        // Tested at the bottom (see `traverse_bvh`); the builder makes no empty leaves.
+        loop {
             let [v0, v1, v2] = self.corners(tri);
             if let Some(found) = intersect_triangle(v0, v1, v2, ray, closest.0) {
                 closest = found;
                 closest_tri = tri;
             }
             tri += 1;
+            if tri >= first + count {
+                break;
+            }
         }
         if closest.0 < hit.t {
             record_hit(hit, closest, closest_tri);
