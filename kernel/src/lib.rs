@@ -7,15 +7,16 @@
 #![cfg_attr(target_arch = "spirv", no_std)]
 
 use gridrt_shared::buffer::{Chunks, Split};
+use gridrt_shared::cost::Uncounted;
 use gridrt_shared::glam::{UVec3, Vec3};
-use gridrt_shared::grid_traverse::{trace_grids, GridScene};
+use gridrt_shared::grid_traverse::GridScene;
 use gridrt_shared::layout::{
     BvhNode, FrameParams, GridHeader, Hit, HitRecord, RayRecord, TraceParams, GRID_NODES, TRACE_WORKGROUP_SIZE,
     TRIANGLE_NODES, WORKGROUP_SIZE,
 };
 use gridrt_shared::ray::Ray;
 use gridrt_shared::shade::{cost_pixel, render_pixel};
-use gridrt_shared::traverse::{trace_triangles, TriangleMesh};
+use gridrt_shared::traverse::{closest_hit, TriangleMesh};
 use spirv_std::spirv;
 
 /// Where this thread's pixel goes in the tile's image buffer, or `None` outside the tile.
@@ -197,7 +198,13 @@ pub fn trace_triangles_rays(
 ) {
     if let Some(i) = ray_index(id, params) {
         let mesh = TriangleMesh { positions, indices };
-        hits[i] = record(&trace_triangles(nodes, &mesh, &ray_of(&rays[i]), rays[i].t_max));
+        hits[i] = record(&closest_hit(
+            nodes,
+            &mesh,
+            &ray_of(&rays[i]),
+            rays[i].t_max,
+            &mut Uncounted,
+        ));
     }
 }
 
@@ -223,7 +230,13 @@ pub fn trace_grids_rays(
             micro_triangles,
             params: params.grid,
         };
-        hits[i] = record(&trace_grids(nodes, &scene, &ray_of(&rays[i]), rays[i].t_max));
+        hits[i] = record(&closest_hit(
+            nodes,
+            &scene,
+            &ray_of(&rays[i]),
+            rays[i].t_max,
+            &mut Uncounted,
+        ));
     }
 }
 
@@ -239,7 +252,7 @@ split_kernel! {
         if let Some(i) = ray_index(id, params) {
             let nodes = Split::<BvhNode>::new(&chunks, &params.split, TRIANGLE_NODES);
             let mesh = TriangleMesh::split(&chunks, &params.split);
-            hits[i] = record(&trace_triangles(nodes, &mesh, &ray_of(&rays[i]), rays[i].t_max));
+            hits[i] = record(&closest_hit(nodes, &mesh, &ray_of(&rays[i]), rays[i].t_max, &mut Uncounted));
         }
     }
 }
@@ -257,7 +270,7 @@ split_kernel! {
         if let Some(i) = ray_index(id, params) {
             let nodes = Split::<BvhNode>::new(&chunks, &params.split, GRID_NODES);
             let scene = GridScene::split(&chunks, &params.split, micro_triangles, params.grid);
-            hits[i] = record(&trace_grids(nodes, &scene, &ray_of(&rays[i]), rays[i].t_max));
+            hits[i] = record(&closest_hit(nodes, &scene, &ray_of(&rays[i]), rays[i].t_max, &mut Uncounted));
         }
     }
 }

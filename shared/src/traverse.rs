@@ -53,12 +53,26 @@ pub fn trace_tallied<N: Buffer<BvhNode>, P: LeafPrimitives, T: Tally>(
     t_max: f32,
     tally: &mut T,
 ) -> Hit {
-    let mut hit = Hit::miss(t_max);
-    traverse_bvh(nodes, prims, ray, &mut hit, tally);
+    let mut hit = closest_hit(nodes, prims, ray, t_max, tally);
     if hit.is_hit() {
         let [a, b, c] = prims.triangle(hit.prim, hit.level);
         hit.normal = triangle_normal(a, b, c).to_array();
     }
+    hit
+}
+
+/// Closest hit along `ray` within `t_max`, without its normal: all a list of rays asks for.
+/// (On SIMD hardware the normal's loads cost every ray of a group, hit or not.)
+#[inline]
+pub fn closest_hit<N: Buffer<BvhNode>, P: LeafPrimitives, T: Tally>(
+    nodes: N,
+    prims: &P,
+    ray: &Ray,
+    t_max: f32,
+    tally: &mut T,
+) -> Hit {
+    let mut hit = Hit::miss(t_max);
+    traverse_bvh(nodes, prims, ray, &mut hit, tally);
     hit
 }
 
@@ -150,13 +164,21 @@ pub fn traverse_bvh<N: Buffer<BvhNode>, P: LeafPrimitives, T: Tally>(
 /// The nearest waiting node that can still hold a hit closer than `t`, or [`NO_NODE`].
 #[inline]
 fn pop_closer(stack: &[u32; MAX_BVH_DEPTH], stack_t: &[f32; MAX_BVH_DEPTH], sp: &mut usize, t: f32) -> u32 {
-    while *sp > 0 {
-        *sp -= 1;
-        if stack_t[*sp] < t {
-            return stack[*sp];
+    let mut node = NO_NODE;
+    // Tested at the bottom, behind a test that there is a first pass (see `traverse_bvh`).
+    if *sp > 0 {
+        loop {
+            *sp -= 1;
+            if stack_t[*sp] < t {
+                node = stack[*sp];
+                break;
+            }
+            if *sp == 0 {
+                break;
+            }
         }
     }
-    NO_NODE
+    node
 }
 
 /// Vertex `index` of a flat xyz array.
