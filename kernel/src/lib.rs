@@ -6,7 +6,7 @@
 //! than one binding may be. Both run the same traversal.
 #![cfg_attr(target_arch = "spirv", no_std)]
 
-use gridrt_shared::buffer::{Chunks, Split};
+use gridrt_shared::buffer::{Buffer, Chunks, Split};
 use gridrt_shared::cost::Uncounted;
 use gridrt_shared::glam::{UVec3, Vec3};
 use gridrt_shared::grid_traverse::GridScene;
@@ -16,7 +16,7 @@ use gridrt_shared::layout::{
 };
 use gridrt_shared::ray::Ray;
 use gridrt_shared::shade::{cost_pixel, render_pixel};
-use gridrt_shared::traverse::{closest_hit, TriangleMesh};
+use gridrt_shared::traverse::{closest_hit, LeafPrimitives, TriangleMesh};
 use spirv_std::spirv;
 
 /// Where this thread's pixel goes in the tile's image buffer, or `None` outside the tile.
@@ -49,6 +49,12 @@ fn record(hit: &Hit) -> HitRecord {
         t: hit.t,
         prim: hit.prim,
     }
+}
+
+/// The closest hit of ray `r` as the ray-list kernels record it: distance and triangle, so the
+/// walk stops there (no normal, see `closest_hit`).
+fn trace_record<N: Buffer<BvhNode>, P: LeafPrimitives>(nodes: N, prims: &P, r: &RayRecord) -> HitRecord {
+    record(&closest_hit(nodes, prims, &ray_of(r), r.t_max, &mut Uncounted))
 }
 
 /// Declares a kernel whose scene is split into chunks: its own bindings in set 0, then one
@@ -198,13 +204,7 @@ pub fn trace_triangles_rays(
 ) {
     if let Some(i) = ray_index(id, params) {
         let mesh = TriangleMesh { positions, indices };
-        hits[i] = record(&closest_hit(
-            nodes,
-            &mesh,
-            &ray_of(&rays[i]),
-            rays[i].t_max,
-            &mut Uncounted,
-        ));
+        hits[i] = trace_record(nodes, &mesh, &rays[i]);
     }
 }
 
@@ -230,13 +230,7 @@ pub fn trace_grids_rays(
             micro_triangles,
             params: params.grid,
         };
-        hits[i] = record(&closest_hit(
-            nodes,
-            &scene,
-            &ray_of(&rays[i]),
-            rays[i].t_max,
-            &mut Uncounted,
-        ));
+        hits[i] = trace_record(nodes, &scene, &rays[i]);
     }
 }
 
@@ -252,7 +246,7 @@ split_kernel! {
         if let Some(i) = ray_index(id, params) {
             let nodes = Split::<BvhNode>::new(&chunks, &params.split, TRIANGLE_NODES);
             let mesh = TriangleMesh::split(&chunks, &params.split);
-            hits[i] = record(&closest_hit(nodes, &mesh, &ray_of(&rays[i]), rays[i].t_max, &mut Uncounted));
+            hits[i] = trace_record(nodes, &mesh, &rays[i]);
         }
     }
 }
@@ -270,7 +264,7 @@ split_kernel! {
         if let Some(i) = ray_index(id, params) {
             let nodes = Split::<BvhNode>::new(&chunks, &params.split, GRID_NODES);
             let scene = GridScene::split(&chunks, &params.split, micro_triangles, params.grid);
-            hits[i] = record(&closest_hit(nodes, &scene, &ray_of(&rays[i]), rays[i].t_max, &mut Uncounted));
+            hits[i] = trace_record(nodes, &scene, &rays[i]);
         }
     }
 }
