@@ -25,10 +25,12 @@ struct Pipelines {
     trace: wgpu::ComputePipeline,
 }
 
-/// The pipelines of both representations.
+/// The pipelines of both representations, grids in both walks (see
+/// `gridrt_shared::grid_traverse::OneVisitGrids`).
 struct Kernels {
     triangles: Pipelines,
     grids: Pipelines,
+    grids_one_visit: Pipelines,
 }
 
 /// What a dispatch does: render a tile, trace a list of rays, or count a tile's tests for
@@ -53,7 +55,7 @@ pub struct Gpu {
     /// The kernels for split scenes and the heat map's, each made the first time it runs: the
     /// split ones bind more buffers than some adapters allow, and all take drivers long to
     /// compile.
-    on_demand: [std::sync::OnceLock<wgpu::ComputePipeline>; 8],
+    on_demand: [std::sync::OnceLock<wgpu::ComputePipeline>; 10],
 }
 
 /// A scene's geometry in GPU buffers, uploaded once and traced many times.
@@ -218,9 +220,12 @@ impl Gpu {
 
     /// A kernel made on first use: any for a split scene, or the heat map's.
     fn on_demand_pipeline(&self, scene: &Scene, job: Job, split: bool) -> Result<&wgpu::ComputePipeline> {
+        let one_visit = matches!(scene, Scene::Grids(s) if s.params.one_visit());
         let (index, entry) = match (scene, job, split) {
             (Scene::Triangles(_), Job::Render, _) => (0, "render_triangles_split"),
             (Scene::Triangles(_), Job::Trace, _) => (1, "trace_triangles_rays_split"),
+            (Scene::Grids(_), Job::Render, _) if one_visit => (8, "render_grids_one_visit_split"),
+            (Scene::Grids(_), Job::Trace, _) if one_visit => (9, "trace_grids_rays_one_visit_split"),
             (Scene::Grids(_), Job::Render, _) => (2, "render_grids_split"),
             (Scene::Grids(_), Job::Trace, _) => (3, "trace_grids_rays_split"),
             (Scene::Triangles(_), Job::Cost, true) => (4, "cost_triangles_split"),
@@ -339,6 +344,7 @@ impl Gpu {
     fn pipeline(&self, scene: &GpuScene, job: Job) -> Result<&wgpu::ComputePipeline> {
         let kernels = match scene.scene {
             Scene::Triangles(_) => &self.whole.triangles,
+            Scene::Grids(s) if s.params.one_visit() => &self.whole.grids_one_visit,
             Scene::Grids(_) => &self.whole.grids,
         };
         Ok(match job {
@@ -636,6 +642,10 @@ fn kernels(device: &wgpu::Device, module: &wgpu::ShaderModule) -> Kernels {
         grids: Pipelines {
             render: pipeline("render_grids"),
             trace: pipeline("trace_grids_rays"),
+        },
+        grids_one_visit: Pipelines {
+            render: pipeline("render_grids_one_visit"),
+            trace: pipeline("trace_grids_rays_one_visit"),
         },
     }
 }

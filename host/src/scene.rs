@@ -2,12 +2,13 @@
 
 use gridrt_shared::buffer::Buffer;
 use gridrt_shared::glam::Vec3;
+use gridrt_shared::grid_traverse::{trace_grids, OneVisitGrids};
 use gridrt_shared::layout::{BvhNode, Camera, FrameParams, GridParams, Hit, SHADE_COST};
 use gridrt_shared::ray::{Ray, T_FAR};
 use gridrt_shared::shade::{cost_pixel, render_pixel};
+use gridrt_shared::traverse::trace_triangles;
 use gridrt_shared::traverse::LeafPrimitives;
 use gridrt_shared::triangle::{intersect_triangle, triangle_normal};
-use gridrt_shared::{grid_traverse::trace_grids, traverse::trace_triangles};
 use rayon::prelude::*;
 
 use crate::bvh::Aabb;
@@ -154,8 +155,15 @@ fn reference_t(ray: &Ray, [a, b, c]: [Vec3; 3]) -> Option<f64> {
 pub fn render_cpu(scene: &Scene, frame: &FrameParams) -> Vec<u32> {
     match scene {
         Scene::Triangles(s) => render_pixels(frame, s.nodes.as_slice(), &s.view()),
-        // Read as the frame says (its level of detail), as the kernels do.
-        Scene::Grids(s) => render_pixels(frame, s.nodes.as_slice(), &s.view_as(frame.grid)),
+        // Read as the frame says (its level of detail), and walked as the kernels walk it.
+        Scene::Grids(s) => {
+            let grids = s.view_as(frame.grid);
+            if frame.grid.one_visit() {
+                render_pixels(frame, s.nodes.as_slice(), &OneVisitGrids(grids))
+            } else {
+                render_pixels(frame, s.nodes.as_slice(), &grids)
+            }
+        }
     }
 }
 

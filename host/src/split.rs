@@ -149,7 +149,11 @@ pub fn render_cpu_split(scene: &Scene, split: &SplitScene, frame: &FrameParams) 
         }
         Scene::Grids(_) => {
             let grids = grid_traverse::GridScene::split(&chunks, &split.params, &MICRO_TRIANGLES, frame.grid);
-            render_pixels(frame, nodes(GRID_NODES), &grids)
+            if frame.grid.one_visit() {
+                render_pixels(frame, nodes(GRID_NODES), &grid_traverse::OneVisitGrids(grids))
+            } else {
+                render_pixels(frame, nodes(GRID_NODES), &grids)
+            }
         }
     }
 }

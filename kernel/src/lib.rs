@@ -9,7 +9,7 @@
 use gridrt_shared::buffer::{Buffer, Chunks, Split};
 use gridrt_shared::cost::Uncounted;
 use gridrt_shared::glam::{UVec3, Vec3};
-use gridrt_shared::grid_traverse::GridScene;
+use gridrt_shared::grid_traverse::{GridScene, OneVisitGrids};
 use gridrt_shared::layout::{
     BvhNode, FrameParams, GridHeader, Hit, HitRecord, RayRecord, TraceParams, GRID_NODES, TRACE_WORKGROUP_SIZE,
     TRIANGLE_NODES, WORKGROUP_SIZE,
@@ -106,14 +106,14 @@ macro_rules! split_kernel {
     };
 }
 
-/// Declares the four kernels that colour a frame's pixels by `$pixel` (a `gridrt_shared::shade`
-/// function of the frame, the BVH, the primitives and the pixel): over the baseline and over
-/// grids, each reading whole buffers and a split scene.
-macro_rules! image_kernels {
-    ($pixel:path: $triangles:ident, $grids:ident, $triangles_split:ident, $grids_split:ident) => {
+/// Declares the two kernels that colour a frame's pixels of the baseline by `$pixel` (a
+/// `gridrt_shared::shade` function of the frame, the BVH, the primitives and the pixel): a
+/// triangle BVH over an indexed triangle list, reading whole buffers and a split scene.
+macro_rules! triangle_image_kernels {
+    ($pixel:path: $name:ident, $split:ident) => {
         /// The baseline: a triangle BVH over an indexed triangle list.
         #[spirv(compute(threads(8, 8, 1)))]
-        pub fn $triangles(
+        pub fn $name(
             #[spirv(global_invocation_id)] id: UVec3,
             #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
             #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] image: &mut [u32],
@@ -127,10 +127,33 @@ macro_rules! image_kernels {
             }
         }
 
+        split_kernel! {
+            /// The baseline over a split scene.
+            #[spirv(compute(threads(8, 8, 1)))]
+            fn $split(
+                #[spirv(global_invocation_id)] id: UVec3,
+                #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
+                #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] image: &mut [u32],
+            ) |chunks| {
+                if let Some(i) = tile_index(id, frame) {
+                    let nodes = Split::<BvhNode>::new(&chunks, &frame.split, TRIANGLE_NODES);
+                    let mesh = TriangleMesh::split(&chunks, &frame.split);
+                    image[i] = $pixel(frame, nodes, &mesh, frame.tile_x + id.x, frame.tile_y + id.y);
+                }
+            }
+        }
+    };
+}
+
+/// Declares the two kernels that colour a frame's pixels of grid primitives by `$pixel`, each
+/// grid walked as `$walk` wraps the scene (see [`stacked`]), reading whole buffers and a split
+/// scene.
+macro_rules! grid_image_kernels {
+    ($pixel:path, $walk:path: $name:ident, $split:ident) => {
         /// Grid primitives: top-level BVH over grids, sphere hierarchy inside each.
         #[allow(clippy::too_many_arguments)] // one per binding
         #[spirv(compute(threads(8, 8, 1)))]
-        pub fn $grids(
+        pub fn $name(
             #[spirv(global_invocation_id)] id: UVec3,
             #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
             #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] image: &mut [u32],
@@ -148,30 +171,20 @@ macro_rules! image_kernels {
                     micro_triangles,
                     params: frame.grid,
                 };
-                image[i] = $pixel(frame, nodes, &scene, frame.tile_x + id.x, frame.tile_y + id.y);
-            }
-        }
-
-        split_kernel! {
-            /// The baseline over a split scene.
-            #[spirv(compute(threads(8, 8, 1)))]
-            fn $triangles_split(
-                #[spirv(global_invocation_id)] id: UVec3,
-                #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
-                #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] image: &mut [u32],
-            ) |chunks| {
-                if let Some(i) = tile_index(id, frame) {
-                    let nodes = Split::<BvhNode>::new(&chunks, &frame.split, TRIANGLE_NODES);
-                    let mesh = TriangleMesh::split(&chunks, &frame.split);
-                    image[i] = $pixel(frame, nodes, &mesh, frame.tile_x + id.x, frame.tile_y + id.y);
-                }
+                image[i] = $pixel(
+                    frame,
+                    nodes,
+                    &$walk(scene),
+                    frame.tile_x + id.x,
+                    frame.tile_y + id.y,
+                );
             }
         }
 
         split_kernel! {
             /// Grid primitives over a split scene.
             #[spirv(compute(threads(8, 8, 1)))]
-            fn $grids_split(
+            fn $split(
                 #[spirv(global_invocation_id)] id: UVec3,
                 #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
                 #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] image: &mut [u32],
@@ -180,16 +193,26 @@ macro_rules! image_kernels {
                 if let Some(i) = tile_index(id, frame) {
                     let nodes = Split::<BvhNode>::new(&chunks, &frame.split, GRID_NODES);
                     let scene = GridScene::split(&chunks, &frame.split, micro_triangles, frame.grid);
-                    image[i] = $pixel(frame, nodes, &scene, frame.tile_x + id.x, frame.tile_y + id.y);
+                    image[i] = $pixel(frame, nodes, &$walk(scene), frame.tile_x + id.x, frame.tile_y + id.y);
                 }
             }
         }
     };
 }
 
+/// Grids walked with a stack of sub-triangles: any hierarchy depth.
+fn stacked<S>(scene: S) -> S {
+    scene
+}
+
 // Pictures, and the cost heat map's counts (packed `Costs` per pixel, coloured on the host).
-image_kernels!(render_pixel: render_triangles, render_grids, render_triangles_split, render_grids_split);
-image_kernels!(cost_pixel: cost_triangles, cost_grids, cost_triangles_split, cost_grids_split);
+// Grids whose hierarchies one visit walks (`GridParams::one_visit`) have kernels of their
+// own, without the stack; the heat map's counts are the same either way.
+triangle_image_kernels!(render_pixel: render_triangles, render_triangles_split);
+grid_image_kernels!(render_pixel, stacked: render_grids, render_grids_split);
+grid_image_kernels!(render_pixel, OneVisitGrids: render_grids_one_visit, render_grids_one_visit_split);
+triangle_image_kernels!(cost_pixel: cost_triangles, cost_triangles_split);
+grid_image_kernels!(cost_pixel, stacked: cost_grids, cost_grids_split);
 
 /// A list of rays against the baseline (benchmarks, and anything that brings its own rays).
 #[spirv(compute(threads(64, 1, 1)))]
@@ -205,32 +228,6 @@ pub fn trace_triangles_rays(
     if let Some(i) = ray_index(id, params) {
         let mesh = TriangleMesh { positions, indices };
         hits[i] = trace_record(nodes, &mesh, &rays[i]);
-    }
-}
-
-/// A list of rays against grid primitives.
-#[allow(clippy::too_many_arguments)] // one per binding
-#[spirv(compute(threads(64, 1, 1)))]
-pub fn trace_grids_rays(
-    #[spirv(global_invocation_id)] id: UVec3,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[RayRecord],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] hits: &mut [HitRecord],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] micro_triangles: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] nodes: &[BvhNode],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] headers: &[GridHeader],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] vertices: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] radii: &[u32],
-) {
-    if let Some(i) = ray_index(id, params) {
-        let scene = GridScene {
-            headers,
-            vertices,
-            radii,
-            micro_triangles,
-            params: params.grid,
-        };
-        hits[i] = trace_record(nodes, &scene, &rays[i]);
     }
 }
 
@@ -251,23 +248,58 @@ split_kernel! {
     }
 }
 
-split_kernel! {
-    /// [`trace_grids_rays`] over a split scene.
-    #[spirv(compute(threads(64, 1, 1)))]
-    fn trace_grids_rays_split(
-        #[spirv(global_invocation_id)] id: UVec3,
-        #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
-        #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[RayRecord],
-        #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] hits: &mut [HitRecord],
-        #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] micro_triangles: &[u32],
-    ) |chunks| {
-        if let Some(i) = ray_index(id, params) {
-            let nodes = Split::<BvhNode>::new(&chunks, &params.split, GRID_NODES);
-            let scene = GridScene::split(&chunks, &params.split, micro_triangles, params.grid);
-            hits[i] = trace_record(nodes, &scene, &rays[i]);
+/// Declares the two kernels that trace a list of rays against grid primitives, each grid
+/// walked as `$walk` wraps the scene, reading whole buffers and a split scene.
+macro_rules! grid_ray_kernels {
+    ($walk:path: $name:ident, $split:ident) => {
+        /// A list of rays against grid primitives.
+        #[allow(clippy::too_many_arguments)] // one per binding
+        #[spirv(compute(threads(64, 1, 1)))]
+        pub fn $name(
+            #[spirv(global_invocation_id)] id: UVec3,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[RayRecord],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] hits: &mut [HitRecord],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] micro_triangles: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] nodes: &[BvhNode],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] headers: &[GridHeader],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] vertices: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] radii: &[u32],
+        ) {
+            if let Some(i) = ray_index(id, params) {
+                let scene = GridScene {
+                    headers,
+                    vertices,
+                    radii,
+                    micro_triangles,
+                    params: params.grid,
+                };
+                hits[i] = trace_record(nodes, &$walk(scene), &rays[i]);
+            }
         }
-    }
+
+        split_kernel! {
+            /// A list of rays against grid primitives over a split scene.
+            #[spirv(compute(threads(64, 1, 1)))]
+            fn $split(
+                #[spirv(global_invocation_id)] id: UVec3,
+                #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
+                #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[RayRecord],
+                #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] hits: &mut [HitRecord],
+                #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] micro_triangles: &[u32],
+            ) |chunks| {
+                if let Some(i) = ray_index(id, params) {
+                    let nodes = Split::<BvhNode>::new(&chunks, &params.split, GRID_NODES);
+                    let scene = GridScene::split(&chunks, &params.split, micro_triangles, params.grid);
+                    hits[i] = trace_record(nodes, &$walk(scene), &rays[i]);
+                }
+            }
+        }
+    };
 }
+
+grid_ray_kernels!(stacked: trace_grids_rays, trace_grids_rays_split);
+grid_ray_kernels!(OneVisitGrids: trace_grids_rays_one_visit, trace_grids_rays_one_visit_split);
 
 // The workgroup sizes above is a literal because attribute arguments cannot name constants.
 const _: () = assert!(WORKGROUP_SIZE == 8 && TRACE_WORKGROUP_SIZE == 64);

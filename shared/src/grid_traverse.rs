@@ -27,6 +27,7 @@ const GRID_STACK: usize = 3 * MAX_SPHERE_LEVEL as usize + 4;
 
 /// Grid primitives: headers, the three vertex areas in one buffer, and the sphere radii;
 /// plain slices, or split buffers (see [`crate::buffer`]).
+#[derive(Copy, Clone)]
 pub struct GridScene<'a, H, W> {
     pub headers: H,
     /// Each grid's inner area (`GridParams::inner_words` words: `f32` triples or 16-bit
@@ -377,7 +378,14 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     }
 
     /// The bottom level: depth-first, nearest sphere first, over the grid's 4-ary hierarchy.
-    pub fn intersect_grid<T: Tally>(
+    ///
+    /// `STACK` says how: with a stack of pending sub-triangles, which takes any depth; or, for
+    /// hierarchies whose stored leaves are the root's children or the root itself
+    /// ([`GridParams::one_visit`]), by the root's visit alone, which tests its children's
+    /// leaves in place and so never pushes. The second is the same walk with the stack
+    /// compiled out: lavapipe keeps a private array written at a varying height in memory,
+    /// and pays for the pushes in every visit, taken or not.
+    pub fn intersect_grid<const STACK: bool, T: Tally>(
         &self,
         grid: u32,
         ray: &Ray,
@@ -407,16 +415,35 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             // Every vertex of the grid lies within the root sphere.
             slack: FootprintFrame::slack((open.origin - ray.origin).abs().max_element() + root_radius),
         };
+        let root = SubTriangle {
+            level: 0,
+            index: 0,
+            corner: [0, 0],
+            inverted: false,
+            t: 0.0,
+        };
+        if !STACK {
+            self.visit_sub_triangle::<false, T>(&visit, &root, 0, ray, hit, scratch, tally);
+            return;
+        }
         let mut sp = 1usize;
         scratch.stack[0] = 0;
-        scratch.stack_corner[0] = pack_corner([0, 0], false);
-        scratch.stack_t[0] = 0.0;
+        scratch.stack_corner[0] = pack_corner(root.corner, root.inverted);
+        scratch.stack_t[0] = root.t;
         // Tested at the bottom (see `traverse_bvh`): the root is always there to pop, and a
         // pass more would cost every group a sub-triangle's whole work.
         loop {
             sp -= 1;
             if scratch.stack_t[sp] < hit.t {
-                sp = self.visit_sub_triangle(&visit, sp, ray, hit, scratch, tally);
+                let packed = scratch.stack_corner[sp];
+                let popped = SubTriangle {
+                    level: scratch.stack[sp] & 0xf,
+                    index: scratch.stack[sp] >> 4,
+                    corner: [(packed & 0xff) as i32, ((packed >> 8) & 0xff) as i32],
+                    inverted: packed >> 16 != 0,
+                    t: scratch.stack_t[sp],
+                };
+                sp = self.visit_sub_triangle::<true, T>(&visit, &popped, sp, ray, hit, scratch, tally);
             }
             if sp == 0 {
                 break;
@@ -424,12 +451,14 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         }
     }
 
-    /// The sub-triangle at `scratch.stack[sp]`, just popped: its children's spheres are
-    /// tested and the hit ones pushed, nearest on top, or tested here when they are leaves (or
-    /// it is one). Returns the stack's new height.
-    fn visit_sub_triangle<T: Tally>(
+    /// Sub-triangle `sub`, just popped (the stack is `sp` high without it): its children's
+    /// spheres are tested and the hit ones pushed, nearest on top, or tested here when they
+    /// are leaves (or it is one). Returns the stack's new height.
+    #[allow(clippy::too_many_arguments)]
+    fn visit_sub_triangle<const STACK: bool, T: Tally>(
         &self,
         visit: &GridVisit,
+        sub: &SubTriangle,
         mut sp: usize,
         ray: &Ray,
         hit: &mut Hit,
@@ -446,13 +475,9 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         let n = 1u32 << self.params.levels;
         let inv_dir_len2 = scratch.inv_dir_len2;
         let frame = scratch.frame;
-        let level = scratch.stack[sp] & 0xf;
-        let index = scratch.stack[sp] >> 4;
+        let (level, index, a, inverted) = (sub.level, sub.index, sub.corner, sub.inverted);
         // A sub-triangle is its first corner `a`, its edge length and its orientation:
         // `b = a + d (s, 0)`, `c = a + d (0, s)`, `d = -1` for the inverted ones.
-        let packed = scratch.stack_corner[sp];
-        let a = [(packed & 0xff) as i32, ((packed >> 8) & 0xff) as i32];
-        let inverted = packed >> 16 != 0;
         let d = if inverted { -1 } else { 1 };
         let size = (n >> level) as i32;
         // The leaves this round tests, through one call site below (rust-gpu inlines every
@@ -473,7 +498,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         let mut e0 = Entry::new(T_FAR, 0);
         let mut e1 = Entry::new(T_FAR, 1);
         let mut e2 = Entry::new(T_FAR, 2);
-        let mut e3 = Entry::new(scratch.stack_t[sp], 0);
+        let mut e3 = Entry::new(sub.t, 0);
         let mut leaves = 1;
         if level != leaf_level {
             leaves = 0;
@@ -521,10 +546,12 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             e1 = entry(sphere_center(pab, pb, pbc), 1);
             e2 = entry(sphere_center(pca, pbc, pc), 2);
             e3 = entry(sphere_center(pbc, pca, pab), 3);
-            let children_are_leaves = level + 1 == leaf_level && leaf_level == self.params.leaf_level;
-            if self.params.leaf_footprint != 0 && children_are_leaves {
-                // The children are stored leaves: drop those whose footprint misses the ray
-                // before their vertices are loaded.
+            // Children that are leaves are tested here, nearest first, rather than pushed and
+            // popped; stored leaves first drop those whose footprint misses the ray, before
+            // their vertices are loaded.
+            let children_are_leaves = level + 1 == leaf_level;
+            let footprint = self.params.leaf_footprint != 0 && leaf_level == self.params.leaf_level;
+            if children_are_leaves && footprint {
                 sheared = [
                     shear(pa, ray),
                     shear(pb, ray),
@@ -557,10 +584,10 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             sort_descending(&mut e0, &mut e2);
             sort_descending(&mut e1, &mut e3);
             sort_descending(&mut e1, &mut e2);
-            if self.params.leaf_footprint != 0 && children_are_leaves {
-                // They would be popped next, nearest first: test them here instead, where
-                // their sheared corners are at hand to find the part of each the ray can
-                // cross. Only the children still in (sorted last) go round.
+            if children_are_leaves {
+                // Where their footprint is tested, their sheared corners are at hand to find
+                // the part of each the ray can cross. Only the children still in (sorted
+                // last) go round.
                 let k = lod - leaf_level;
                 family = LeafFamily {
                     grid,
@@ -569,11 +596,11 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                     half: h,
                     k,
                     step: ((size / 2) >> k) * d,
-                    whole: 0,
+                    whole: !footprint as u32,
                     level: lod,
                 };
                 leaves = (e0.t < T_FAR) as u32 + (e1.t < T_FAR) as u32 + (e2.t < T_FAR) as u32 + (e3.t < T_FAR) as u32;
-            } else {
+            } else if STACK {
                 let child_corner = |c: u32| pack_corner(child_first_corner(a, h, c), inverted != (c == 3));
                 let mut push = |e: &Entry| {
                     if e.t < T_FAR {
@@ -641,8 +668,8 @@ fn pack_corner(a: [i32; 2], inverted: bool) -> u32 {
 
 /// Four sibling leaves: their parent's grid, the index of its first child, its first corner
 /// `corner` and half its edge `half` (signed, see [`GridScene::intersect_grid`]), and each
-/// leaf's depth `k` and lattice step; or, with `whole` set, one leaf (child 0, `half` 0)
-/// tested whole, without a footprint; `level` is the depth the grid is rendered at (`repr(C)`:
+/// leaf's depth `k` and lattice step; with `whole` set, each leaf is tested whole, without a
+/// footprint (a popped leaf is the family's child 0, `half` 0); `level` is the depth the grid is rendered at (`repr(C)`:
 /// naga rejects members out of offset order).
 #[repr(C)]
 struct LeafFamily {
@@ -677,6 +704,18 @@ struct GridVisit {
     slack: f32,
 }
 
+/// A sub-triangle of a grid's hierarchy to visit: its depth, its index at that depth, its first
+/// corner and orientation (see [`GridScene::visit_sub_triangle`]), and its sphere's entry
+/// distance.
+#[derive(Copy, Clone)]
+struct SubTriangle {
+    level: u32,
+    index: u32,
+    corner: [i32; 2],
+    inverted: bool,
+    t: f32,
+}
+
 /// A child sphere's entry distance, which child it is, and its leaf's thickness when it is a
 /// stored leaf tested with its footprint.
 #[repr(C)]
@@ -707,10 +746,9 @@ fn sort_descending(x: &mut Entry, y: &mut Entry) {
     }
 }
 
-impl<H: Buffer<GridHeader>, W: Buffer<u32>> LeafPrimitives for GridScene<'_, H, W> {
-    type Scratch = GridScratch;
-
-    fn scratch(&self, ray: &Ray) -> GridScratch {
+impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
+    /// Working memory of one ray's grid visits.
+    fn new_scratch(ray: &Ray) -> GridScratch {
         GridScratch {
             stack: [0; GRID_STACK],
             stack_corner: [0; GRID_STACK],
@@ -722,7 +760,8 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> LeafPrimitives for GridScene<'_, H, 
         }
     }
 
-    fn intersect_leaf<T: Tally>(
+    /// Grids `first .. first + count`, each walked as `STACK` says (see `intersect_grid`).
+    fn intersect_grids<const STACK: bool, T: Tally>(
         &self,
         first: u32,
         count: u32,
@@ -735,12 +774,33 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> LeafPrimitives for GridScene<'_, H, 
         // Tested at the bottom (see `traverse_bvh`): a pass more would be a whole grid visit.
         // The builder makes no empty leaves.
         loop {
-            self.intersect_grid(grid, ray, hit, scratch, tally);
+            self.intersect_grid::<STACK, T>(grid, ray, hit, scratch, tally);
             grid += 1;
             if grid >= first + count {
                 break;
             }
         }
+    }
+}
+
+/// Grid primitives of any hierarchy depth: each grid walked with a stack of sub-triangles.
+impl<H: Buffer<GridHeader>, W: Buffer<u32>> LeafPrimitives for GridScene<'_, H, W> {
+    type Scratch = GridScratch;
+
+    fn scratch(&self, ray: &Ray) -> GridScratch {
+        Self::new_scratch(ray)
+    }
+
+    fn intersect_leaf<T: Tally>(
+        &self,
+        first: u32,
+        count: u32,
+        ray: &Ray,
+        hit: &mut Hit,
+        scratch: &mut GridScratch,
+        tally: &mut T,
+    ) {
+        self.intersect_grids::<true, T>(first, count, ray, hit, scratch, tally);
     }
 
     #[inline]
@@ -753,12 +813,52 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> LeafPrimitives for GridScene<'_, H, 
     }
 }
 
-/// Closest hit among grid primitives under a top-level BVH.
+/// Grid primitives whose hierarchies are walked by the root's visit alone, without a stack:
+/// only for scenes whose [`GridParams::one_visit`] holds (the default `L = 3` among them),
+/// where they find the same hits as the [`GridScene`] they wrap, with less work on GPUs.
+pub struct OneVisitGrids<'a, H, W>(pub GridScene<'a, H, W>);
+
+impl<H: Buffer<GridHeader>, W: Buffer<u32>> LeafPrimitives for OneVisitGrids<'_, H, W> {
+    type Scratch = GridScratch;
+
+    fn scratch(&self, ray: &Ray) -> GridScratch {
+        GridScene::<H, W>::new_scratch(ray)
+    }
+
+    fn intersect_leaf<T: Tally>(
+        &self,
+        first: u32,
+        count: u32,
+        ray: &Ray,
+        hit: &mut Hit,
+        scratch: &mut GridScratch,
+        tally: &mut T,
+    ) {
+        self.0
+            .intersect_grids::<false, T>(first, count, ray, hit, scratch, tally);
+    }
+
+    #[inline]
+    fn triangle(&self, prim: u32, level: u32) -> [Vec3; 3] {
+        self.0.micro_triangle(prim, level)
+    }
+
+    fn smooth_normal(&self, hit: &Hit) -> Vec3 {
+        self.0.smooth_normal(hit)
+    }
+}
+
+/// Closest hit among grid primitives under a top-level BVH, each grid walked the cheapest way
+/// its hierarchy allows.
 pub fn trace_grids<N: Buffer<BvhNode>, H: Buffer<GridHeader>, W: Buffer<u32>>(
     nodes: N,
     scene: &GridScene<H, W>,
     ray: &Ray,
     t_max: f32,
 ) -> Hit {
-    trace(nodes, scene, ray, t_max)
+    if scene.params.one_visit() {
+        trace(nodes, &OneVisitGrids(*scene), ray, t_max)
+    } else {
+        trace(nodes, scene, ray, t_max)
+    }
 }

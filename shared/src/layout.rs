@@ -233,6 +233,15 @@ pub struct GridParams {
     pub lod_scale: f32,
 }
 
+impl GridParams {
+    /// Whether every grid's hierarchy is walked by its root's visit alone: its stored leaves
+    /// are the root's children or the root itself, as at the default depth `L = 3`. Such
+    /// scenes may be traced as `OneVisitGrids` (see `crate::grid_traverse`), without a stack.
+    pub fn one_visit(&self) -> bool {
+        self.leaf_level <= 1
+    }
+}
+
 /// Where a split scene's buffers lie among its chunks (see [`crate::buffer`]): buffer `b`
 /// starts at chunk `first_chunk[b]` and holds `len[b]` elements; every chunk but a buffer's
 /// last holds `2^chunk_shift` words. Buffers of a grid scene: [`GRID_NODES`],

@@ -74,6 +74,16 @@ fn both_modes(gpu: &gridrt::gpu::Gpu, name: &str, mesh: &Mesh, levels: u32) {
     );
 }
 
+/// Grid options whose hierarchies at `L = 3` are deeper than one visit walks (see
+/// `GridParams::one_visit`): the kernels with the sub-triangle stack.
+fn stacked_options() -> gridrt::grid::GridOptions {
+    gridrt::grid::GridOptions {
+        excluded_levels: 1,
+        half_radii: true,
+        leaf_footprint: true,
+    }
+}
+
 #[test]
 fn default_scene_gpu_equals_cpu() {
     let Some(gpu) = gpu_or_skip("default_scene_gpu_equals_cpu") else {
@@ -88,9 +98,8 @@ fn default_scene_gpu_equals_cpu() {
     }
     compare(&gpu, "default scene L=3 lod 1", &pair.grids, &pair.bounds, SHADE_NORMAL);
     let options = gridrt::grid::GridOptions {
-        excluded_levels: 1,
-        half_radii: true,
         leaf_footprint: false,
+        ..stacked_options()
     };
     let pair = gridrt_tests::build_pair_from(&default_scene(), 3, 3, Scheme::Loop, &options, false);
     compare(
@@ -126,7 +135,14 @@ fn ray_lists_gpu_equal_cpu() {
     let first = trace_cpu(&pair.triangles, &primary);
     let ao = ao_rays(&primary, &first, 2, &pair.bounds, |p| pair.triangles.normal(p));
     assert!(ao.len() > primary.len() / 4);
-    for (name, scene) in [("grids", &pair.grids), ("triangles", &pair.triangles)] {
+    // One level fewer out of the sphere hierarchy: its grids take the kernels with the stack.
+    let stacked = gridrt_tests::build_pair_with(&default_scene(), 3, 3, Scheme::Loop, &stacked_options());
+    let scenes = [
+        ("grids", &pair.grids),
+        ("grids, stacked walk", &stacked.grids),
+        ("triangles", &pair.triangles),
+    ];
+    for (name, scene) in scenes {
         let uploaded = gpu.upload(scene).unwrap();
         for (kind, rays) in [("primary", &primary), ("ao", &ao)] {
             let cpu = trace_cpu(scene, rays);

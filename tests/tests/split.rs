@@ -4,6 +4,7 @@
 //! the CPU and on the GPU, and what cannot be bound must be refused with its sizes.
 
 use gridrt::camera;
+use gridrt::grid::GridOptions;
 use gridrt::image_io::fraction_within;
 use gridrt::mesh::scene::default_scene;
 use gridrt::rays::{primary_rays, trace_cpu};
@@ -12,7 +13,7 @@ use gridrt::split::{render_cpu_split, scene_buffers, split};
 use gridrt::subdiv::Scheme;
 use gridrt_shared::buffer::SPLIT_CHUNKS;
 use gridrt_shared::layout::SHADE_NORMAL;
-use gridrt_tests::{build_pair, gpu_or_skip, Pair};
+use gridrt_tests::{build_pair, build_pair_with, gpu_or_skip, Pair};
 
 /// The smallest power-of-two chunk (at least 1 KiB) that holds `scene` in at most
 /// [`SPLIT_CHUNKS`] chunks; the tests check that it still cuts every buffer larger than 1 KiB.
@@ -28,10 +29,26 @@ fn pair() -> Pair {
     build_pair(&default_scene(), 2, 2, Scheme::Loop)
 }
 
+/// Grids whose hierarchies take the stack (every level with spheres: deeper than one visit
+/// walks, see `GridParams::one_visit`).
+fn stacked_grids() -> Scene {
+    let options = GridOptions {
+        excluded_levels: 0,
+        ..GridOptions::default()
+    };
+    build_pair_with(&default_scene(), 2, 2, Scheme::Loop, &options).grids
+}
+
 #[test]
 fn cpu_reads_split_scenes_as_whole_ones() {
     let pair = pair();
-    for (name, scene) in [("grids", &pair.grids), ("triangles", &pair.triangles)] {
+    let stacked = stacked_grids();
+    let scenes = [
+        ("grids", &pair.grids),
+        ("grids, stacked walk", &stacked),
+        ("triangles", &pair.triangles),
+    ];
+    for (name, scene) in scenes {
         let bytes = smallest_chunk_bytes(scene);
         let cut = split(scene, (bytes / 4) as u32, "test").unwrap();
         let buffers = scene_buffers(scene);
@@ -76,7 +93,13 @@ fn split_scenes_on_the_gpu_equal_whole_ones() {
     };
     let pair = pair();
     let rays = primary_rays(&pair.bounds, 1, 64, 48);
-    for (name, scene) in [("grids", &pair.grids), ("triangles", &pair.triangles)] {
+    let stacked = stacked_grids();
+    let scenes = [
+        ("grids", &pair.grids),
+        ("grids, stacked walk", &stacked),
+        ("triangles", &pair.triangles),
+    ];
+    for (name, scene) in scenes {
         let mut gpu = gpu_or_skip("split_scenes_on_the_gpu_equal_whole_ones").unwrap();
         gpu.limit_bindings(smallest_chunk_bytes(scene)).unwrap();
         let frame = scene.frame(camera::frame(&pair.bounds, 96, 72), SHADE_NORMAL);

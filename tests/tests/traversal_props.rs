@@ -1,6 +1,7 @@
 //! Property tests of the traversal: on random meshes (degenerate, sliver, huge and tiny
 //! triangles among them) and random rays, the grid traversal, the baseline BVH and a brute
-//! force loop over every micro-triangle find the same closest hit.
+//! force loop over every micro-triangle find the same closest hit; and both walks of a grid
+//! hierarchy find the same, bit for bit, wherever both apply.
 
 use gridrt::grid::{self, GridOptions};
 use gridrt::mesh::Mesh;
@@ -8,7 +9,9 @@ use gridrt::scene::{closest_hit_slack, hit_uncertainty, hits_only_by_rounding, S
 use gridrt::subdiv::{subdivide, Scheme};
 use gridrt::triangles;
 use gridrt_shared::glam::Vec3;
+use gridrt_shared::grid_traverse::OneVisitGrids;
 use gridrt_shared::ray::{Ray, T_FAR};
+use gridrt_shared::traverse::trace;
 use gridrt_shared::triangle::intersect_triangle;
 use proptest::prelude::*;
 use proptest::test_runner::RngSeed;
@@ -109,6 +112,16 @@ proptest! {
         let mut g = grid::build(&mesh, &sub, &b.options).expect("grid build");
         g.set_lod(b.lod).unwrap();
         let list = sub.micro_triangles(b.lod);
+        // Where one visit walks every hierarchy, the stack-free walk must find exactly what
+        // the stack finds (`Scene::trace` takes the former there, so the rest checks both).
+        if g.params.one_visit() {
+            for &(origin, target) in &rays {
+                let ray = Ray::new(Vec3::from(origin), Vec3::from(target) - Vec3::from(origin));
+                let stacked = trace(g.nodes.as_slice(), &g.view(), &ray, T_FAR);
+                let one_visit = trace(g.nodes.as_slice(), &OneVisitGrids(g.view()), &ray, T_FAR);
+                prop_assert_eq!(stacked, one_visit, "for {:?}", ray);
+            }
+        }
         let grids = Scene::Grids(g);
         let tris = Scene::Triangles(triangles::build(&sub.positions, &list));
         for (origin, target) in rays {
