@@ -338,51 +338,12 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         (open, sub_triangle(1 << self.params.levels, level, t))
     }
 
-    /// Leaf `e.child` of `family`, reached from its parent (whose six points are `sheared`)
-    /// with its sphere entry distance `e.t`: only the part of it the footprint leaves open is
-    /// loaded and tested (all of it for a `whole` family).
-    #[allow(clippy::too_many_arguments)]
-    fn intersect_child_leaf<T: Tally>(
-        &self,
-        open: &OpenGrid,
-        family: &LeafFamily,
-        sheared: &[Vec3; 6],
-        e: Entry,
-        slack: f32,
-        ray: &Ray,
-        hit: &mut Hit,
-        scratch: &mut GridScratch,
-        tally: &mut T,
-    ) {
-        if e.t >= hit.t {
-            return;
-        }
-        let leaf = family.first_leaf + e.child;
-        let m = 1u32 << family.k;
-        let mut window = [0, m, 0, m];
-        if family.whole == 0 {
-            let [ca, cb, cc] = child_corners(sheared, e.child);
-            window = scratch.frame.leaf_window(ca, cb, cc, m, e.thickness, slack);
-        }
-        let corner = child_first_corner(family.corner, family.half, e.child);
-        let step = if e.child == 3 { -family.step } else { family.step };
-        // Numbered as at depth `lod`: each of this depth's triangles by the first of the
-        // `4^(lod - level)` it would split into.
-        let shift = 2 * (self.params.lod - family.level);
-        let ids = LeafIds {
-            first: family.grid * triangle_count(self.params.lod) + ((leaf * triangle_count(family.k)) << shift),
-            shift,
-            level: family.level,
-        };
-        self.intersect_leaf_triangles(open, corner, step, family.k, window, ids, ray, hit, scratch, tally);
-    }
-
     /// The bottom level: depth-first, nearest sphere first, over the grid's 4-ary hierarchy.
     ///
     /// `STACK` says how: with a stack of pending sub-triangles, which takes any depth; or, for
     /// hierarchies whose stored leaves are the root's children or the root itself
-    /// ([`GridParams::one_visit`]), by the root's visit alone, which tests its children's
-    /// leaves in place and so never pushes. The second is the same walk with the stack
+    /// ([`GridParams::one_visit`]), by the root's visit alone, which tests its children as
+    /// one leaf and so never pushes. The second is the same walk with the stack
     /// compiled out: lavapipe keeps a private array written at a varying height in memory,
     /// and pays for the pushes in every visit, taken or not.
     pub fn intersect_grid<const STACK: bool, T: Tally>(
@@ -452,8 +413,9 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     }
 
     /// Sub-triangle `sub`, just popped (the stack is `sp` high without it): its children's
-    /// spheres are tested and the hit ones pushed, nearest on top, or tested here when they
-    /// are leaves (or it is one). Returns the stack's new height.
+    /// spheres are tested and the hit ones pushed, nearest on top; or, when they are leaves,
+    /// tested here as one leaf of `sub`, over the lattice points the ray may touch in any of
+    /// them; or `sub` is tested, when it is a leaf. Returns the stack's new height.
     #[allow(clippy::too_many_arguments)]
     fn visit_sub_triangle<const STACK: bool, T: Tally>(
         &self,
@@ -480,28 +442,21 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         // `b = a + d (s, 0)`, `c = a + d (0, s)`, `d = -1` for the inverted ones.
         let d = if inverted { -1 } else { 1 };
         let size = (n >> level) as i32;
-        // The leaves this round tests, through one call site below (rust-gpu inlines every
-        // call: each copy of the leaf test costs the GPU kernel, and lavapipe runs the code
-        // of a branch even when none of its rays takes it): the popped sub-triangle itself
-        // when it is a leaf, or its children when they are stored leaves.
-        let mut family = LeafFamily {
-            grid,
-            first_leaf: index,
+        // The one leaf test of this visit, through one call site below (rust-gpu inlines
+        // every call: each copy of the leaf test costs the GPU kernel, and lavapipe runs the
+        // code of a branch even when none of its rays takes it): the popped sub-triangle
+        // itself when it is a leaf, or, when its children are leaves, the part of it that
+        // holds the parts of them the ray can cross.
+        let k = lod - level;
+        let mut leaf = LeafTest {
             corner: a,
-            half: 0,
-            k: lod - level,
-            step: d * (size >> (lod - level)),
-            whole: 1,
-            level: lod,
+            step: d * (size >> k),
+            k,
+            window: [0, 1 << k, 0, 1 << k],
+            first: index * triangle_count(k),
         };
-        let mut sheared = [Vec3::ZERO; 6];
-        let mut e0 = Entry::new(T_FAR, 0);
-        let mut e1 = Entry::new(T_FAR, 1);
-        let mut e2 = Entry::new(T_FAR, 2);
-        let mut e3 = Entry::new(sub.t, 0);
-        let mut leaves = 1;
+        let mut tested = level == leaf_level;
         if level != leaf_level {
-            leaves = 0;
             // The four children share six vertices: three corners and three midpoints.
             let (s, h) = (d * size, d * size / 2);
             let at = |x: i32, y: i32| [(a[0] + x) as u32, (a[1] + y) as u32];
@@ -524,11 +479,9 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             let pab = self.vertex(&open, at(h, 0));
             let pbc = self.vertex(&open, at(h, h));
             let pca = self.vertex(&open, at(0, h));
-            // Children in `child_corners` order; their radii are adjacent in BFS order.
+            // Children 0, 1, 2 at corners a, b, c, and the inverted middle child 3; their radii
+            // are adjacent in BFS order.
             let first_child = level_start(level + 1) + 4 * index;
-            // Test the four children, sort them by entry distance with a fixed network (no
-            // dynamically indexed arrays: those are slow on GPUs), then push the hit ones
-            // farthest first so the nearest is popped next, or test them here.
             let r = [
                 self.radius(grid, first_child),
                 self.radius(grid, first_child + 1),
@@ -542,65 +495,62 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                 )
             };
             tally.spheres(4);
-            e0 = entry(sphere_center(pa, pab, pca), 0);
-            e1 = entry(sphere_center(pab, pb, pbc), 1);
-            e2 = entry(sphere_center(pca, pbc, pc), 2);
-            e3 = entry(sphere_center(pbc, pca, pab), 3);
-            // Children that are leaves are tested here, nearest first, rather than pushed and
-            // popped; stored leaves first drop those whose footprint misses the ray, before
-            // their vertices are loaded.
-            let children_are_leaves = level + 1 == leaf_level;
-            let footprint = self.params.leaf_footprint != 0 && leaf_level == self.params.leaf_level;
-            if children_are_leaves && footprint {
-                sheared = [
-                    shear(pa, ray),
-                    shear(pb, ray),
-                    shear(pc, ray),
-                    shear(pab, ray),
-                    shear(pbc, ray),
-                    shear(pca, ray),
-                ];
-                // Each child's thickness goes with it to its leaf test.
-                e0.thickness = self.thickness(grid, 4 * index, r[0]);
-                e1.thickness = self.thickness(grid, 4 * index + 1, r[1]);
-                e2.thickness = self.thickness(grid, 4 * index + 2, r[2]);
-                e3.thickness = self.thickness(grid, 4 * index + 3, r[3]);
-                let [sa, sb, sc, sab, sbc, sca] = sheared;
-                if e0.t < T_FAR && !frame.overlaps(sa, sab, sca, e0.thickness, slack) {
-                    e0.t = T_FAR;
+            let mut e0 = entry(sphere_center(pa, pab, pca), 0);
+            let mut e1 = entry(sphere_center(pab, pb, pbc), 1);
+            let mut e2 = entry(sphere_center(pca, pbc, pc), 2);
+            let mut e3 = entry(sphere_center(pbc, pca, pab), 3);
+            if level + 1 == leaf_level {
+                // The children are leaves: each one the ray may cross gives the box of its
+                // lattice points that may belong to a crossed micro-triangle (all of them
+                // without footprints), and one leaf test covers the box around those boxes in
+                // this sub-triangle's lattice, a step finer. One test instead of a test per
+                // child: in lockstep each is as long as the group's longest.
+                let footprint = self.params.leaf_footprint != 0 && leaf_level == self.params.leaf_level;
+                let m = 1u32 << (k - 1);
+                let mut window = [1 << k, 0, 1 << k, 0];
+                if footprint {
+                    let [sa, sb, sc, sab, sbc, sca] = [
+                        shear(pa, ray),
+                        shear(pb, ray),
+                        shear(pc, ray),
+                        shear(pab, ray),
+                        shear(pbc, ray),
+                        shear(pca, ray),
+                    ];
+                    let child_window = |t: f32, leaf: u32, radius: f32, ca: Vec3, cb: Vec3, cc: Vec3| {
+                        let thickness = self.thickness(grid, leaf, radius);
+                        if t < T_FAR && frame.overlaps(ca, cb, cc, thickness, slack) {
+                            frame.leaf_window(ca, cb, cc, m, thickness, slack)
+                        } else {
+                            [1, 0, 1, 0]
+                        }
+                    };
+                    let first_leaf = 4 * index;
+                    let w0 = child_window(e0.t, first_leaf, r[0], sa, sab, sca);
+                    let w1 = child_window(e1.t, first_leaf + 1, r[1], sab, sb, sbc);
+                    let w2 = child_window(e2.t, first_leaf + 2, r[2], sca, sbc, sc);
+                    let w3 = child_window(e3.t, first_leaf + 3, r[3], sbc, sca, sab);
+                    window = add_child_window(window, e0.t, 0, w0, m);
+                    window = add_child_window(window, e1.t, 1, w1, m);
+                    window = add_child_window(window, e2.t, 2, w2, m);
+                    window = add_child_window(window, e3.t, 3, w3, m);
+                } else {
+                    let whole = [0, m, 0, m];
+                    window = add_child_window(window, e0.t, 0, whole, m);
+                    window = add_child_window(window, e1.t, 1, whole, m);
+                    window = add_child_window(window, e2.t, 2, whole, m);
+                    window = add_child_window(window, e3.t, 3, whole, m);
                 }
-                if e1.t < T_FAR && !frame.overlaps(sab, sb, sbc, e1.thickness, slack) {
-                    e1.t = T_FAR;
-                }
-                if e2.t < T_FAR && !frame.overlaps(sca, sbc, sc, e2.thickness, slack) {
-                    e2.t = T_FAR;
-                }
-                if e3.t < T_FAR && !frame.overlaps(sbc, sca, sab, e3.thickness, slack) {
-                    e3.t = T_FAR;
-                }
-            }
-            sort_descending(&mut e0, &mut e1);
-            sort_descending(&mut e2, &mut e3);
-            sort_descending(&mut e0, &mut e2);
-            sort_descending(&mut e1, &mut e3);
-            sort_descending(&mut e1, &mut e2);
-            if children_are_leaves {
-                // Where their footprint is tested, their sheared corners are at hand to find
-                // the part of each the ray can cross. Only the children still in (sorted
-                // last) go round.
-                let k = lod - leaf_level;
-                family = LeafFamily {
-                    grid,
-                    first_leaf: 4 * index,
-                    corner: a,
-                    half: h,
-                    k,
-                    step: ((size / 2) >> k) * d,
-                    whole: !footprint as u32,
-                    level: lod,
-                };
-                leaves = (e0.t < T_FAR) as u32 + (e1.t < T_FAR) as u32 + (e2.t < T_FAR) as u32 + (e3.t < T_FAR) as u32;
+                leaf.window = window;
+                tested = window[0] <= window[1];
             } else if STACK {
+                // Push the hit children farthest first so the nearest is popped next, sorted
+                // with a fixed network (no dynamically indexed arrays: those are slow on GPUs).
+                sort_descending(&mut e0, &mut e1);
+                sort_descending(&mut e2, &mut e3);
+                sort_descending(&mut e0, &mut e2);
+                sort_descending(&mut e1, &mut e3);
+                sort_descending(&mut e1, &mut e2);
                 let child_corner = |c: u32| pack_corner(child_first_corner(a, h, c), inverted != (c == 3));
                 let mut push = |e: &Entry| {
                     if e.t < T_FAR {
@@ -616,36 +566,65 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                 push(&e3);
             }
         }
-        if leaves > 0 {
-            let mut c = 0;
-            loop {
-                let e = match c {
-                    0 => e3,
-                    1 => e2,
-                    2 => e1,
-                    _ => e0,
-                };
-                self.intersect_child_leaf(&open, &family, &sheared, e, slack, ray, hit, scratch, tally);
-                c += 1;
-                if c >= leaves {
-                    break;
-                }
-            }
+        if tested {
+            // Numbered as at depth `params.lod`: each of this depth's triangles by the first of
+            // the `4^(params.lod - lod)` it would split into.
+            let shift = 2 * (self.params.lod - lod);
+            let ids = LeafIds {
+                first: grid * triangle_count(self.params.lod) + (leaf.first << shift),
+                shift,
+                level: lod,
+            };
+            self.intersect_leaf_triangles(
+                &open,
+                leaf.corner,
+                leaf.step,
+                leaf.k,
+                leaf.window,
+                ids,
+                ray,
+                hit,
+                scratch,
+                tally,
+            );
         }
         sp
     }
 }
 
-/// Corners `a`, `b`, `c` of child `child` among a sub-triangle's six points in the order
-/// `a`, `b`, `c`, `ab`, `bc`, `ca` (see [`GridScene::intersect_grid`]).
+/// `window` (in a sub-triangle's lattice, `2m` steps a side) grown to hold the window `w` of
+/// its child `child` (in the child's lattice, `m` steps a side) when the ray may cross the
+/// child (entered at `t`) and `w` is not empty. Children 1 and 2 are offset by `m` along `la`
+/// and `lb`; the inverted middle child's point `(la, lb)` is the parent's `(m - la, m - lb)`.
 #[inline]
-fn child_corners(points: &[Vec3; 6], child: u32) -> [Vec3; 3] {
-    match child {
-        0 => [points[0], points[3], points[5]],
-        1 => [points[3], points[1], points[4]],
-        2 => [points[5], points[4], points[2]],
-        _ => [points[4], points[5], points[3]],
+fn add_child_window(window: [u32; 4], t: f32, child: u32, w: [u32; 4], m: u32) -> [u32; 4] {
+    if t >= T_FAR || w[0] > w[1] || w[2] > w[3] {
+        return window;
     }
+    let (oa, ob) = ((child == 1) as u32 * m, (child == 2) as u32 * m);
+    let w = if child == 3 {
+        [m - w[1], m - w[0], m - w[3], m - w[2]]
+    } else {
+        [w[0] + oa, w[1] + oa, w[2] + ob, w[3] + ob]
+    };
+    [
+        window[0].min(w[0]),
+        window[1].max(w[1]),
+        window[2].min(w[2]),
+        window[3].max(w[3]),
+    ]
+}
+
+/// The leaf test of a visit: the sub-triangle's first corner, its lattice step (see
+/// [`GridScene::intersect_leaf_triangles`]), its depth `k`, the window of lattice points to
+/// load, and the index of its first micro-triangle among the grid's at depth `lod`.
+#[repr(C)]
+struct LeafTest {
+    corner: [i32; 2],
+    step: i32,
+    k: u32,
+    window: [u32; 4],
+    first: u32,
 }
 
 /// First corner `a` of child `child` of a sub-triangle with first corner `a` and signed half
@@ -664,23 +643,6 @@ fn child_first_corner(a: [i32; 2], h: i32, child: u32) -> [i32; 2] {
 #[inline]
 fn pack_corner(a: [i32; 2], inverted: bool) -> u32 {
     a[0] as u32 | ((a[1] as u32) << 8) | ((inverted as u32) << 16)
-}
-
-/// Four sibling leaves: their parent's grid, the index of its first child, its first corner
-/// `corner` and half its edge `half` (signed, see [`GridScene::intersect_grid`]), and each
-/// leaf's depth `k` and lattice step; with `whole` set, each leaf is tested whole, without a
-/// footprint (a popped leaf is the family's child 0, `half` 0); `level` is the depth the grid is rendered at (`repr(C)`:
-/// naga rejects members out of offset order).
-#[repr(C)]
-struct LeafFamily {
-    grid: u32,
-    first_leaf: u32,
-    corner: [i32; 2],
-    half: i32,
-    k: u32,
-    step: i32,
-    whole: u32,
-    level: u32,
 }
 
 /// How a leaf's hits are numbered (see [`Hit`]): the id of its first triangle, the shift of
@@ -716,25 +678,18 @@ struct SubTriangle {
     t: f32,
 }
 
-/// A child sphere's entry distance, which child it is, and its leaf's thickness when it is a
-/// stored leaf tested with its footprint.
+/// A child sphere's entry distance and which child it is.
 #[repr(C)]
 #[derive(Copy, Clone)]
 struct Entry {
     t: f32,
     child: u32,
-    thickness: f32,
 }
 
 impl Entry {
-    /// Child `child` entered at `t`, its thickness not yet read.
     #[inline]
     fn new(t: f32, child: u32) -> Entry {
-        Entry {
-            t,
-            child,
-            thickness: 0.0,
-        }
+        Entry { t, child }
     }
 }
 

@@ -428,6 +428,37 @@ fn counts_below_one_are_refused() {
     fails_with(&["render", "--width", "0"], &[], &["--width", "0"]);
 }
 
+/// Leaves too large for one leaf test with their siblings (three levels left out under a
+/// sphere level) are refused up front; three levels out of three leave only the root, which
+/// works.
+#[test]
+fn leaves_past_the_static_list_are_refused() {
+    fails_with(
+        &["render", "--backend", "cpu", "--levels", "4", "--excluded-levels", "3"],
+        &[],
+        &["64 micro-triangles", "static index list", "at most 2"],
+    );
+    let dir = scratch("root_leaf");
+    let out = dir.join("root_leaf.png");
+    let o = Command::new(gridrt_exe())
+        .args([
+            "render",
+            "--backend",
+            "cpu",
+            "--levels",
+            "3",
+            "--excluded-levels",
+            "3",
+            "-q",
+            "-o",
+        ])
+        .arg(&out)
+        .output()
+        .expect("run gridrt");
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(out.exists());
+}
+
 /// On a device that is the CPU (lavapipe), an uploaded scene's copies live in host memory too:
 /// a render whose build fits but whose upload would not is refused before the build.
 #[test]

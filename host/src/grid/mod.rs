@@ -338,11 +338,18 @@ fn check_counts(base: &Mesh, edges: u64, levels: u32, options: &GridOptions, qua
             MAX_SPHERE_LEVEL + 1
         );
     }
-    if levels - leaf_level > gridrt_shared::grid_index::MAX_LEAF_DEPTH {
+    // Leaves under a sphere level are tested with their siblings, as one leaf of their parent
+    // a level deeper (see `GridScene::intersect_grid`).
+    let deepest_test = levels - leaf_level + (leaf_level > 0) as u32;
+    if deepest_test > gridrt_shared::grid_index::MAX_LEAF_DEPTH {
         fail!(
             Limits,
-            "leaves of {} micro-triangles are more than the static index list holds",
-            triangle_count(levels - leaf_level)
+            "leaves of {} micro-triangles{} are more than the static index list holds ({}); leave out \
+             at most {} sphere levels, or all of them",
+            triangle_count(levels - leaf_level),
+            if leaf_level > 0 { ", tested four at a time," } else { "" },
+            triangle_count(gridrt_shared::grid_index::MAX_LEAF_DEPTH),
+            gridrt_shared::grid_index::MAX_LEAF_DEPTH - 1
         );
     }
     let grids = base.triangles.len() as u64;

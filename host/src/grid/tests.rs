@@ -66,7 +66,8 @@ fn spheres_are_conservative() {
         (default_scene(), 3, 2, true),
         (cube(), 5, 2, true),
         (cube(), 4, 1, false),
-        (cube(), 4, 3, true),
+        (cube(), 4, 2, true),
+        (cube(), 3, 3, true),
     ] {
         let scene = loop_grids(&mesh, levels, excluded, half_radii);
         let n = grid_size(levels);
