@@ -2,8 +2,8 @@
 
 use gridrt_shared::buffer::Buffer;
 use gridrt_shared::glam::Vec3;
-use gridrt_shared::grid_traverse::{trace_grids, OneVisitGrids};
-use gridrt_shared::layout::{BvhNode, Camera, FrameParams, GridParams, Hit, SHADE_COST};
+use gridrt_shared::grid_traverse::{self, trace_grids, OneVisitGrids};
+use gridrt_shared::layout::{BvhNode, Camera, FrameParams, GridHeader, GridParams, Hit, SHADE_COST};
 use gridrt_shared::ray::{Ray, T_FAR};
 use gridrt_shared::shade::{cost_pixel, render_pixel};
 use gridrt_shared::traverse::trace_triangles;
@@ -155,15 +155,22 @@ fn reference_t(ray: &Ray, [a, b, c]: [Vec3; 3]) -> Option<f64> {
 pub fn render_cpu(scene: &Scene, frame: &FrameParams) -> Vec<u32> {
     match scene {
         Scene::Triangles(s) => render_pixels(frame, s.nodes.as_slice(), &s.view()),
-        // Read as the frame says (its level of detail), and walked as the kernels walk it.
-        Scene::Grids(s) => {
-            let grids = s.view_as(frame.grid);
-            if frame.grid.one_visit() {
-                render_pixels(frame, s.nodes.as_slice(), &OneVisitGrids(grids))
-            } else {
-                render_pixels(frame, s.nodes.as_slice(), &grids)
-            }
-        }
+        // Read as the frame says (its level of detail), as the kernels do.
+        Scene::Grids(s) => render_grid_pixels(frame, s.nodes.as_slice(), s.view_as(frame.grid)),
+    }
+}
+
+/// [`render_pixels`] for grids, each walked as the kernels walk it: by one visit where the
+/// scene allows (see `GridParams::one_visit`), with the stack otherwise.
+pub(crate) fn render_grid_pixels<N: Buffer<BvhNode> + Sync, H: Buffer<GridHeader> + Sync, W: Buffer<u32> + Sync>(
+    frame: &FrameParams,
+    nodes: N,
+    grids: grid_traverse::GridScene<H, W>,
+) -> Vec<u32> {
+    if grids.params.one_visit() {
+        render_pixels(frame, nodes, &OneVisitGrids(grids))
+    } else {
+        render_pixels(frame, nodes, &grids)
     }
 }
 

@@ -12,7 +12,7 @@ use gridrt_shared::layout::{BvhNode, FrameParams, SplitParams, GRID_NODES, TRIAN
 use gridrt_shared::traverse::TriangleMesh;
 
 use crate::limits::BufferSize;
-use crate::scene::{render_pixels, Scene};
+use crate::scene::{render_grid_pixels, render_pixels, Scene};
 
 /// One of a scene's large buffers, as words.
 pub struct SceneBuffer<'a> {
@@ -149,11 +149,7 @@ pub fn render_cpu_split(scene: &Scene, split: &SplitScene, frame: &FrameParams) 
         }
         Scene::Grids(_) => {
             let grids = grid_traverse::GridScene::split(&chunks, &split.params, &MICRO_TRIANGLES, frame.grid);
-            if frame.grid.one_visit() {
-                render_pixels(frame, nodes(GRID_NODES), &grid_traverse::OneVisitGrids(grids))
-            } else {
-                render_pixels(frame, nodes(GRID_NODES), &grids)
-            }
+            render_grid_pixels(frame, nodes(GRID_NODES), grids)
         }
     }
 }

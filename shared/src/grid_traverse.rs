@@ -447,14 +447,9 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         // code of a branch even when none of its rays takes it): the popped sub-triangle
         // itself when it is a leaf, or, when its children are leaves, the part of it that
         // holds the parts of them the ray can cross.
+        // It is `sub`'s lattice, `k` steps deep, within `window` (all of it for a leaf).
         let k = lod - level;
-        let mut leaf = LeafTest {
-            corner: a,
-            step: d * (size >> k),
-            k,
-            window: [0, 1 << k, 0, 1 << k],
-            first: index * triangle_count(k),
-        };
+        let mut window = [0, 1 << k, 0, 1 << k];
         let mut tested = level == leaf_level;
         if level != leaf_level {
             // The four children share six vertices: three corners and three midpoints.
@@ -507,7 +502,8 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                 // child: in lockstep each is as long as the group's longest.
                 let footprint = self.params.leaf_footprint != 0 && leaf_level == self.params.leaf_level;
                 let m = 1u32 << (k - 1);
-                let mut window = [1 << k, 0, 1 << k, 0];
+                let whole = [0, m, 0, m];
+                let [mut w0, mut w1, mut w2, mut w3] = [whole; 4];
                 if footprint {
                     let [sa, sb, sc, sab, sbc, sca] = [
                         shear(pa, ray),
@@ -526,22 +522,17 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                         }
                     };
                     let first_leaf = 4 * index;
-                    let w0 = child_window(e0.t, first_leaf, r[0], sa, sab, sca);
-                    let w1 = child_window(e1.t, first_leaf + 1, r[1], sab, sb, sbc);
-                    let w2 = child_window(e2.t, first_leaf + 2, r[2], sca, sbc, sc);
-                    let w3 = child_window(e3.t, first_leaf + 3, r[3], sbc, sca, sab);
-                    window = add_child_window(window, e0.t, 0, w0, m);
-                    window = add_child_window(window, e1.t, 1, w1, m);
-                    window = add_child_window(window, e2.t, 2, w2, m);
-                    window = add_child_window(window, e3.t, 3, w3, m);
-                } else {
-                    let whole = [0, m, 0, m];
-                    window = add_child_window(window, e0.t, 0, whole, m);
-                    window = add_child_window(window, e1.t, 1, whole, m);
-                    window = add_child_window(window, e2.t, 2, whole, m);
-                    window = add_child_window(window, e3.t, 3, whole, m);
+                    w0 = child_window(e0.t, first_leaf, r[0], sa, sab, sca);
+                    w1 = child_window(e1.t, first_leaf + 1, r[1], sab, sb, sbc);
+                    w2 = child_window(e2.t, first_leaf + 2, r[2], sca, sbc, sc);
+                    w3 = child_window(e3.t, first_leaf + 3, r[3], sbc, sca, sab);
                 }
-                leaf.window = window;
+                // Grown from empty.
+                window = [1 << k, 0, 1 << k, 0];
+                window = add_child_window(window, e0.t, 0, w0, m);
+                window = add_child_window(window, e1.t, 1, w1, m);
+                window = add_child_window(window, e2.t, 2, w2, m);
+                window = add_child_window(window, e3.t, 3, w3, m);
                 tested = window[0] <= window[1];
             } else if STACK {
                 // Push the hit children farthest first so the nearest is popped next, sorted
@@ -571,22 +562,12 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             // the `4^(params.lod - lod)` it would split into.
             let shift = 2 * (self.params.lod - lod);
             let ids = LeafIds {
-                first: grid * triangle_count(self.params.lod) + (leaf.first << shift),
+                first: grid * triangle_count(self.params.lod) + ((index * triangle_count(k)) << shift),
                 shift,
                 level: lod,
             };
-            self.intersect_leaf_triangles(
-                &open,
-                leaf.corner,
-                leaf.step,
-                leaf.k,
-                leaf.window,
-                ids,
-                ray,
-                hit,
-                scratch,
-                tally,
-            );
+            let step = d * (size >> k);
+            self.intersect_leaf_triangles(&open, a, step, k, window, ids, ray, hit, scratch, tally);
         }
         sp
     }
@@ -613,18 +594,6 @@ fn add_child_window(window: [u32; 4], t: f32, child: u32, w: [u32; 4], m: u32) -
         window[2].min(w[2]),
         window[3].max(w[3]),
     ]
-}
-
-/// The leaf test of a visit: the sub-triangle's first corner, its lattice step (see
-/// [`GridScene::intersect_leaf_triangles`]), its depth `k`, the window of lattice points to
-/// load, and the index of its first micro-triangle among the grid's at depth `lod`.
-#[repr(C)]
-struct LeafTest {
-    corner: [i32; 2],
-    step: i32,
-    k: u32,
-    window: [u32; 4],
-    first: u32,
 }
 
 /// First corner `a` of child `child` of a sub-triangle with first corner `a` and signed half

@@ -39,16 +39,20 @@ fn stacked_grids() -> Scene {
     build_pair_with(&default_scene(), 2, 2, Scheme::Loop, &options).grids
 }
 
+/// The scenes each split test runs: both walks of grids, and the baseline.
+fn named_scenes<'a>(pair: &'a Pair, stacked: &'a Scene) -> [(&'static str, &'a Scene); 3] {
+    [
+        ("grids", &pair.grids),
+        ("grids, stacked walk", stacked),
+        ("triangles", &pair.triangles),
+    ]
+}
+
 #[test]
 fn cpu_reads_split_scenes_as_whole_ones() {
     let pair = pair();
     let stacked = stacked_grids();
-    let scenes = [
-        ("grids", &pair.grids),
-        ("grids, stacked walk", &stacked),
-        ("triangles", &pair.triangles),
-    ];
-    for (name, scene) in scenes {
+    for (name, scene) in named_scenes(&pair, &stacked) {
         let bytes = smallest_chunk_bytes(scene);
         let cut = split(scene, (bytes / 4) as u32, "test").unwrap();
         let buffers = scene_buffers(scene);
@@ -94,12 +98,7 @@ fn split_scenes_on_the_gpu_equal_whole_ones() {
     let pair = pair();
     let rays = primary_rays(&pair.bounds, 1, 64, 48);
     let stacked = stacked_grids();
-    let scenes = [
-        ("grids", &pair.grids),
-        ("grids, stacked walk", &stacked),
-        ("triangles", &pair.triangles),
-    ];
-    for (name, scene) in scenes {
+    for (name, scene) in named_scenes(&pair, &stacked) {
         let mut gpu = gpu_or_skip("split_scenes_on_the_gpu_equal_whole_ones").unwrap();
         gpu.limit_bindings(smallest_chunk_bytes(scene)).unwrap();
         let frame = scene.frame(camera::frame(&pair.bounds, 96, 72), SHADE_NORMAL);
