@@ -30,6 +30,18 @@ pub enum BackendChoice {
     Cpu,
 }
 
+/// How the GPU traces a list of rays through grids: one pass per ray (the top-level walk and
+/// its grid visits in one kernel), or the two-phase schedule (`crate::gpu`'s `two_phase`:
+/// rounds of a walk that queues grids, each followed by one queued grid visit per thread).
+/// The CPU traces every list in one pass.
+#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Schedule {
+    #[default]
+    OnePass,
+    TwoPhase,
+}
+
 /// A CPU or a GPU, behind one interface: everything that traces takes a `&Backend`.
 pub enum Backend {
     /// The CPU; `fallback` says why, when `Auto` found no GPU.
@@ -262,6 +274,25 @@ impl Backend {
         warmup: usize,
         repeats: usize,
     ) -> Result<(Vec<HitRecord>, Vec<f64>)> {
+        self.time_trace_scheduled(scene, rays, warmup, repeats, Schedule::OnePass)
+    }
+
+    /// [`Backend::time_trace`] by `schedule`, which only the GPU has a choice of (the
+    /// two-phase schedule takes grid scenes walked by their root's visit alone, bound whole).
+    pub fn time_trace_scheduled(
+        &self,
+        scene: &Scene,
+        rays: &[RayRecord],
+        warmup: usize,
+        repeats: usize,
+        schedule: Schedule,
+    ) -> Result<(Vec<HitRecord>, Vec<f64>)> {
+        if schedule == Schedule::TwoPhase && self.kind() != "gpu" {
+            crate::error::fail!(
+                Options,
+                "the two-phase schedule runs on the GPU backend; use --backend gpu"
+            );
+        }
         match self {
             Backend::Cpu { .. } => {
                 let mut hits = Vec::new();
@@ -278,7 +309,10 @@ impl Backend {
             #[cfg(feature = "gpu")]
             Backend::Gpu(gpu) => {
                 let uploaded = gpu.upload(scene)?;
-                let (hits, mut seconds) = gpu.time_trace(&uploaded, rays, warmup + repeats)?;
+                let (hits, mut seconds) = match schedule {
+                    Schedule::OnePass => gpu.time_trace(&uploaded, rays, warmup + repeats)?,
+                    Schedule::TwoPhase => gpu.time_trace_two_phase(&uploaded, rays, warmup + repeats)?,
+                };
                 seconds.drain(..warmup.min(seconds.len()));
                 Ok((hits, seconds))
             }

@@ -11,12 +11,12 @@ use gridrt_shared::cost::Uncounted;
 use gridrt_shared::glam::{UVec3, Vec3};
 use gridrt_shared::grid_traverse::{GridScene, OneVisitGrids};
 use gridrt_shared::layout::{
-    BvhNode, FrameParams, GridHeader, Hit, HitRecord, RayRecord, TraceParams, GRID_NODES, TRACE_WORKGROUP_SIZE,
-    TRIANGLE_NODES, WORKGROUP_SIZE,
+    BvhNode, FrameParams, GridHeader, Hit, HitRecord, QueueEntry, RayRecord, TraceParams, WalkState, GRID_NODES,
+    TRACE_WORKGROUP_SIZE, TRIANGLE_NODES, WORKGROUP_SIZE,
 };
 use gridrt_shared::ray::Ray;
 use gridrt_shared::shade::{cost_pixel, render_pixel};
-use gridrt_shared::traverse::{closest_hit, LeafPrimitives, TriangleMesh};
+use gridrt_shared::traverse::{closest_hit, walk_round, BufferStack, LeafPrimitives, TriangleMesh, MAX_BVH_DEPTH};
 use spirv_std::spirv;
 
 /// Where this thread's pixel goes in the tile's image buffer, or `None` outside the tile.
@@ -303,3 +303,181 @@ grid_ray_kernels!(OneVisitGrids: trace_grids_rays_one_visit, trace_grids_rays_on
 
 // The workgroup sizes above is a literal because attribute arguments cannot name constants.
 const _: () = assert!(WORKGROUP_SIZE == 8 && TRACE_WORKGROUP_SIZE == 64);
+
+/// Slots of a two-phase counter block: an indirect dispatch's three group counts, then the
+/// number of items.
+const GROUPS_X: usize = 0;
+const ITEMS: usize = 3;
+
+/// Appends `n` items to the list counted by `counter`; returns the first's index. The block's
+/// group counts grow to cover the list.
+fn append(counter: &mut [u32], n: u32) -> u32 {
+    use spirv_std::memory::{Scope, Semantics};
+    const DEVICE: u32 = Scope::QueueFamily as u32;
+    const RELAXED: u32 = Semantics::NONE.bits();
+    let first = unsafe { spirv_std::arch::atomic_i_add::<u32, DEVICE, RELAXED>(&mut counter[ITEMS], n) };
+    // Only an append that opens a new workgroup's worth raises the group count (fewer
+    // contended writes to one counter).
+    let groups = (first + n).div_ceil(TRACE_WORKGROUP_SIZE);
+    if groups > first.div_ceil(TRACE_WORKGROUP_SIZE) {
+        unsafe { spirv_std::arch::atomic_u_max::<u32, DEVICE, RELAXED>(&mut counter[GROUPS_X], groups) };
+    }
+    if first == 0 {
+        counter[1] = 1;
+        counter[2] = 1;
+    }
+    first
+}
+
+/// The two-phase schedule's first phase: one round of the top-level walk for each ray still
+/// walking, queueing the grids of the leaf it reaches.
+#[allow(clippy::too_many_arguments)] // one per binding
+#[spirv(compute(threads(64, 1, 1)))]
+pub fn walk_rounds(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] rays: &[RayRecord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] hits: &mut [HitRecord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] nodes: &[BvhNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] states: &mut [WalkState],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] stacks: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] active_in: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] active_out: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] queue: &mut [QueueEntry],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] results: &[HitRecord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 9)] count_in: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 10)] count_out: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 11)] queue_count: &mut [u32],
+) {
+    let i = id.x;
+    if i >= count_in[ITEMS] {
+        return;
+    }
+    let r = active_in[i as usize];
+    let record = &rays[r as usize];
+    let ray = ray_of(record);
+    let mut state = states[r as usize];
+    let mut stack = BufferStack {
+        words: stacks,
+        base: r as usize * 2 * MAX_BVH_DEPTH,
+    };
+    let leaf = walk_round(nodes, results, &ray, record.t_max, &mut state, &mut stack);
+    if leaf.count == 0 {
+        hits[r as usize] = HitRecord {
+            t: state.t,
+            prim: state.prim,
+        };
+        return;
+    }
+    let first = append(queue_count, leaf.count);
+    let mut g = 0;
+    loop {
+        queue[(first + g) as usize] = QueueEntry {
+            ray: r,
+            grid: leaf.first + g,
+            t: state.t,
+            _pad: 0,
+        };
+        g += 1;
+        if g >= leaf.count {
+            break;
+        }
+    }
+    state.first_entry = first;
+    state.entries = leaf.count;
+    let slot = append(count_out, 1);
+    active_out[slot as usize] = r;
+    states[r as usize] = state;
+}
+
+/// The two-phase schedule's second phase: one queued grid per thread.
+#[allow(clippy::too_many_arguments)] // one per binding
+#[spirv(compute(threads(64, 1, 1)))]
+pub fn visit_queued(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[RayRecord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] queue: &[QueueEntry],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] results: &mut [HitRecord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] queue_count: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] micro_triangles: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] headers: &[GridHeader],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] vertices: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] radii: &[u32],
+) {
+    let i = id.x as usize;
+    if i >= queue_count[ITEMS] as usize {
+        return;
+    }
+    let entry = queue[i];
+    let ray = ray_of(&rays[entry.ray as usize]);
+    let grids = OneVisitGrids(GridScene {
+        headers,
+        vertices,
+        radii,
+        micro_triangles,
+        params: params.grid,
+    });
+    let mut hit = Hit::miss(entry.t);
+    let mut scratch = grids.scratch(&ray);
+    grids.intersect_leaf(entry.grid, 1, &ray, &mut hit, &mut scratch, &mut Uncounted);
+    results[i] = record(&hit);
+}
+
+/// The two-phase schedule's tail: the rays still walking finish in one pass each, their grids
+/// visited in place, once too few are left to fill the queue's dispatches.
+#[allow(clippy::too_many_arguments)] // one per binding
+#[spirv(compute(threads(64, 1, 1)))]
+pub fn finish_walks(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[RayRecord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] hits: &mut [HitRecord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[BvhNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] states: &[WalkState],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] stacks: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] active_in: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] results: &[HitRecord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] count_in: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 9)] micro_triangles: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 10)] headers: &[GridHeader],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 11)] vertices: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 12)] radii: &[u32],
+) {
+    let i = id.x;
+    if i >= count_in[ITEMS] {
+        return;
+    }
+    let r = active_in[i as usize];
+    let record = &rays[r as usize];
+    let ray = ray_of(record);
+    let mut state = states[r as usize];
+    let mut stack = BufferStack {
+        words: stacks,
+        base: r as usize * 2 * MAX_BVH_DEPTH,
+    };
+    let grids = OneVisitGrids(GridScene {
+        headers,
+        vertices,
+        radii,
+        micro_triangles,
+        params: params.grid,
+    });
+    let mut scratch = grids.scratch(&ray);
+    loop {
+        let leaf = walk_round(nodes, results, &ray, record.t_max, &mut state, &mut stack);
+        if leaf.count == 0 {
+            break;
+        }
+        let mut hit = Hit::miss(state.t);
+        grids.intersect_leaf(leaf.first, leaf.count, &ray, &mut hit, &mut scratch, &mut Uncounted);
+        if hit.t < state.t {
+            state.t = hit.t;
+            state.prim = hit.prim;
+        }
+        state.entries = 0;
+    }
+    hits[r as usize] = HitRecord {
+        t: state.t,
+        prim: state.prim,
+    };
+}

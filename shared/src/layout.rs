@@ -380,3 +380,31 @@ pub struct TraceParams {
 
 /// Threads per workgroup of the ray-list kernels.
 pub const TRACE_WORKGROUP_SIZE: u32 = 64;
+
+/// A ray's top-level walk between two rounds of the two-phase schedule (see
+/// [`crate::traverse::walk_round`]): its closest hit so far, its stack's height (the stack
+/// itself lives in a buffer of its own), whether it has begun, and the queue entries of the
+/// leaf it reached last.
+#[repr(C)]
+#[derive(Copy, Clone, Default)]
+#[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable, Debug, PartialEq))]
+pub struct WalkState {
+    pub t: f32,
+    pub prim: u32,
+    pub sp: u32,
+    pub started: u32,
+    pub first_entry: u32,
+    pub entries: u32,
+    pub _pad: [u32; 2],
+}
+
+/// One grid to visit for one ray, closer than `t`: the two-phase schedule's queue entry.
+#[repr(C)]
+#[derive(Copy, Clone, Default)]
+#[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable, Debug, PartialEq))]
+pub struct QueueEntry {
+    pub ray: u32,
+    pub grid: u32,
+    pub t: f32,
+    pub _pad: u32,
+}

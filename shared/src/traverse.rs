@@ -6,7 +6,7 @@ use crate::aabb::intersect_aabb;
 use crate::buffer::{Buffer, Chunks, Split};
 use crate::cost::{Tally, Uncounted};
 use crate::glam::Vec3;
-use crate::layout::{BvhNode, Hit, SplitParams, TRIANGLE_INDICES, TRIANGLE_POSITIONS};
+use crate::layout::{BvhNode, Hit, HitRecord, SplitParams, WalkState, NO_HIT, TRIANGLE_INDICES, TRIANGLE_POSITIONS};
 use crate::ray::{Ray, T_FAR};
 use crate::triangle::{intersect_triangle, triangle_normal};
 
@@ -105,8 +105,10 @@ pub fn traverse_bvh<N: Buffer<BvhNode>, P: LeafPrimitives, T: Tally>(
         // the box test.
         return;
     }
-    let mut stack = [0u32; MAX_BVH_DEPTH];
-    let mut stack_t = [0f32; MAX_BVH_DEPTH];
+    let mut stack = LocalStack {
+        nodes: [0u32; MAX_BVH_DEPTH],
+        t: [0f32; MAX_BVH_DEPTH],
+    };
     let mut sp = 0usize;
     let mut scratch = prims.scratch(ray);
     let mut node = 0u32;
@@ -114,71 +116,193 @@ pub fn traverse_bvh<N: Buffer<BvhNode>, P: LeafPrimitives, T: Tally>(
     // runs its body once more than any ray needs (with every lane masked off), and for the
     // outer loop that pass is a whole leaf test.
     loop {
-        // Down to the next leaf: dead ends (both children missed) pop and go on here, so every
+        // Down to the next leaf: dead ends (both children missed) pop and go on there, so every
         // round of the outer loop tests a leaf for each ray still going.
-        let mut n = nodes.load(node);
-        let mut at_leaf = n.is_leaf();
-        if !at_leaf {
-            loop {
-                let left = nodes.load(n.first);
-                let right = nodes.load(n.first + 1);
-                tally.nodes(2);
-                let tl = intersect_aabb(Vec3::from(left.min), Vec3::from(left.max), ray, hit.t);
-                let tr = intersect_aabb(Vec3::from(right.min), Vec3::from(right.max), ray, hit.t);
-                let next = if tl == T_FAR && tr == T_FAR {
-                    pop_closer(&stack, &stack_t, &mut sp, hit.t)
-                } else {
-                    let (near, far, t_far) = if tl <= tr {
-                        (n.first, n.first + 1, tr)
-                    } else {
-                        (n.first + 1, n.first, tl)
-                    };
-                    if t_far < T_FAR && sp < MAX_BVH_DEPTH {
-                        stack[sp] = far;
-                        stack_t[sp] = t_far;
-                        sp += 1;
-                    }
-                    near
-                };
-                if next == NO_NODE {
-                    break;
-                }
-                n = nodes.load(next);
-                at_leaf = n.is_leaf();
-                if at_leaf {
-                    break;
-                }
-            }
-        }
-        if !at_leaf {
+        let n = descend(nodes, ray, hit.t, nodes.load(node), &mut stack, &mut sp, tally);
+        if !n.is_leaf() {
             break;
         }
         prims.intersect_leaf(n.first, n.count, ray, hit, &mut scratch, tally);
-        node = pop_closer(&stack, &stack_t, &mut sp, hit.t);
+        node = stack.pop_closer(&mut sp, hit.t);
         if node == NO_NODE {
             break;
         }
     }
 }
 
-/// The nearest waiting node that can still hold a hit closer than `t`, or [`NO_NODE`].
-#[inline]
-fn pop_closer(stack: &[u32; MAX_BVH_DEPTH], stack_t: &[f32; MAX_BVH_DEPTH], sp: &mut usize, t: f32) -> u32 {
-    let mut node = NO_NODE;
-    // Tested at the bottom, behind a test that there is a first pass (see `traverse_bvh`).
-    if *sp > 0 {
+/// From node `n` down to the next leaf the ray may hit closer than `t`, nearer child first,
+/// the farther one waiting on `stack` (`sp` high) with its entry distance; dead ends pop the
+/// nearest waiting node that is still closer than `t`. Returns the leaf, or an inner node
+/// when nothing is left to pop.
+#[inline(always)]
+fn descend<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
+    nodes: N,
+    ray: &Ray,
+    t: f32,
+    mut n: BvhNode,
+    stack: &mut S,
+    sp: &mut usize,
+    tally: &mut T,
+) -> BvhNode {
+    if !n.is_leaf() {
         loop {
-            *sp -= 1;
-            if stack_t[*sp] < t {
-                node = stack[*sp];
+            let left = nodes.load(n.first);
+            let right = nodes.load(n.first + 1);
+            tally.nodes(2);
+            let tl = intersect_aabb(Vec3::from(left.min), Vec3::from(left.max), ray, t);
+            let tr = intersect_aabb(Vec3::from(right.min), Vec3::from(right.max), ray, t);
+            let next = if tl == T_FAR && tr == T_FAR {
+                stack.pop_closer(sp, t)
+            } else {
+                let (near, far, t_far) = if tl <= tr {
+                    (n.first, n.first + 1, tr)
+                } else {
+                    (n.first + 1, n.first, tl)
+                };
+                if t_far < T_FAR && *sp < MAX_BVH_DEPTH {
+                    stack.push(*sp, far, t_far);
+                    *sp += 1;
+                }
+                near
+            };
+            if next == NO_NODE {
                 break;
             }
-            if *sp == 0 {
+            n = nodes.load(next);
+            if n.is_leaf() {
                 break;
             }
         }
     }
-    node
+    n
+}
+
+/// One round of the two-phase schedule's top-level walk: the results of the grids queued in
+/// the last round taken (`results`), then down to the next leaf the ray may hit closer than
+/// its closest hit, which is returned (a node with `count` 0 when the walk is over). The
+/// state and the stack are the ray's, kept between rounds by the caller.
+pub fn walk_round<N: Buffer<BvhNode>, R: Buffer<HitRecord>, S: WalkStack>(
+    nodes: N,
+    results: R,
+    ray: &Ray,
+    t_max: f32,
+    state: &mut WalkState,
+    stack: &mut S,
+) -> BvhNode {
+    let done = BvhNode::default();
+    let mut sp = state.sp as usize;
+    let node;
+    if state.started == 0 {
+        state.started = 1;
+        state.t = t_max;
+        state.prim = NO_HIT;
+        state.sp = 0;
+        if nodes.is_empty() {
+            return done;
+        }
+        let root = nodes.load(0);
+        if intersect_aabb(Vec3::from(root.min), Vec3::from(root.max), ray, t_max) == T_FAR {
+            return done;
+        }
+        node = 0;
+    } else {
+        // In grid order, the first of equal distances kept: as the one-pass walk tests them.
+        let mut k = 0;
+        if state.entries > 0 {
+            loop {
+                let h = results.load(state.first_entry + k);
+                if h.t < state.t {
+                    state.t = h.t;
+                    state.prim = h.prim;
+                }
+                k += 1;
+                if k >= state.entries {
+                    break;
+                }
+            }
+        }
+        node = stack.pop_closer(&mut sp, state.t);
+        if node == NO_NODE {
+            state.sp = 0;
+            return done;
+        }
+    }
+    let n = descend(nodes, ray, state.t, nodes.load(node), stack, &mut sp, &mut Uncounted);
+    state.sp = sp as u32;
+    if n.is_leaf() {
+        n
+    } else {
+        done
+    }
+}
+
+/// Where a two-phase walk keeps its stack between rounds: node and entry distance per slot.
+pub trait WalkStack {
+    fn push(&mut self, at: usize, node: u32, t: f32);
+    fn node(&self, at: usize) -> u32;
+    fn t(&self, at: usize) -> f32;
+    /// The nearest waiting node that can still hold a hit closer than `t`, or [`NO_NODE`].
+    #[inline(always)]
+    fn pop_closer(&self, sp: &mut usize, t: f32) -> u32 {
+        let mut node = NO_NODE;
+        if *sp > 0 {
+            loop {
+                *sp -= 1;
+                if self.t(*sp) < t {
+                    node = self.node(*sp);
+                    break;
+                }
+                if *sp == 0 {
+                    break;
+                }
+            }
+        }
+        node
+    }
+}
+
+/// A ray's stack in a buffer of `2 MAX_BVH_DEPTH` words a ray: nodes, then distances.
+pub struct BufferStack<'a> {
+    pub words: &'a mut [u32],
+    pub base: usize,
+}
+
+impl WalkStack for BufferStack<'_> {
+    #[inline(always)]
+    fn push(&mut self, at: usize, node: u32, t: f32) {
+        self.words[self.base + at] = node;
+        self.words[self.base + MAX_BVH_DEPTH + at] = t.to_bits();
+    }
+    #[inline(always)]
+    fn node(&self, at: usize) -> u32 {
+        self.words[self.base + at]
+    }
+    #[inline(always)]
+    fn t(&self, at: usize) -> f32 {
+        f32::from_bits(self.words[self.base + MAX_BVH_DEPTH + at])
+    }
+}
+
+/// A ray's stack in private memory, for the one-pass walk.
+pub struct LocalStack {
+    nodes: [u32; MAX_BVH_DEPTH],
+    t: [f32; MAX_BVH_DEPTH],
+}
+
+impl WalkStack for LocalStack {
+    #[inline(always)]
+    fn push(&mut self, at: usize, node: u32, t: f32) {
+        self.nodes[at] = node;
+        self.t[at] = t;
+    }
+    #[inline(always)]
+    fn node(&self, at: usize) -> u32 {
+        self.nodes[at]
+    }
+    #[inline(always)]
+    fn t(&self, at: usize) -> f32 {
+        self.t[at]
+    }
 }
 
 /// Vertex `index` of a flat xyz array.

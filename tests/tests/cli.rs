@@ -428,6 +428,15 @@ fn counts_below_one_are_refused() {
     fails_with(&["render", "--width", "0"], &[], &["--width", "0"]);
 }
 
+#[test]
+fn the_two_phase_schedule_is_refused_on_the_cpu() {
+    fails_with(
+        &["bench", "x.obj", "--backend", "cpu", "--schedule", "two-phase"],
+        &[],
+        &["two-phase", "--backend gpu"],
+    );
+}
+
 /// Leaves too large for one leaf test with their siblings (three levels left out under a
 /// sphere level) are refused up front; three levels out of three leave only the root, which
 /// works.

@@ -147,6 +147,14 @@ fn ray_lists_gpu_equal_cpu() {
         for (kind, rays) in [("primary", &primary), ("ao", &ao)] {
             let cpu = trace_cpu(scene, rays);
             let gpu_hits = gpu.trace(&uploaded, rays).unwrap();
+            if name == "grids" {
+                // The two-phase schedule: the same hits as the one-pass kernel, bit for bit.
+                let (two_phase, _) = gpu.time_trace_two_phase(&uploaded, rays, 1).unwrap();
+                assert!(two_phase == gpu_hits, "{kind}: the two-phase schedule's hits differ");
+            } else {
+                let refused = gpu.time_trace_two_phase(&uploaded, rays, 1).unwrap_err().to_string();
+                assert!(refused.contains("two-phase") && !refused.contains('\n'), "{refused}");
+            }
             assert_eq!(cpu.len(), gpu_hits.len());
             let same = cpu
                 .iter()

@@ -9,7 +9,7 @@ use serde::Serialize;
 
 use super::stats::{self, Stats};
 use super::{BenchArgs, BuildArgs};
-use gridrt::backend::Backend;
+use gridrt::backend::{Backend, Schedule};
 use gridrt::bvh::Aabb;
 use gridrt::mesh::{Input, Mesh};
 use gridrt::rays::{ao_rays, primary_rays, reorder, trace_cpu, RayOrder};
@@ -41,6 +41,8 @@ pub struct BenchResult {
     pub width: u32,
     pub height: u32,
     pub ray_order: RayOrder,
+    /// How the GPU traced the grids' lists.
+    pub schedule: Schedule,
     pub rays: PerKind,
     pub mrays_per_s: PerRepresentation,
     /// `(max - min) / median` of the repetitions, per representation and ray kind.
@@ -127,6 +129,9 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
         bail!("name at least one mesh to benchmark");
     }
     check_outputs(args)?;
+    if args.schedule == super::ScheduleArg::TwoPhase && args.backend == super::BackendArg::Cpu {
+        bail!("--schedule two-phase runs on the GPU backend; use --backend gpu");
+    }
     // Every mesh loaded before the first is measured: a bad file is reported at once.
     let meshes = args
         .meshes
@@ -139,6 +144,9 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
         stats::check_work(name, mesh, &args.build, ray_bytes)?;
     }
     let device = super::open_backend(args.backend, "benchmarking")?;
+    if args.schedule.schedule() == Schedule::TwoPhase && device.kind() != "gpu" {
+        bail!("--schedule two-phase runs on the GPU backend; use --backend gpu");
+    }
     for Input { name, mesh, .. } in &meshes {
         check_device(name, mesh, &device, &args.build, ray_bytes)?;
     }
@@ -184,7 +192,11 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
             let mut hits = Vec::new();
             for (label, scene) in [("grid", &grids), ("triangles", &tris)] {
                 bar.set_message(format!("{name}: {} {kind} rays through {label}", rays.len()));
-                let (h, seconds) = device.time_trace(scene, rays, args.warmup, args.repeats)?;
+                let schedule = match label {
+                    "grid" => args.schedule.schedule(),
+                    _ => Schedule::OnePass,
+                };
+                let (h, seconds) = device.time_trace_scheduled(scene, rays, args.warmup, args.repeats, schedule)?;
                 let (median, rel) = summarize(seconds);
                 let rate = rays.len() as f64 / median / 1e6;
                 let (m, s) = match label {
@@ -214,6 +226,7 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
             width: args.width,
             height: args.height,
             ray_order: args.ray_order.order(),
+            schedule: args.schedule.schedule(),
             rays: PerKind {
                 primary: primary.len() as f64,
                 ao: ao.len() as f64,

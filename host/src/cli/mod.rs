@@ -92,6 +92,25 @@ impl RayOrderArg {
     }
 }
 
+/// How the GPU traces the grids' ray lists (see `gridrt::backend::Schedule`).
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ScheduleArg {
+    /// One kernel: each ray's top-level walk with its grid visits.
+    OnePass,
+    /// Rounds of a top-level walk that queues grids, each followed by one queued grid visit
+    /// per thread (GPU backend; grids walked by their root's visit alone, as at --levels 3).
+    TwoPhase,
+}
+
+impl ScheduleArg {
+    pub fn schedule(self) -> gridrt::backend::Schedule {
+        match self {
+            ScheduleArg::OnePass => gridrt::backend::Schedule::OnePass,
+            ScheduleArg::TwoPhase => gridrt::backend::Schedule::TwoPhase,
+        }
+    }
+}
+
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Mode {
     /// Grid primitives: sphere hierarchy per base triangle, BVH over grids.
@@ -441,6 +460,9 @@ pub struct BenchArgs {
     /// Order of the ray lists (both representations trace the same list).
     #[arg(long, value_enum, default_value_t = RayOrderArg::Scanline)]
     pub ray_order: RayOrderArg,
+    /// How the GPU traces the grids' lists; the baseline always takes one pass, its fastest.
+    #[arg(long, value_enum, default_value_t = ScheduleArg::OnePass)]
+    pub schedule: ScheduleArg,
     /// Untimed runs before the timed ones.
     #[arg(long, default_value_t = 1)]
     pub warmup: usize,

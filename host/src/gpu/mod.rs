@@ -3,6 +3,8 @@
 
 use std::time::Instant;
 
+mod two_phase;
+
 use crate::error::{error, fail, Result};
 use gridrt_shared::buffer::SPLIT_CHUNKS;
 use gridrt_shared::grid_index::MICRO_TRIANGLES;
@@ -56,6 +58,8 @@ pub struct Gpu {
     /// split ones bind more buffers than some adapters allow, and all take drivers long to
     /// compile.
     on_demand: [std::sync::OnceLock<wgpu::ComputePipeline>; 10],
+    /// The two-phase schedule's kernels, made on first use.
+    two_phase: std::sync::OnceLock<two_phase::Kernels>,
 }
 
 /// A scene's geometry in GPU buffers, uploaded once and traced many times.
@@ -152,6 +156,7 @@ impl Gpu {
             module,
             whole,
             on_demand: Default::default(),
+            two_phase: Default::default(),
         };
         if let Some(value) = std::env::var_os(BINDING_LIMIT_VAR) {
             let text = value.to_string_lossy();

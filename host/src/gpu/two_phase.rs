@@ -1,0 +1,340 @@
+//! The two-phase schedule for grid ray lists: rounds of a top-level walk kernel, which takes
+//! every ray still walking to its next leaf and queues (ray, grid, closest distance so far) for
+//! the leaf's grids, each followed by a kernel that visits one queued grid per thread. The walk
+//! merges the visits' results at its next round. Once few rays still walk they finish in one
+//! pass each, their grids visited in place.
+//!
+//! Why: in the one-pass walk a SIMD group visits a grid at the pace of its lanes that have one,
+//! the others masked; queued, every lane of a group visits one (docs/RESULTS.md, "Two-phase").
+//! It takes scenes whose grids are walked by their root's visit alone, bound whole.
+
+use gridrt_shared::layout::{HitRecord, QueueEntry, RayRecord, WalkState, TRACE_WORKGROUP_SIZE};
+use gridrt_shared::traverse::MAX_BVH_DEPTH;
+use std::time::Instant;
+use wgpu::util::DeviceExt;
+
+use super::{compute_pipeline, Gpu, GpuScene};
+use crate::error::{error, fail, Result};
+use crate::scene::Scene;
+
+/// The rays still walking finish in one pass once fewer than this fraction (1 / FINISH_BELOW)
+/// of the list is left: every round costs a fixed time however few its rays (two dispatches
+/// and a read-back of the count), and the last rounds hold a handful.
+const FINISH_BELOW: u32 = 32;
+
+/// A ray's saved stack: `MAX_BVH_DEPTH` nodes, then their distances.
+const STACK_BYTES: u64 = 2 * MAX_BVH_DEPTH as u64 * 4;
+
+/// The schedule's three kernels.
+pub(super) struct Kernels {
+    walk: wgpu::ComputePipeline,
+    visit: wgpu::ComputePipeline,
+    finish: wgpu::ComputePipeline,
+}
+
+/// One batch's buffers and bind groups; lists and counters come in pairs, read by one round
+/// and written for the next.
+struct Batch {
+    rays: u32,
+    states: wgpu::Buffer,
+    all_rays: wgpu::Buffer,
+    first_list: wgpu::Buffer,
+    hits: wgpu::Buffer,
+    readback: wgpu::Buffer,
+    /// Each an indirect dispatch's three group counts, then the number of items.
+    counts: [wgpu::Buffer; 2],
+    queue_count: wgpu::Buffer,
+    count_readback: wgpu::Buffer,
+    walk: [wgpu::BindGroup; 2],
+    finish: [wgpu::BindGroup; 2],
+    visit: wgpu::BindGroup,
+}
+
+impl Gpu {
+    /// Traces a list of rays by the two-phase schedule `repeats` times: the hits, and the
+    /// seconds of each repetition (from the first round's start to the last's end, by GPU
+    /// timestamps where the adapter has them).
+    pub fn time_trace_two_phase(
+        &self,
+        scene: &GpuScene,
+        rays: &[RayRecord],
+        repeats: usize,
+    ) -> Result<(Vec<HitRecord>, Vec<f64>)> {
+        let grids = match scene.scene {
+            Scene::Grids(g) if g.params.one_visit() && !scene.is_split() => g,
+            _ => fail!(
+                Options,
+                "the two-phase schedule traces grids walked by their root's visit alone (sphere levels down to 1, \
+                 as at the default --levels 3) and bound whole; this scene is neither, use the one-pass schedule"
+            ),
+        };
+        let widest_leaf = grids.nodes.iter().map(|n| n.count).max().unwrap_or(0).max(1);
+        let mut seconds = vec![0.0; repeats.max(1)];
+        let mut hits = Vec::with_capacity(rays.len());
+        for list in rays.chunks(self.two_phase_batch(widest_leaf)) {
+            let batch = self.two_phase_batch_buffers(scene, list, widest_leaf);
+            for time in seconds.iter_mut() {
+                *time += self.run_rounds(&batch)?;
+            }
+            let bytes = list.len() as u64 * std::mem::size_of::<HitRecord>() as u64;
+            let mut encoder = self.device.create_command_encoder(&Default::default());
+            encoder.copy_buffer_to_buffer(&batch.hits, 0, &batch.readback, 0, bytes);
+            self.queue.submit([encoder.finish()]);
+            hits.extend_from_slice(bytemuck::cast_slice(&self.read_back_bytes(&batch.readback, bytes)?));
+        }
+        Ok((hits, seconds))
+    }
+
+    /// Most rays a batch may hold: its stacks within one binding, and its queue (up to
+    /// `widest_leaf` entries a ray) within one dispatch.
+    fn two_phase_batch(&self, widest_leaf: u32) -> usize {
+        let groups = self.limits.max_compute_workgroups_per_dimension as u64;
+        let by_queue = groups * TRACE_WORKGROUP_SIZE as u64 / widest_leaf as u64;
+        let by_stack = self.binding_limit / STACK_BYTES;
+        let by_queue_binding = self.binding_limit / (widest_leaf as u64 * std::mem::size_of::<QueueEntry>() as u64);
+        (self.ray_batch() as u64)
+            .min(by_queue)
+            .min(by_stack)
+            .min(by_queue_binding)
+            .max(1) as usize
+    }
+
+    fn two_phase_kernels(&self) -> &Kernels {
+        self.two_phase.get_or_init(|| Kernels {
+            walk: compute_pipeline(&self.device, &self.module, "walk_rounds"),
+            visit: compute_pipeline(&self.device, &self.module, "visit_queued"),
+            finish: compute_pipeline(&self.device, &self.module, "finish_walks"),
+        })
+    }
+
+    fn two_phase_batch_buffers(&self, scene: &GpuScene, rays: &[RayRecord], widest_leaf: u32) -> Batch {
+        let n = rays.len() as u64;
+        let storage = |name: &str, bytes: u64, extra: wgpu::BufferUsages| {
+            self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(name),
+                size: bytes.max(16),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | extra,
+                mapped_at_creation: false,
+            })
+        };
+        let plain = wgpu::BufferUsages::empty();
+        let counter = wgpu::BufferUsages::INDIRECT | wgpu::BufferUsages::COPY_SRC;
+        let ray_buffer = self.buffer("ray", bytemuck::cast_slice(rays));
+        let (hits, readback) = self.output("hit", n * std::mem::size_of::<HitRecord>() as u64);
+        let states = storage("walk state", n * std::mem::size_of::<WalkState>() as u64, plain);
+        let stacks = storage("walk stack", n * STACK_BYTES, plain);
+        let every: Vec<u32> = (0..n as u32).collect();
+        let all_rays = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("every ray"),
+            contents: bytemuck::cast_slice(&every),
+            usage: wgpu::BufferUsages::COPY_SRC,
+        });
+        let lists = [
+            storage("walking rays", n * 4, plain),
+            storage("walking rays", n * 4, plain),
+        ];
+        let entries = n * widest_leaf as u64;
+        let queue = storage("queue", entries * std::mem::size_of::<QueueEntry>() as u64, plain);
+        let results = storage(
+            "queue results",
+            entries * std::mem::size_of::<HitRecord>() as u64,
+            plain,
+        );
+        let counts = [storage("count", 16, counter), storage("count", 16, counter)];
+        let queue_count = storage("queue count", 16, counter);
+        let count_readback = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("count read-back"),
+            size: 16,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let (_, params) = self.trace_params(scene, n as u32);
+        let params = self.buffer("trace parameters", bytemuck::bytes_of(&params));
+        let kernels = self.two_phase_kernels();
+        // The scene's bindings: static index list, top-level BVH, headers, vertices, radii.
+        let [micro_triangles, nodes, headers, vertices, radii] = [0, 1, 2, 3, 4].map(|k| &scene.buffers[k]);
+        let walk = |from: usize| {
+            self.bind_all(
+                &kernels.walk,
+                &[
+                    &ray_buffer,
+                    &hits,
+                    nodes,
+                    &states,
+                    &stacks,
+                    &lists[from],
+                    &lists[1 - from],
+                    &queue,
+                    &results,
+                    &counts[from],
+                    &counts[1 - from],
+                    &queue_count,
+                ],
+            )
+        };
+        let finish = |from: usize| {
+            self.bind_all(
+                &kernels.finish,
+                &[
+                    &params,
+                    &ray_buffer,
+                    &hits,
+                    nodes,
+                    &states,
+                    &stacks,
+                    &lists[from],
+                    &results,
+                    &counts[from],
+                    micro_triangles,
+                    headers,
+                    vertices,
+                    radii,
+                ],
+            )
+        };
+        let visit = self.bind_all(
+            &kernels.visit,
+            &[
+                &params,
+                &ray_buffer,
+                &queue,
+                &results,
+                &queue_count,
+                micro_triangles,
+                headers,
+                vertices,
+                radii,
+            ],
+        );
+        let (walk, finish) = ([walk(0), walk(1)], [finish(0), finish(1)]);
+        let [first_list, _] = lists;
+        Batch {
+            rays: n as u32,
+            states,
+            all_rays,
+            first_list,
+            hits,
+            readback,
+            counts,
+            queue_count,
+            count_readback,
+            walk,
+            finish,
+            visit,
+        }
+    }
+
+    /// A bind group of `buffers` at bindings 0, 1, ... of set 0.
+    fn bind_all(&self, pipeline: &wgpu::ComputePipeline, buffers: &[&wgpu::Buffer]) -> wgpu::BindGroup {
+        let entries: Vec<wgpu::BindGroupEntry> = (buffers.iter().enumerate())
+            .map(|(i, b)| wgpu::BindGroupEntry {
+                binding: i as u32,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: None,
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &entries,
+        })
+    }
+
+    /// Runs the rounds of one batch until no ray walks on; returns their seconds.
+    fn run_rounds(&self, batch: &Batch) -> Result<f64> {
+        let n = batch.rays;
+        let kernels = self.two_phase_kernels();
+        let queries = self.timestamps.then(|| self.queries());
+        self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        self.queue.write_buffer(
+            &batch.counts[0],
+            0,
+            bytemuck::cast_slice(&[n.div_ceil(TRACE_WORKGROUP_SIZE), 1, 1, n]),
+        );
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        // Fresh walk states (zero: not begun), and every ray walking.
+        encoder.clear_buffer(&batch.states, 0, None);
+        encoder.copy_buffer_to_buffer(&batch.all_rays, 0, &batch.first_list, 0, n as u64 * 4);
+        self.queue.submit([encoder.finish()]);
+        let start = Instant::now();
+        let mut round = 0;
+        let finish = loop {
+            let (from, to) = (round % 2, 1 - round % 2);
+            let mut encoder = self.device.create_command_encoder(&Default::default());
+            encoder.clear_buffer(&batch.counts[to], 0, None);
+            encoder.clear_buffer(&batch.queue_count, 0, None);
+            {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: None,
+                    timestamp_writes: (round == 0).then_some(()).and(queries.as_ref()).map(|q| {
+                        wgpu::ComputePassTimestampWrites {
+                            query_set: &q.set,
+                            beginning_of_pass_write_index: Some(0),
+                            end_of_pass_write_index: None,
+                        }
+                    }),
+                });
+                pass.set_pipeline(&kernels.walk);
+                pass.set_bind_group(0, &batch.walk[from], &[]);
+                pass.dispatch_workgroups_indirect(&batch.counts[from], 0);
+            }
+            {
+                let mut pass = encoder.begin_compute_pass(&Default::default());
+                pass.set_pipeline(&kernels.visit);
+                pass.set_bind_group(0, &batch.visit, &[]);
+                pass.dispatch_workgroups_indirect(&batch.queue_count, 0);
+            }
+            encoder.copy_buffer_to_buffer(&batch.counts[to], 0, &batch.count_readback, 0, 16);
+            self.queue.submit([encoder.finish()]);
+            round += 1;
+            let count: Vec<u32> = bytemuck::cast_slice(&self.read_back_bytes(&batch.count_readback, 16)?).to_vec();
+            let walking = count[3];
+            if walking == 0 {
+                break None;
+            }
+            if walking * FINISH_BELOW < n {
+                break Some(to);
+            }
+        };
+        // The last pass: the rays still walking finish in one pass each, or nothing; it
+        // closes the timed span.
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: None,
+                timestamp_writes: queries.as_ref().map(|q| wgpu::ComputePassTimestampWrites {
+                    query_set: &q.set,
+                    beginning_of_pass_write_index: None,
+                    end_of_pass_write_index: Some(1),
+                }),
+            });
+            if let Some(from) = finish {
+                pass.set_pipeline(&kernels.finish);
+                pass.set_bind_group(0, &batch.finish[from], &[]);
+                pass.dispatch_workgroups_indirect(&batch.counts[from], 0);
+            }
+        }
+        if let Some(q) = &queries {
+            encoder.resolve_query_set(&q.set, 0..2, &q.resolve, 0);
+            encoder.copy_buffer_to_buffer(&q.resolve, 0, &q.readback, 0, 16);
+        }
+        self.queue.submit([encoder.finish()]);
+        if let Some(e) = pollster::block_on(self.device.pop_error_scope()) {
+            fail!(
+                Gpu,
+                "the GPU rejected the two-phase schedule: {}",
+                super::error_chain(&e)
+            );
+        }
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| error!(Gpu, "GPU device lost: {e}"))?;
+        let wall = start.elapsed().as_secs_f64();
+        Ok(match &queries {
+            Some(q) => {
+                let t: Vec<u64> = bytemuck::cast_slice(&self.read_back_bytes(&q.readback, 16)?).to_vec();
+                t[1].saturating_sub(t[0]) as f64 * self.queue.get_timestamp_period() as f64 * 1e-9
+            }
+            None => wall,
+        })
+    }
+}
