@@ -1,0 +1,100 @@
+//! The two-phase schedule's rounds, run natively: the resumable top-level walk and the queued
+//! one-grid visits, driven here the way the GPU drives them, find the one-pass walk's hits bit
+//! for bit. Runs without a GPU, so the shared walk is checked on every machine.
+
+use gridrt::mesh::load_mesh;
+use gridrt::mesh::scene::default_scene;
+use gridrt::rays::{ao_rays, primary_rays, trace_cpu};
+use gridrt::scene::Scene;
+use gridrt::subdiv::Scheme;
+use gridrt_shared::cost::Uncounted;
+use gridrt_shared::glam::Vec3;
+use gridrt_shared::grid_traverse::OneVisitGrids;
+use gridrt_shared::layout::{Hit, HitRecord, RayRecord, WalkState, NO_HIT};
+use gridrt_shared::ray::Ray;
+use gridrt_shared::traverse::{walk_round, BufferStack, LeafPrimitives, MAX_BVH_DEPTH};
+use gridrt_tests::{build_pair, meshes_dir};
+
+/// One ray through the rounds: each round walks to the next leaf, then every grid of that leaf
+/// is visited on its own from the closest distance known when it was queued.
+fn two_phase_hit(scene: &Scene, record: &RayRecord) -> (HitRecord, u32) {
+    let Scene::Grids(grids) = scene else {
+        panic!("the two-phase schedule traces grids");
+    };
+    assert!(grids.params.one_visit());
+    let visits = OneVisitGrids(grids.view());
+    let ray = Ray::new(Vec3::from(record.origin), Vec3::from(record.dir));
+    let mut words = vec![0u32; 2 * MAX_BVH_DEPTH];
+    let mut stack = BufferStack {
+        words: &mut words,
+        base: 0,
+    };
+    let mut state = WalkState::default();
+    let mut results: Vec<HitRecord> = Vec::new();
+    let mut rounds = 0;
+    loop {
+        let nodes = grids.nodes.as_slice();
+        let leaf = walk_round(nodes, results.as_slice(), &ray, record.t_max, &mut state, &mut stack);
+        if leaf.count == 0 {
+            let hit = HitRecord {
+                t: state.t,
+                prim: state.prim,
+            };
+            return (hit, rounds);
+        }
+        rounds += 1;
+        // The queue entries of this round, each visited as one GPU thread would.
+        results = (leaf.first..leaf.first + leaf.count)
+            .map(|grid| {
+                let mut hit = Hit::miss(state.t);
+                let mut scratch = visits.scratch(&ray);
+                visits.intersect_leaf(grid, 1, &ray, &mut hit, &mut scratch, &mut Uncounted);
+                HitRecord {
+                    t: hit.t,
+                    prim: hit.prim,
+                }
+            })
+            .collect();
+        state.first_entry = 0;
+        state.entries = leaf.count;
+    }
+}
+
+fn check(name: &str, scene: &Scene, rays: &[RayRecord]) {
+    let one_pass = trace_cpu(scene, rays);
+    let mut rounds = 0u64;
+    for (i, (record, expected)) in rays.iter().zip(&one_pass).enumerate() {
+        let (hit, n) = two_phase_hit(scene, record);
+        rounds += n as u64;
+        assert!(
+            hit.t.to_bits() == expected.t.to_bits() && hit.prim == expected.prim,
+            "{name}: ray {i} hits {hit:?} in rounds, {expected:?} in one pass"
+        );
+    }
+    let hits = one_pass.iter().filter(|h| h.prim != NO_HIT).count();
+    eprintln!("{name}: {} rays, {hits} hits, {rounds} rounds", rays.len());
+    assert!(rounds > 0, "{name}: no ray entered a leaf");
+}
+
+fn check_mesh(name: &str, mesh: &gridrt::mesh::Mesh) {
+    let pair = build_pair(mesh, 3, 3, Scheme::Loop);
+    let primary = primary_rays(&pair.bounds, 2, 64, 48);
+    let first = trace_cpu(&pair.triangles, &primary);
+    let ao = ao_rays(&primary, &first, 2, &pair.bounds, |p| pair.triangles.normal(p));
+    check(&format!("{name} primary"), &pair.grids, &primary);
+    check(&format!("{name} ao"), &pair.grids, &ao);
+}
+
+#[test]
+fn rounds_find_the_one_pass_hits_on_the_default_scene() {
+    check_mesh("default scene", &default_scene());
+}
+
+#[test]
+fn rounds_find_the_one_pass_hits_on_the_teapot() {
+    let Some(dir) = meshes_dir() else {
+        eprintln!("rounds_find_the_one_pass_hits_on_the_teapot: SKIPPED, ../shared/meshes not found");
+        return;
+    };
+    check_mesh("teapot", &load_mesh(&dir.join("teapot.obj")).unwrap());
+}
