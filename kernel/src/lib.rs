@@ -16,7 +16,7 @@ use gridrt_shared::layout::{
 };
 use gridrt_shared::ray::Ray;
 use gridrt_shared::shade::{cost_pixel, render_pixel};
-use gridrt_shared::traverse::{closest_hit, walk_round, BufferStack, LeafPrimitives, TriangleMesh, MAX_BVH_DEPTH};
+use gridrt_shared::traverse::{closest_hit, walk_round, BufferStack, LeafPrimitives, TriangleMesh};
 use spirv_std::spirv;
 
 /// Where this thread's pixel goes in the tile's image buffer, or `None` outside the tile.
@@ -358,7 +358,8 @@ pub fn walk_rounds(
     let mut state = states[r as usize];
     let mut stack = BufferStack {
         words: stacks,
-        base: r as usize * 2 * MAX_BVH_DEPTH,
+        ray: r as usize,
+        rays: rays.len(),
     };
     let leaf = walk_round(nodes, results, &ray, record.t_max, &mut state, &mut stack);
     if leaf.count == 0 {
@@ -453,7 +454,8 @@ pub fn finish_walks(
     let mut state = states[r as usize];
     let mut stack = BufferStack {
         words: stacks,
-        base: r as usize * 2 * MAX_BVH_DEPTH,
+        ray: r as usize,
+        rays: rays.len(),
     };
     let grids = OneVisitGrids(GridScene {
         headers,

@@ -261,25 +261,37 @@ pub trait WalkStack {
     }
 }
 
-/// A ray's stack in a buffer of `2 MAX_BVH_DEPTH` words a ray: nodes, then distances.
+/// The stacks of `rays` rays in one buffer of `2 MAX_BVH_DEPTH` words a ray, by depth first:
+/// the slots of one depth lie side by side for consecutive rays, each a node and its distance.
+/// Why: the rays of a SIMD group push and pop at much the same depths, so their accesses fall
+/// on a few cache lines rather than one per ray.
 pub struct BufferStack<'a> {
     pub words: &'a mut [u32],
-    pub base: usize,
+    pub ray: usize,
+    pub rays: usize,
+}
+
+impl BufferStack<'_> {
+    #[inline(always)]
+    fn slot(&self, at: usize) -> usize {
+        2 * (at * self.rays + self.ray)
+    }
 }
 
 impl WalkStack for BufferStack<'_> {
     #[inline(always)]
     fn push(&mut self, at: usize, node: u32, t: f32) {
-        self.words[self.base + at] = node;
-        self.words[self.base + MAX_BVH_DEPTH + at] = t.to_bits();
+        let slot = self.slot(at);
+        self.words[slot] = node;
+        self.words[slot + 1] = t.to_bits();
     }
     #[inline(always)]
     fn node(&self, at: usize) -> u32 {
-        self.words[self.base + at]
+        self.words[self.slot(at)]
     }
     #[inline(always)]
     fn t(&self, at: usize) -> f32 {
-        f32::from_bits(self.words[self.base + MAX_BVH_DEPTH + at])
+        f32::from_bits(self.words[self.slot(at) + 1])
     }
 }
 

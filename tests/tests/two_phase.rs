@@ -27,7 +27,8 @@ fn two_phase_hit(scene: &Scene, record: &RayRecord) -> (HitRecord, u32) {
     let mut words = vec![0u32; 2 * MAX_BVH_DEPTH];
     let mut stack = BufferStack {
         words: &mut words,
-        base: 0,
+        ray: 0,
+        rays: 1,
     };
     let mut state = WalkState::default();
     let mut results: Vec<HitRecord> = Vec::new();

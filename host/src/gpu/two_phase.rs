@@ -19,10 +19,15 @@ use crate::scene::Scene;
 
 /// The rays still walking finish in one pass once fewer than this fraction (1 / FINISH_BELOW)
 /// of the list is left: every round costs a fixed time however few its rays (two dispatches
-/// and a read-back of the count), and the last rounds hold a handful.
+/// and a share of a read-back of the count), and the last rounds hold a handful.
 const FINISH_BELOW: u32 = 32;
 
-/// A ray's saved stack: `MAX_BVH_DEPTH` nodes, then their distances.
+/// Rounds encoded in one submission, the count read back after the last: each read-back
+/// leaves the device idle while the host waits, and a round with no ray left is an empty
+/// indirect dispatch.
+const ROUNDS_PER_SUBMIT: usize = 2;
+
+/// A ray's saved stack: `MAX_BVH_DEPTH` slots of a node and its distance.
 const STACK_BYTES: u64 = 2 * MAX_BVH_DEPTH as u64 * 4;
 
 /// The schedule's three kernels.
@@ -239,6 +244,37 @@ impl Gpu {
         })
     }
 
+    /// One round: the walk of every ray in list `from`, then the visits it queued; the rays
+    /// still walking are listed for the next round in the other list.
+    fn encode_round(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        batch: &Batch,
+        from: usize,
+        first: Option<&super::Queries>,
+    ) {
+        let kernels = self.two_phase_kernels();
+        encoder.clear_buffer(&batch.counts[1 - from], 0, None);
+        encoder.clear_buffer(&batch.queue_count, 0, None);
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: None,
+                timestamp_writes: first.map(|q| wgpu::ComputePassTimestampWrites {
+                    query_set: &q.set,
+                    beginning_of_pass_write_index: Some(0),
+                    end_of_pass_write_index: None,
+                }),
+            });
+            pass.set_pipeline(&kernels.walk);
+            pass.set_bind_group(0, &batch.walk[from], &[]);
+            pass.dispatch_workgroups_indirect(&batch.counts[from], 0);
+        }
+        let mut pass = encoder.begin_compute_pass(&Default::default());
+        pass.set_pipeline(&kernels.visit);
+        pass.set_bind_group(0, &batch.visit, &[]);
+        pass.dispatch_workgroups_indirect(&batch.queue_count, 0);
+    }
+
     /// Runs the rounds of one batch until no ray walks on; returns their seconds.
     fn run_rounds(&self, batch: &Batch) -> Result<f64> {
         let n = batch.rays;
@@ -258,34 +294,15 @@ impl Gpu {
         let start = Instant::now();
         let mut round = 0;
         let finish = loop {
-            let (from, to) = (round % 2, 1 - round % 2);
             let mut encoder = self.device.create_command_encoder(&Default::default());
-            encoder.clear_buffer(&batch.counts[to], 0, None);
-            encoder.clear_buffer(&batch.queue_count, 0, None);
-            {
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: None,
-                    timestamp_writes: (round == 0).then_some(()).and(queries.as_ref()).map(|q| {
-                        wgpu::ComputePassTimestampWrites {
-                            query_set: &q.set,
-                            beginning_of_pass_write_index: Some(0),
-                            end_of_pass_write_index: None,
-                        }
-                    }),
-                });
-                pass.set_pipeline(&kernels.walk);
-                pass.set_bind_group(0, &batch.walk[from], &[]);
-                pass.dispatch_workgroups_indirect(&batch.counts[from], 0);
+            for _ in 0..ROUNDS_PER_SUBMIT {
+                let first = (round == 0).then_some(()).and(queries.as_ref());
+                self.encode_round(&mut encoder, batch, round % 2, first);
+                round += 1;
             }
-            {
-                let mut pass = encoder.begin_compute_pass(&Default::default());
-                pass.set_pipeline(&kernels.visit);
-                pass.set_bind_group(0, &batch.visit, &[]);
-                pass.dispatch_workgroups_indirect(&batch.queue_count, 0);
-            }
+            let to = round % 2;
             encoder.copy_buffer_to_buffer(&batch.counts[to], 0, &batch.count_readback, 0, 16);
             self.queue.submit([encoder.finish()]);
-            round += 1;
             let count: Vec<u32> = bytemuck::cast_slice(&self.read_back_bytes(&batch.count_readback, 16)?).to_vec();
             let walking = count[3];
             if walking == 0 {
