@@ -37,9 +37,29 @@ pub enum BackendChoice {
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Schedule {
+    /// Two-phase wherever the backend and the scene take it (the GPU; grid scenes walked by
+    /// their root's visit alone, bound whole) and the list holds at least
+    /// [`TWO_PHASE_MIN_RAYS`] rays, one pass elsewhere (docs/RESULTS.md, "Schedules, in one
+    /// table").
     #[default]
+    Auto,
     OnePass,
     TwoPhase,
+}
+
+/// The shortest list `Schedule::Auto` traces by the two-phase schedule: each of its rounds
+/// costs a fixed time however few rays it holds, which a short list does not win back.
+pub const TWO_PHASE_MIN_RAYS: usize = 1 << 14;
+
+impl Schedule {
+    /// The name the command line and the JSON output use.
+    pub fn name(self) -> &'static str {
+        match self {
+            Schedule::Auto => "auto",
+            Schedule::OnePass => "one-pass",
+            Schedule::TwoPhase => "two-phase",
+        }
+    }
 }
 
 /// A CPU or a GPU, behind one interface: everything that traces takes a `&Backend`.
@@ -274,11 +294,13 @@ impl Backend {
         warmup: usize,
         repeats: usize,
     ) -> Result<(Vec<HitRecord>, Vec<f64>)> {
-        self.time_trace_scheduled(scene, rays, warmup, repeats, Schedule::OnePass)
+        let (hits, seconds, _) = self.time_trace_scheduled(scene, rays, warmup, repeats, Schedule::OnePass)?;
+        Ok((hits, seconds))
     }
 
     /// [`Backend::time_trace`] by `schedule`, which only the GPU has a choice of (the
-    /// two-phase schedule takes grid scenes walked by their root's visit alone, bound whole).
+    /// two-phase schedule takes grid scenes walked by their root's visit alone, bound whole);
+    /// also returns the schedule that ran, `Auto` resolved.
     pub fn time_trace_scheduled(
         &self,
         scene: &Scene,
@@ -286,7 +308,7 @@ impl Backend {
         warmup: usize,
         repeats: usize,
         schedule: Schedule,
-    ) -> Result<(Vec<HitRecord>, Vec<f64>)> {
+    ) -> Result<(Vec<HitRecord>, Vec<f64>, Schedule)> {
         if schedule == Schedule::TwoPhase && self.kind() != "gpu" {
             crate::error::fail!(
                 Options,
@@ -304,17 +326,24 @@ impl Backend {
                         seconds.push(start.elapsed().as_secs_f64());
                     }
                 }
-                Ok((hits, seconds))
+                Ok((hits, seconds, Schedule::OnePass))
             }
             #[cfg(feature = "gpu")]
             Backend::Gpu(gpu) => {
                 let uploaded = gpu.upload(scene)?;
+                let schedule = match schedule {
+                    Schedule::Auto if uploaded.takes_two_phase() && rays.len() >= TWO_PHASE_MIN_RAYS => {
+                        Schedule::TwoPhase
+                    }
+                    Schedule::Auto => Schedule::OnePass,
+                    chosen => chosen,
+                };
                 let (hits, mut seconds) = match schedule {
-                    Schedule::OnePass => gpu.time_trace(&uploaded, rays, warmup + repeats)?,
                     Schedule::TwoPhase => gpu.time_trace_two_phase(&uploaded, rays, warmup + repeats)?,
+                    _ => gpu.time_trace(&uploaded, rays, warmup + repeats)?,
                 };
                 seconds.drain(..warmup.min(seconds.len()));
-                Ok((hits, seconds))
+                Ok((hits, seconds, schedule))
             }
         }
     }

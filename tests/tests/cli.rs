@@ -437,6 +437,65 @@ fn the_two_phase_schedule_is_refused_on_the_cpu() {
     );
 }
 
+/// `bench` on the GPU picks the two-phase schedule for long grid lists at --levels 3 and says
+/// so, one pass for short lists and deeper hierarchies, and takes the one asked for.
+#[test]
+fn bench_reports_the_schedule_it_ran() {
+    let Some(_gpu) = gpu_or_skip("bench_reports_the_schedule_it_ran") else {
+        return;
+    };
+    let Some(dir) = meshes_dir() else {
+        eprintln!("bench_reports_the_schedule_it_ran: SKIPPED, ../shared/meshes not found");
+        return;
+    };
+    let out = scratch("bench-schedule");
+    let teapot = dir.join("teapot.obj");
+    let json = out.join("bench.json");
+    let schedules = |extra: &[&str]| {
+        let mut args = vec![
+            "bench",
+            teapot.to_str().unwrap(),
+            "--backend",
+            "gpu",
+            "--views",
+            "1",
+            "--width",
+            "160",
+            "--height",
+            "120",
+            "--ao-samples",
+            "1",
+            "--warmup",
+            "0",
+            "--repeats",
+            "1",
+            "-q",
+            "--json",
+            json.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let o = gridrt(&args);
+        assert!(o.status.success(), "gridrt {args:?} failed: {}", stderr(&o));
+        let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
+        let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+        let s = &v[0]["schedule"];
+        let pair = (
+            s["primary"].as_str().unwrap().to_string(),
+            s["ao"].as_str().unwrap().to_string(),
+        );
+        let line = format!("teapot.obj {} / {}", pair.0, pair.1);
+        assert!(stdout.contains(&line), "{line:?} not in {stdout}");
+        pair
+    };
+    let both = |p: &str, a: &str| (p.to_string(), a.to_string());
+    // 19200 primary rays, fewer AO rays than the two-phase schedule's shortest list.
+    assert_eq!(schedules(&[]), both("two-phase", "one-pass"));
+    assert_eq!(schedules(&["--schedule", "one-pass"]), both("one-pass", "one-pass"));
+    assert_eq!(schedules(&["--levels", "4"]), both("one-pass", "one-pass"));
+    assert_eq!(schedules(&["--schedule", "two-phase"]), both("two-phase", "two-phase"));
+    let _ = std::fs::remove_dir_all(out);
+}
+
 /// Leaves too large for one leaf test with their siblings (three levels left out under a
 /// sphere level) are refused up front; three levels out of three leave only the root, which
 /// works.

@@ -18,9 +18,9 @@ use gridrt::{limits, triangles};
 use gridrt_shared::layout::{HitRecord, RayRecord};
 
 #[derive(Serialize, Debug, Clone, Copy, Default)]
-pub struct PerKind {
-    pub primary: f64,
-    pub ao: f64,
+pub struct PerKind<T = f64> {
+    pub primary: T,
+    pub ao: T,
 }
 
 #[derive(Serialize, Debug, Clone, Copy, Default)]
@@ -41,8 +41,8 @@ pub struct BenchResult {
     pub width: u32,
     pub height: u32,
     pub ray_order: RayOrder,
-    /// How the GPU traced the grids' lists.
-    pub schedule: Schedule,
+    /// How the grids' lists were traced.
+    pub schedule: PerKind<Schedule>,
     pub rays: PerKind,
     pub mrays_per_s: PerRepresentation,
     /// `(max - min) / median` of the repetitions, per representation and ray kind.
@@ -188,6 +188,7 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
         let mut mrays = PerRepresentation::default();
         let mut spread = PerRepresentation::default();
         let mut agree = PerKind::default();
+        let mut grid_schedule = PerKind::<Schedule>::default();
         for (kind, rays) in [("primary", &primary), ("ao", &ao)] {
             let mut hits = Vec::new();
             for (label, scene) in [("grid", &grids), ("triangles", &tris)] {
@@ -196,7 +197,13 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
                     "grid" => args.schedule.schedule(),
                     _ => Schedule::OnePass,
                 };
-                let (h, seconds) = device.time_trace_scheduled(scene, rays, args.warmup, args.repeats, schedule)?;
+                let (h, seconds, ran) =
+                    device.time_trace_scheduled(scene, rays, args.warmup, args.repeats, schedule)?;
+                match (label, kind) {
+                    ("grid", "primary") => grid_schedule.primary = ran,
+                    ("grid", _) => grid_schedule.ao = ran,
+                    _ => {}
+                }
                 let (median, rel) = summarize(seconds);
                 let rate = rays.len() as f64 / median / 1e6;
                 let (m, s) = match label {
@@ -226,7 +233,7 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
             width: args.width,
             height: args.height,
             ray_order: args.ray_order.order(),
-            schedule: args.schedule.schedule(),
+            schedule: grid_schedule,
             rays: PerKind {
                 primary: primary.len() as f64,
                 ao: ao.len() as f64,
@@ -242,7 +249,16 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
     }
     bar.finish_and_clear();
     let table = markdown(&results);
-    println!("{table}");
+    print!("{table}");
+    if backend == "gpu" {
+        let schedules: Vec<String> = (results.iter())
+            .map(|r| {
+                let (primary, ao) = (r.schedule.primary.name(), r.schedule.ao.name());
+                format!("{} {primary} / {ao}", file_name(&r.stats.mesh))
+            })
+            .collect();
+        println!("Grid schedules (primary / AO): {}", schedules.join(", "));
+    }
     if let Some(path) = &args.json {
         std::fs::write(path, serde_json::to_string_pretty(&results)? + "\n")
             .map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", path.display()))?;
@@ -256,6 +272,12 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
     Ok(())
 }
 
+fn file_name(path: &str) -> String {
+    (std::path::Path::new(path).file_name())
+        .map(|f| f.to_string_lossy().into_owned())
+        .unwrap_or_else(|| path.to_string())
+}
+
 /// The published Table 1 columns (RT impact, compression gain, construction gain) plus
 /// bytes per triangle and throughput.
 pub fn markdown(results: &[BenchResult]) -> String {
@@ -267,10 +289,7 @@ pub fn markdown(results: &[BenchResult]) -> String {
     );
     let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
     for r in results {
-        let name = std::path::Path::new(&r.stats.mesh)
-            .file_name()
-            .map(|f| f.to_string_lossy().into_owned())
-            .unwrap_or_else(|| r.stats.mesh.clone());
+        let name = file_name(&r.stats.mesh);
         let _ = writeln!(
             s,
             "| {name} | {} | {:+.1}% | {:+.1}% | {:.2}x | {:.1}x | {:.2} | {:.2} | {:.2} / {:.2} | {:.2} / {:.2} |",

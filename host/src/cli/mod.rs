@@ -95,6 +95,8 @@ impl RayOrderArg {
 /// How the GPU traces the grids' ray lists (see `gridrt::backend::Schedule`).
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ScheduleArg {
+    /// Two-phase where the GPU takes the grids (as at --levels 3), otherwise one pass.
+    Auto,
     /// One kernel: each ray's top-level walk with its grid visits.
     OnePass,
     /// Rounds of a top-level walk that queues grids, each followed by one queued grid visit
@@ -105,6 +107,7 @@ pub enum ScheduleArg {
 impl ScheduleArg {
     pub fn schedule(self) -> gridrt::backend::Schedule {
         match self {
+            ScheduleArg::Auto => gridrt::backend::Schedule::Auto,
             ScheduleArg::OnePass => gridrt::backend::Schedule::OnePass,
             ScheduleArg::TwoPhase => gridrt::backend::Schedule::TwoPhase,
         }
@@ -461,7 +464,7 @@ pub struct BenchArgs {
     #[arg(long, value_enum, default_value_t = RayOrderArg::Scanline)]
     pub ray_order: RayOrderArg,
     /// How the GPU traces the grids' lists; the baseline always takes one pass, its fastest.
-    #[arg(long, value_enum, default_value_t = ScheduleArg::OnePass)]
+    #[arg(long, value_enum, default_value_t = ScheduleArg::Auto)]
     pub schedule: ScheduleArg,
     /// Untimed runs before the timed ones.
     #[arg(long, default_value_t = 1)]

@@ -55,6 +55,14 @@ struct Batch {
     visit: wgpu::BindGroup,
 }
 
+impl GpuScene<'_> {
+    /// Whether the two-phase schedule takes this scene: grids walked by their root's visit
+    /// alone, bound whole.
+    pub fn takes_two_phase(&self) -> bool {
+        matches!(self.scene, Scene::Grids(g) if g.params.one_visit() && !self.is_split())
+    }
+}
+
 impl Gpu {
     /// Traces a list of rays by the two-phase schedule `repeats` times: the hits, and the
     /// seconds of each repetition (from the first round's start to the last's end, by GPU
@@ -66,7 +74,7 @@ impl Gpu {
         repeats: usize,
     ) -> Result<(Vec<HitRecord>, Vec<f64>)> {
         let grids = match scene.scene {
-            Scene::Grids(g) if g.params.one_visit() && !scene.is_split() => g,
+            Scene::Grids(g) if scene.takes_two_phase() => g,
             _ => fail!(
                 Options,
                 "the two-phase schedule traces grids walked by their root's visit alone (sphere levels down to 1, \
