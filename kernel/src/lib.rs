@@ -11,8 +11,8 @@ use gridrt_shared::cost::Uncounted;
 use gridrt_shared::glam::{UVec3, Vec3};
 use gridrt_shared::grid_traverse::{GridScene, OneVisitGrids};
 use gridrt_shared::layout::{
-    BvhNode, FrameParams, GridHeader, Hit, HitRecord, QueueEntry, RayRecord, TraceParams, WalkState, GRID_NODES,
-    TRACE_WORKGROUP_SIZE, TRIANGLE_NODES, WORKGROUP_SIZE,
+    BvhNode, FrameParams, GridHeader, Hit, HitRecord, LeafEntry, QueueEntry, RayRecord, TraceParams, WalkState,
+    GRID_NODES, NO_HIT, TRACE_WORKGROUP_SIZE, TRIANGLE_NODES, WORKGROUP_SIZE,
 };
 use gridrt_shared::ray::Ray;
 use gridrt_shared::shade::{cost_pixel, render_pixel};
@@ -390,7 +390,8 @@ pub fn walk_rounds(
     states[r as usize] = state;
 }
 
-/// The two-phase schedule's second phase: one queued grid per thread.
+/// The two-phase schedule's second phase, first half: one queued grid per thread, its spheres
+/// and footprints; the visits that need a leaf test are queued again, the others answer a miss.
 #[allow(clippy::too_many_arguments)] // one per binding
 #[spirv(compute(threads(64, 1, 1)))]
 pub fn visit_queued(
@@ -400,10 +401,11 @@ pub fn visit_queued(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] queue: &[QueueEntry],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] results: &mut [HitRecord],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] queue_count: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] micro_triangles: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] headers: &[GridHeader],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] vertices: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] radii: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] headers: &[GridHeader],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] vertices: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] radii: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] leaves: &mut [LeafEntry],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 9)] leaf_count: &mut [u32],
 ) {
     let i = id.x as usize;
     if i >= queue_count[ITEMS] as usize {
@@ -415,13 +417,56 @@ pub fn visit_queued(
         headers,
         vertices,
         radii,
+        // The first half reads no cell table.
+        micro_triangles: vertices,
+        params: params.grid,
+    });
+    let mut scratch = grids.scratch(&ray);
+    let window = grids.leaf_window(entry.grid, &ray, entry.t, &mut scratch, &mut Uncounted);
+    results[i] = HitRecord {
+        t: entry.t,
+        prim: NO_HIT,
+    };
+    if window[0] <= window[1] {
+        let slot = append(leaf_count, 1);
+        leaves[slot as usize] = LeafEntry::new(i as u32, window);
+    }
+}
+
+/// The two-phase schedule's second phase, second half: one queued leaf test per thread.
+#[allow(clippy::too_many_arguments)] // one per binding
+#[spirv(compute(threads(64, 1, 1)))]
+pub fn test_queued_leaves(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[RayRecord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] queue: &[QueueEntry],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] results: &mut [HitRecord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] leaves: &[LeafEntry],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] leaf_count: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] micro_triangles: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] headers: &[GridHeader],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] vertices: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 9)] radii: &[u32],
+) {
+    let i = id.x as usize;
+    if i >= leaf_count[ITEMS] as usize {
+        return;
+    }
+    let leaf = leaves[i];
+    let entry = queue[leaf.slot as usize];
+    let ray = ray_of(&rays[entry.ray as usize]);
+    let grids = OneVisitGrids(GridScene {
+        headers,
+        vertices,
+        radii,
         micro_triangles,
         params: params.grid,
     });
     let mut hit = Hit::miss(entry.t);
     let mut scratch = grids.scratch(&ray);
-    grids.intersect_leaf(entry.grid, 1, &ray, &mut hit, &mut scratch, &mut Uncounted);
-    results[i] = record(&hit);
+    grids.test_leaf_window(entry.grid, leaf.window(), &ray, &mut hit, &mut scratch, &mut Uncounted);
+    results[leaf.slot as usize] = record(&hit);
 }
 
 /// The two-phase schedule's tail: the rays still walking finish in one pass each, their grids

@@ -338,6 +338,46 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         (open, sub_triangle(1 << self.params.levels, level, t))
     }
 
+    /// Grid `grid` opened for a visit along `ray`, and whether the ray crosses its root sphere
+    /// closer than `t`.
+    #[inline(always)]
+    fn begin_visit<T: Tally>(
+        &self,
+        grid: u32,
+        ray: &Ray,
+        t: f32,
+        scratch: &GridScratch,
+        tally: &mut T,
+    ) -> (GridVisit, bool) {
+        let (visit, root_radius) = self.open_visit(grid, ray);
+        tally.spheres(1);
+        let entry = intersect_sphere_scaled(visit.open.origin, root_radius, ray, scratch.inv_dir_len2, t);
+        (visit, entry < T_FAR)
+    }
+
+    /// Grid `grid` opened for a visit along `ray`, and its root sphere's radius.
+    #[inline(always)]
+    fn open_visit(&self, grid: u32, ray: &Ray) -> (GridVisit, f32) {
+        let open = self.open(grid);
+        let root_radius = self.radius(grid, 0);
+        let lod = grid_level(&self.params, open.origin, root_radius);
+        // At a coarse level of detail the hierarchy is cut where the rendered triangles are.
+        let leaf_level = if self.params.leaf_level < lod {
+            self.params.leaf_level
+        } else {
+            lod
+        };
+        let visit = GridVisit {
+            grid,
+            open,
+            lod,
+            leaf_level,
+            // Every vertex of the grid lies within the root sphere.
+            slack: FootprintFrame::slack((open.origin - ray.origin).abs().max_element() + root_radius),
+        };
+        (visit, root_radius)
+    }
+
     /// The bottom level: depth-first, nearest sphere first, over the grid's 4-ary hierarchy.
     ///
     /// `STACK` says how: with a stack of pending sub-triangles, which takes any depth; or, for
@@ -354,37 +394,13 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         scratch: &mut GridScratch,
         tally: &mut T,
     ) {
-        let open = self.open(grid);
-        let root_radius = self.radius(grid, 0);
-        let lod = grid_level(&self.params, open.origin, root_radius);
-        // At a coarse level of detail the hierarchy is cut where the rendered triangles are.
-        let leaf_level = if self.params.leaf_level < lod {
-            self.params.leaf_level
-        } else {
-            lod
-        };
-        let inv_dir_len2 = scratch.inv_dir_len2;
-        tally.spheres(1);
-        if intersect_sphere_scaled(open.origin, root_radius, ray, inv_dir_len2, hit.t) == T_FAR {
+        let (visit, crossed) = self.begin_visit(grid, ray, hit.t, scratch, tally);
+        if !crossed {
             return;
         }
-        let visit = GridVisit {
-            grid,
-            open,
-            lod,
-            leaf_level,
-            // Every vertex of the grid lies within the root sphere.
-            slack: FootprintFrame::slack((open.origin - ray.origin).abs().max_element() + root_radius),
-        };
-        let root = SubTriangle {
-            level: 0,
-            index: 0,
-            corner: [0, 0],
-            inverted: false,
-            t: 0.0,
-        };
+        let root = SubTriangle::ROOT;
         if !STACK {
-            self.visit_sub_triangle::<false, T>(&visit, &root, 0, ray, hit, scratch, tally);
+            self.visit_sub_triangle::<false, true, T>(&visit, &root, 0, ray, hit, scratch, tally, &mut [0; 4]);
             return;
         }
         let mut sp = 1usize;
@@ -404,7 +420,16 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                     inverted: packed >> 16 != 0,
                     t: scratch.stack_t[sp],
                 };
-                sp = self.visit_sub_triangle::<true, T>(&visit, &popped, sp, ray, hit, scratch, tally);
+                sp = self.visit_sub_triangle::<true, true, T>(
+                    &visit,
+                    &popped,
+                    sp,
+                    ray,
+                    hit,
+                    scratch,
+                    tally,
+                    &mut [0; 4],
+                );
             }
             if sp == 0 {
                 break;
@@ -415,9 +440,11 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     /// Sub-triangle `sub`, just popped (the stack is `sp` high without it): its children's
     /// spheres are tested and the hit ones pushed, nearest on top; or, when they are leaves,
     /// tested here as one leaf of `sub`, over the lattice points the ray may touch in any of
-    /// them; or `sub` is tested, when it is a leaf. Returns the stack's new height.
+    /// them; or `sub` is tested, when it is a leaf. Returns the stack's new height. Without
+    /// `TEST` the leaf test is left to the caller ([`GridScene::test_window`]): the window of
+    /// `sub`'s lattice it must cover is left in `untested` (empty when none).
     #[allow(clippy::too_many_arguments)]
-    fn visit_sub_triangle<const STACK: bool, T: Tally>(
+    fn visit_sub_triangle<const STACK: bool, const TEST: bool, T: Tally>(
         &self,
         visit: &GridVisit,
         sub: &SubTriangle,
@@ -426,6 +453,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         hit: &mut Hit,
         scratch: &mut GridScratch,
         tally: &mut T,
+        untested: &mut [u32; 4],
     ) -> usize {
         let GridVisit {
             grid,
@@ -557,21 +585,48 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                 push(&e3);
             }
         }
-        if tested {
-            // Numbered as at depth `params.lod`: each of this depth's triangles by the first of
-            // the `4^(params.lod - lod)` it would split into.
-            let shift = 2 * (self.params.lod - lod);
-            let ids = LeafIds {
-                first: grid * triangle_count(self.params.lod) + ((index * triangle_count(k)) << shift),
-                shift,
-                level: lod,
-            };
-            let step = d * (size >> k);
-            self.intersect_leaf_triangles(&open, a, step, k, window, ids, ray, hit, scratch, tally);
+        if TEST {
+            if tested {
+                self.test_window(visit, sub, window, ray, hit, scratch, tally);
+            }
+        } else {
+            *untested = if tested { window } else { EMPTY_WINDOW };
         }
         sp
     }
+
+    /// The leaf test of sub-triangle `sub`'s visit, over `window` of its lattice.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn test_window<T: Tally>(
+        &self,
+        visit: &GridVisit,
+        sub: &SubTriangle,
+        window: [u32; 4],
+        ray: &Ray,
+        hit: &mut Hit,
+        scratch: &mut GridScratch,
+        tally: &mut T,
+    ) {
+        let (grid, lod) = (visit.grid, visit.lod);
+        let k = lod - sub.level;
+        let size = ((1u32 << self.params.levels) >> sub.level) as i32;
+        let d = if sub.inverted { -1 } else { 1 };
+        // Numbered as at depth `params.lod`: each of this depth's triangles by the first of
+        // the `4^(params.lod - lod)` it would split into.
+        let shift = 2 * (self.params.lod - lod);
+        let ids = LeafIds {
+            first: grid * triangle_count(self.params.lod) + ((sub.index * triangle_count(k)) << shift),
+            shift,
+            level: lod,
+        };
+        let step = d * (size >> k);
+        self.intersect_leaf_triangles(&visit.open, sub.corner, step, k, window, ids, ray, hit, scratch, tally);
+    }
 }
+
+/// A window that holds no lattice point: `lo > hi` on both axes.
+pub const EMPTY_WINDOW: [u32; 4] = [1, 0, 1, 0];
 
 /// `window` (in a sub-triangle's lattice, `2m` steps a side) grown to hold the window `w` of
 /// its child `child` (in the child's lattice, `m` steps a side) when the ray may cross the
@@ -645,6 +700,16 @@ struct SubTriangle {
     corner: [i32; 2],
     inverted: bool,
     t: f32,
+}
+
+impl SubTriangle {
+    const ROOT: SubTriangle = SubTriangle {
+        level: 0,
+        index: 0,
+        corner: [0, 0],
+        inverted: false,
+        t: 0.0,
+    };
 }
 
 /// A child sphere's entry distance and which child it is.
@@ -741,6 +806,50 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> LeafPrimitives for GridScene<'_, H, 
 /// only for scenes whose [`GridParams::one_visit`] holds (the default `L = 3` among them),
 /// where they find the same hits as the [`GridScene`] they wrap, with less work on GPUs.
 pub struct OneVisitGrids<'a, H, W>(pub GridScene<'a, H, W>);
+
+/// A grid's visit in two halves, for schedules that run them apart (the two-phase schedule
+/// compacts the visits that need a leaf test before running it): together they find what
+/// [`LeafPrimitives::intersect_leaf`] finds for the grid alone.
+impl<H: Buffer<GridHeader>, W: Buffer<u32>> OneVisitGrids<'_, H, W> {
+    /// The first half: the root's sphere, its children's spheres and footprints. Returns the
+    /// window of the root's lattice the leaf test must cover for hits closer than `t`, or
+    /// [`EMPTY_WINDOW`] when the grid holds none.
+    pub fn leaf_window<T: Tally>(
+        &self,
+        grid: u32,
+        ray: &Ray,
+        t: f32,
+        scratch: &mut GridScratch,
+        tally: &mut T,
+    ) -> [u32; 4] {
+        let (visit, crossed) = self.0.begin_visit(grid, ray, t, scratch, tally);
+        if !crossed {
+            return EMPTY_WINDOW;
+        }
+        let mut hit = Hit::miss(t);
+        let root = SubTriangle::ROOT;
+        let mut window = EMPTY_WINDOW;
+        self.0
+            .visit_sub_triangle::<false, false, T>(&visit, &root, 0, ray, &mut hit, scratch, tally, &mut window);
+        window
+    }
+
+    /// The second half: the leaf test over `window` (from [`Self::leaf_window`], not empty),
+    /// its closest hit closer than `hit.t` taken into `hit`.
+    pub fn test_leaf_window<T: Tally>(
+        &self,
+        grid: u32,
+        window: [u32; 4],
+        ray: &Ray,
+        hit: &mut Hit,
+        scratch: &mut GridScratch,
+        tally: &mut T,
+    ) {
+        let (visit, _) = self.0.open_visit(grid, ray);
+        self.0
+            .test_window(&visit, &SubTriangle::ROOT, window, ray, hit, scratch, tally);
+    }
+}
 
 impl<H: Buffer<GridHeader>, W: Buffer<u32>> LeafPrimitives for OneVisitGrids<'_, H, W> {
     type Scratch = GridScratch;

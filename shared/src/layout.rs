@@ -408,3 +408,33 @@ pub struct QueueEntry {
     pub t: f32,
     pub _pad: u32,
 }
+
+/// A queued grid visit that needs its leaf test: the queue slot it answers in and the window
+/// of the grid's lattice to test (see `OneVisitGrids::leaf_window`), each axis's bounds in
+/// 16 bits.
+#[repr(C)]
+#[derive(Copy, Clone, Default)]
+#[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable, Debug, PartialEq))]
+pub struct LeafEntry {
+    pub slot: u32,
+    pub la: u32,
+    pub lb: u32,
+    pub _pad: u32,
+}
+
+impl LeafEntry {
+    #[inline]
+    pub fn new(slot: u32, window: [u32; 4]) -> Self {
+        LeafEntry {
+            slot,
+            la: window[0] | (window[1] << 16),
+            lb: window[2] | (window[3] << 16),
+            _pad: 0,
+        }
+    }
+
+    #[inline]
+    pub fn window(&self) -> [u32; 4] {
+        [self.la & 0xffff, self.la >> 16, self.lb & 0xffff, self.lb >> 16]
+    }
+}

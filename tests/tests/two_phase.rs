@@ -1,6 +1,7 @@
 //! The two-phase schedule's rounds, run natively: the resumable top-level walk and the queued
-//! one-grid visits, driven here the way the GPU drives them, find the one-pass walk's hits bit
-//! for bit. Runs without a GPU, so the shared walk is checked on every machine.
+//! one-grid visits in two halves (spheres and footprints, then the leaf test over the window
+//! the first half found), driven here the way the GPU drives them, find the one-pass walk's
+//! hits bit for bit. Runs without a GPU, so the shared walk is checked on every machine.
 
 use gridrt::mesh::load_mesh;
 use gridrt::mesh::scene::default_scene;
@@ -9,8 +10,8 @@ use gridrt::scene::Scene;
 use gridrt::subdiv::Scheme;
 use gridrt_shared::cost::Uncounted;
 use gridrt_shared::glam::Vec3;
-use gridrt_shared::grid_traverse::OneVisitGrids;
-use gridrt_shared::layout::{Hit, HitRecord, RayRecord, WalkState, NO_HIT};
+use gridrt_shared::grid_traverse::{OneVisitGrids, EMPTY_WINDOW};
+use gridrt_shared::layout::{Hit, HitRecord, LeafEntry, RayRecord, WalkState, NO_HIT};
 use gridrt_shared::ray::Ray;
 use gridrt_shared::traverse::{walk_round, BufferStack, LeafPrimitives, MAX_BVH_DEPTH};
 use gridrt_tests::{build_pair, meshes_dir};
@@ -44,12 +45,18 @@ fn two_phase_hit(scene: &Scene, record: &RayRecord) -> (HitRecord, u32) {
             return (hit, rounds);
         }
         rounds += 1;
-        // The queue entries of this round, each visited as one GPU thread would.
+        // The queue entries of this round, each visited as GPU threads would: its spheres and
+        // footprints first, then, for the visits that need one, its leaf test.
         results = (leaf.first..leaf.first + leaf.count)
             .map(|grid| {
                 let mut hit = Hit::miss(state.t);
                 let mut scratch = visits.scratch(&ray);
-                visits.intersect_leaf(grid, 1, &ray, &mut hit, &mut scratch, &mut Uncounted);
+                let window = visits.leaf_window(grid, &ray, state.t, &mut scratch, &mut Uncounted);
+                if window != EMPTY_WINDOW {
+                    let mut scratch = visits.scratch(&ray);
+                    let packed = LeafEntry::new(0, window);
+                    visits.test_leaf_window(grid, packed.window(), &ray, &mut hit, &mut scratch, &mut Uncounted);
+                }
                 HitRecord {
                     t: hit.t,
                     prim: hit.prim,

@@ -8,7 +8,7 @@
 //! the others masked; queued, every lane of a group visits one (docs/RESULTS.md, "Two-phase").
 //! It takes scenes whose grids are walked by their root's visit alone, bound whole.
 
-use gridrt_shared::layout::{HitRecord, QueueEntry, RayRecord, WalkState, TRACE_WORKGROUP_SIZE};
+use gridrt_shared::layout::{HitRecord, LeafEntry, QueueEntry, RayRecord, WalkState, TRACE_WORKGROUP_SIZE};
 use gridrt_shared::traverse::MAX_BVH_DEPTH;
 use std::time::Instant;
 use wgpu::util::DeviceExt;
@@ -34,6 +34,7 @@ const STACK_BYTES: u64 = 2 * MAX_BVH_DEPTH as u64 * 4;
 pub(super) struct Kernels {
     walk: wgpu::ComputePipeline,
     visit: wgpu::ComputePipeline,
+    test_leaves: wgpu::ComputePipeline,
     finish: wgpu::ComputePipeline,
 }
 
@@ -49,10 +50,12 @@ struct Batch {
     /// Each an indirect dispatch's three group counts, then the number of items.
     counts: [wgpu::Buffer; 2],
     queue_count: wgpu::Buffer,
+    leaf_count: wgpu::Buffer,
     count_readback: wgpu::Buffer,
     walk: [wgpu::BindGroup; 2],
     finish: [wgpu::BindGroup; 2],
     visit: wgpu::BindGroup,
+    test_leaves: wgpu::BindGroup,
 }
 
 impl GpuScene<'_> {
@@ -116,6 +119,7 @@ impl Gpu {
         self.two_phase.get_or_init(|| Kernels {
             walk: compute_pipeline(&self.device, &self.module, "walk_rounds"),
             visit: compute_pipeline(&self.device, &self.module, "visit_queued"),
+            test_leaves: compute_pipeline(&self.device, &self.module, "test_queued_leaves"),
             finish: compute_pipeline(&self.device, &self.module, "finish_walks"),
         })
     }
@@ -155,6 +159,8 @@ impl Gpu {
         );
         let counts = [storage("count", 16, counter), storage("count", 16, counter)];
         let queue_count = storage("queue count", 16, counter);
+        let leaves = storage("leaf queue", entries * std::mem::size_of::<LeafEntry>() as u64, plain);
+        let leaf_count = storage("leaf count", 16, counter);
         let count_readback = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("count read-back"),
             size: 16,
@@ -213,6 +219,22 @@ impl Gpu {
                 &queue,
                 &results,
                 &queue_count,
+                headers,
+                vertices,
+                radii,
+                &leaves,
+                &leaf_count,
+            ],
+        );
+        let test_leaves = self.bind_all(
+            &kernels.test_leaves,
+            &[
+                &params,
+                &ray_buffer,
+                &queue,
+                &results,
+                &leaves,
+                &leaf_count,
                 micro_triangles,
                 headers,
                 vertices,
@@ -230,10 +252,12 @@ impl Gpu {
             readback,
             counts,
             queue_count,
+            leaf_count,
             count_readback,
             walk,
             finish,
             visit,
+            test_leaves,
         }
     }
 
@@ -264,6 +288,7 @@ impl Gpu {
         let kernels = self.two_phase_kernels();
         encoder.clear_buffer(&batch.counts[1 - from], 0, None);
         encoder.clear_buffer(&batch.queue_count, 0, None);
+        encoder.clear_buffer(&batch.leaf_count, 0, None);
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: None,
@@ -277,10 +302,16 @@ impl Gpu {
             pass.set_bind_group(0, &batch.walk[from], &[]);
             pass.dispatch_workgroups_indirect(&batch.counts[from], 0);
         }
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&kernels.visit);
+            pass.set_bind_group(0, &batch.visit, &[]);
+            pass.dispatch_workgroups_indirect(&batch.queue_count, 0);
+        }
         let mut pass = encoder.begin_compute_pass(&Default::default());
-        pass.set_pipeline(&kernels.visit);
-        pass.set_bind_group(0, &batch.visit, &[]);
-        pass.dispatch_workgroups_indirect(&batch.queue_count, 0);
+        pass.set_pipeline(&kernels.test_leaves);
+        pass.set_bind_group(0, &batch.test_leaves, &[]);
+        pass.dispatch_workgroups_indirect(&batch.leaf_count, 0);
     }
 
     /// Runs the rounds of one batch until no ray walks on; returns their seconds.
