@@ -1,12 +1,14 @@
 //! The two-phase schedule for grid ray lists: rounds of a top-level walk kernel, which takes
 //! every ray still walking to its next leaf and queues (ray, grid, closest distance so far) for
-//! the leaf's grids, each followed by a kernel that visits one queued grid per thread. The walk
-//! merges the visits' results at its next round. Once few rays still walk they finish in one
-//! pass each, their grids visited in place.
+//! the leaf's grids, each followed by a kernel that visits one queued grid per thread as far as
+//! its spheres and footprints and queues the visits that need a leaf test, and a kernel that
+//! runs one queued leaf test per thread. The walk merges the visits' results at its next round.
+//! Once few rays still walk they finish in one pass each, their grids visited in place.
 //!
 //! Why: in the one-pass walk a SIMD group visits a grid at the pace of its lanes that have one,
-//! the others masked; queued, every lane of a group visits one (docs/RESULTS.md, "Two-phase").
-//! It takes scenes whose grids are walked by their root's visit alone, bound whole.
+//! the others masked; queued, every lane of a group visits one, and every lane of a group of
+//! leaf tests runs one (docs/RESULTS.md, "Two-phase"). It takes scenes whose grids are walked by
+//! their root's visit alone, bound whole.
 
 use gridrt_shared::layout::{HitRecord, LeafEntry, QueueEntry, RayRecord, WalkState, TRACE_WORKGROUP_SIZE};
 use gridrt_shared::traverse::MAX_BVH_DEPTH;
@@ -30,7 +32,7 @@ const ROUNDS_PER_SUBMIT: usize = 2;
 /// A ray's saved stack: `MAX_BVH_DEPTH` slots of a node and its distance.
 const STACK_BYTES: u64 = 2 * MAX_BVH_DEPTH as u64 * 4;
 
-/// The schedule's three kernels.
+/// The schedule's four kernels.
 pub(super) struct Kernels {
     walk: wgpu::ComputePipeline,
     visit: wgpu::ComputePipeline,
@@ -276,8 +278,9 @@ impl Gpu {
         })
     }
 
-    /// One round: the walk of every ray in list `from`, then the visits it queued; the rays
-    /// still walking are listed for the next round in the other list.
+    /// One round: the walk of every ray in list `from`, then the visits it queued, then the
+    /// leaf tests they queued; the rays still walking are listed for the next round in the
+    /// other list.
     fn encode_round(
         &self,
         encoder: &mut wgpu::CommandEncoder,
