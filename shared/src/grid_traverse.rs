@@ -338,26 +338,23 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         (open, sub_triangle(1 << self.params.levels, level, t))
     }
 
-    /// Grid `grid` opened for a visit along `ray`, and whether the ray crosses its root sphere
-    /// closer than `t`.
+    /// Whether `ray` crosses the root sphere of the grid `visit` opened, closer than `t`.
     #[inline(always)]
-    fn begin_visit<T: Tally>(
+    fn crosses_root<T: Tally>(
         &self,
-        grid: u32,
+        visit: &GridVisit,
         ray: &Ray,
         t: f32,
         scratch: &GridScratch,
         tally: &mut T,
-    ) -> (GridVisit, bool) {
-        let (visit, root_radius) = self.open_visit(grid, ray);
+    ) -> bool {
         tally.spheres(1);
-        let entry = intersect_sphere_scaled(visit.open.origin, root_radius, ray, scratch.inv_dir_len2, t);
-        (visit, entry < T_FAR)
+        intersect_sphere_scaled(visit.open.origin, visit.root_radius, ray, scratch.inv_dir_len2, t) < T_FAR
     }
 
-    /// Grid `grid` opened for a visit along `ray`, and its root sphere's radius.
+    /// Grid `grid` opened for a visit along `ray`.
     #[inline(always)]
-    fn open_visit(&self, grid: u32, ray: &Ray) -> (GridVisit, f32) {
+    fn open_visit(&self, grid: u32, ray: &Ray) -> GridVisit {
         let open = self.open(grid);
         let root_radius = self.radius(grid, 0);
         let lod = grid_level(&self.params, open.origin, root_radius);
@@ -367,15 +364,15 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         } else {
             lod
         };
-        let visit = GridVisit {
+        GridVisit {
             grid,
             open,
+            root_radius,
             lod,
             leaf_level,
             // Every vertex of the grid lies within the root sphere.
             slack: FootprintFrame::slack((open.origin - ray.origin).abs().max_element() + root_radius),
-        };
-        (visit, root_radius)
+        }
     }
 
     /// The bottom level: depth-first, nearest sphere first, over the grid's 4-ary hierarchy.
@@ -394,8 +391,8 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         scratch: &mut GridScratch,
         tally: &mut T,
     ) {
-        let (visit, crossed) = self.begin_visit(grid, ray, hit.t, scratch, tally);
-        if !crossed {
+        let visit = self.open_visit(grid, ray);
+        if !self.crosses_root(&visit, ray, hit.t, scratch, tally) {
             return;
         }
         let root = SubTriangle::ROOT;
@@ -461,6 +458,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             lod,
             leaf_level,
             slack,
+            ..
         } = *visit;
         let n = 1u32 << self.params.levels;
         let inv_dir_len2 = scratch.inv_dir_len2;
@@ -685,6 +683,7 @@ struct LeafIds {
 struct GridVisit {
     grid: u32,
     open: OpenGrid,
+    root_radius: f32,
     lod: u32,
     leaf_level: u32,
     slack: f32,
@@ -822,8 +821,8 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> OneVisitGrids<'_, H, W> {
         scratch: &mut GridScratch,
         tally: &mut T,
     ) -> [u32; 4] {
-        let (visit, crossed) = self.0.begin_visit(grid, ray, t, scratch, tally);
-        if !crossed {
+        let visit = self.0.open_visit(grid, ray);
+        if !self.0.crosses_root(&visit, ray, t, scratch, tally) {
             return EMPTY_WINDOW;
         }
         let mut hit = Hit::miss(t);
@@ -845,7 +844,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> OneVisitGrids<'_, H, W> {
         scratch: &mut GridScratch,
         tally: &mut T,
     ) {
-        let (visit, _) = self.0.open_visit(grid, ray);
+        let visit = self.0.open_visit(grid, ray);
         self.0
             .test_window(&visit, &SubTriangle::ROOT, window, ray, hit, scratch, tally);
     }
