@@ -32,7 +32,8 @@ pub enum BackendChoice {
 
 /// How the GPU traces a list of rays through grids: one pass per ray (the top-level walk and
 /// its grid visits in one kernel), or the two-phase schedule (`crate::gpu`'s `two_phase`:
-/// rounds of a walk that queues grids, each followed by one queued grid visit per thread).
+/// rounds of a walk that queues grids, each followed by the queued visits' spheres, one grid
+/// per thread, and the leaf tests they queue, one per thread).
 /// The CPU traces every list in one pass.
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]

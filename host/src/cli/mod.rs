@@ -95,12 +95,14 @@ impl RayOrderArg {
 /// How the GPU traces the grids' ray lists (see `gridrt::backend::Schedule`).
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ScheduleArg {
-    /// Two-phase where the GPU takes the grids (as at --levels 3), otherwise one pass.
+    /// Two-phase for lists of 16384 rays or more where the GPU takes the grids (as at
+    /// --levels 3), otherwise one pass.
     Auto,
     /// One kernel: each ray's top-level walk with its grid visits.
     OnePass,
-    /// Rounds of a top-level walk that queues grids, each followed by one queued grid visit
-    /// per thread (GPU backend; grids walked by their root's visit alone, as at --levels 3).
+    /// Rounds of a top-level walk that queues grids, each followed by the queued visits, one
+    /// grid per thread, then the leaf tests they queue (GPU backend; grids walked by their
+    /// root's visit alone, as at --levels 3).
     TwoPhase,
 }
 

@@ -362,26 +362,29 @@ impl Gpu {
 
     /// Bind groups of a dispatch: the kernel's own buffers `own`, then the scene's.
     fn bind(&self, pipeline: &wgpu::ComputePipeline, own: &[&wgpu::Buffer], scene: &GpuScene) -> Vec<wgpu::BindGroup> {
-        let group = |set: u32, buffers: Vec<&wgpu::Buffer>| {
-            let entries: Vec<wgpu::BindGroupEntry> = (buffers.iter().enumerate())
-                .map(|(i, b)| wgpu::BindGroupEntry {
-                    binding: i as u32,
-                    resource: b.as_entire_binding(),
-                })
-                .collect();
-            self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: None,
-                layout: &pipeline.get_bind_group_layout(set),
-                entries: &entries,
-            })
-        };
         let mut set0 = own.to_vec();
         set0.extend(scene.buffers.iter());
-        let mut groups = vec![group(0, set0)];
+        let mut groups = vec![self.bind_group(pipeline, 0, &set0)];
         if let Some((chunks, _)) = &scene.chunks {
-            groups.push(group(1, chunks.iter().collect()));
+            let set1: Vec<&wgpu::Buffer> = chunks.iter().collect();
+            groups.push(self.bind_group(pipeline, 1, &set1));
         }
         groups
+    }
+
+    /// A bind group of `buffers` at bindings 0, 1, ... of set `set`.
+    fn bind_group(&self, pipeline: &wgpu::ComputePipeline, set: u32, buffers: &[&wgpu::Buffer]) -> wgpu::BindGroup {
+        let entries: Vec<wgpu::BindGroupEntry> = (buffers.iter().enumerate())
+            .map(|(i, b)| wgpu::BindGroupEntry {
+                binding: i as u32,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: None,
+            layout: &pipeline.get_bind_group_layout(set),
+            entries: &entries,
+        })
     }
 
     /// Encodes one dispatch (optionally between two timestamps), submits it and waits.

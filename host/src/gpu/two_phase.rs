@@ -175,8 +175,9 @@ impl Gpu {
         // The scene's bindings: static index list, top-level BVH, headers, vertices, radii.
         let [micro_triangles, nodes, headers, vertices, radii] = [0, 1, 2, 3, 4].map(|k| &scene.buffers[k]);
         let walk = |from: usize| {
-            self.bind_all(
+            self.bind_group(
                 &kernels.walk,
+                0,
                 &[
                     &ray_buffer,
                     &hits,
@@ -194,8 +195,9 @@ impl Gpu {
             )
         };
         let finish = |from: usize| {
-            self.bind_all(
+            self.bind_group(
                 &kernels.finish,
+                0,
                 &[
                     &params,
                     &ray_buffer,
@@ -213,8 +215,9 @@ impl Gpu {
                 ],
             )
         };
-        let visit = self.bind_all(
+        let visit = self.bind_group(
             &kernels.visit,
+            0,
             &[
                 &params,
                 &ray_buffer,
@@ -228,8 +231,9 @@ impl Gpu {
                 &leaf_count,
             ],
         );
-        let test_leaves = self.bind_all(
+        let test_leaves = self.bind_group(
             &kernels.test_leaves,
+            0,
             &[
                 &params,
                 &ray_buffer,
@@ -263,21 +267,6 @@ impl Gpu {
         }
     }
 
-    /// A bind group of `buffers` at bindings 0, 1, ... of set 0.
-    fn bind_all(&self, pipeline: &wgpu::ComputePipeline, buffers: &[&wgpu::Buffer]) -> wgpu::BindGroup {
-        let entries: Vec<wgpu::BindGroupEntry> = (buffers.iter().enumerate())
-            .map(|(i, b)| wgpu::BindGroupEntry {
-                binding: i as u32,
-                resource: b.as_entire_binding(),
-            })
-            .collect();
-        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: None,
-            layout: &pipeline.get_bind_group_layout(0),
-            entries: &entries,
-        })
-    }
-
     /// One round: the walk of every ray in list `from`, then the visits it queued, then the
     /// leaf tests they queued; the rays still walking are listed for the next round in the
     /// other list.
@@ -292,29 +281,20 @@ impl Gpu {
         encoder.clear_buffer(&batch.counts[1 - from], 0, None);
         encoder.clear_buffer(&batch.queue_count, 0, None);
         encoder.clear_buffer(&batch.leaf_count, 0, None);
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: None,
-                timestamp_writes: first.map(|q| wgpu::ComputePassTimestampWrites {
-                    query_set: &q.set,
-                    beginning_of_pass_write_index: Some(0),
-                    end_of_pass_write_index: None,
-                }),
-            });
-            pass.set_pipeline(&kernels.walk);
-            pass.set_bind_group(0, &batch.walk[from], &[]);
-            pass.dispatch_workgroups_indirect(&batch.counts[from], 0);
-        }
-        {
-            let mut pass = encoder.begin_compute_pass(&Default::default());
-            pass.set_pipeline(&kernels.visit);
-            pass.set_bind_group(0, &batch.visit, &[]);
-            pass.dispatch_workgroups_indirect(&batch.queue_count, 0);
-        }
-        let mut pass = encoder.begin_compute_pass(&Default::default());
-        pass.set_pipeline(&kernels.test_leaves);
-        pass.set_bind_group(0, &batch.test_leaves, &[]);
-        pass.dispatch_workgroups_indirect(&batch.leaf_count, 0);
+        let opening = first.map(|q| wgpu::ComputePassTimestampWrites {
+            query_set: &q.set,
+            beginning_of_pass_write_index: Some(0),
+            end_of_pass_write_index: None,
+        });
+        indirect_pass(encoder, &kernels.walk, &batch.walk[from], &batch.counts[from], opening);
+        indirect_pass(encoder, &kernels.visit, &batch.visit, &batch.queue_count, None);
+        indirect_pass(
+            encoder,
+            &kernels.test_leaves,
+            &batch.test_leaves,
+            &batch.leaf_count,
+            None,
+        );
     }
 
     /// Runs the rounds of one batch until no ray walks on; returns their seconds.
@@ -357,20 +337,23 @@ impl Gpu {
         // The last pass: the rays still walking finish in one pass each, or nothing; it
         // closes the timed span.
         let mut encoder = self.device.create_command_encoder(&Default::default());
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        let closing = queries.as_ref().map(|q| wgpu::ComputePassTimestampWrites {
+            query_set: &q.set,
+            beginning_of_pass_write_index: None,
+            end_of_pass_write_index: Some(1),
+        });
+        match finish {
+            Some(from) => indirect_pass(
+                &mut encoder,
+                &kernels.finish,
+                &batch.finish[from],
+                &batch.counts[from],
+                closing,
+            ),
+            None => drop(encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: None,
-                timestamp_writes: queries.as_ref().map(|q| wgpu::ComputePassTimestampWrites {
-                    query_set: &q.set,
-                    beginning_of_pass_write_index: None,
-                    end_of_pass_write_index: Some(1),
-                }),
-            });
-            if let Some(from) = finish {
-                pass.set_pipeline(&kernels.finish);
-                pass.set_bind_group(0, &batch.finish[from], &[]);
-                pass.dispatch_workgroups_indirect(&batch.counts[from], 0);
-            }
+                timestamp_writes: closing,
+            })),
         }
         if let Some(q) = &queries {
             encoder.resolve_query_set(&q.set, 0..2, &q.resolve, 0);
@@ -396,4 +379,22 @@ impl Gpu {
             None => wall,
         })
     }
+}
+
+/// A pass of one indirect dispatch of `pipeline`, its group counts read from the head of the
+/// counter block `count`.
+fn indirect_pass(
+    encoder: &mut wgpu::CommandEncoder,
+    pipeline: &wgpu::ComputePipeline,
+    group: &wgpu::BindGroup,
+    count: &wgpu::Buffer,
+    timestamps: Option<wgpu::ComputePassTimestampWrites>,
+) {
+    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        label: None,
+        timestamp_writes: timestamps,
+    });
+    pass.set_pipeline(pipeline);
+    pass.set_bind_group(0, group, &[]);
+    pass.dispatch_workgroups_indirect(count, 0);
 }
