@@ -9,10 +9,10 @@
 use gridrt_shared::buffer::{Buffer, Chunks, Split};
 use gridrt_shared::cost::Uncounted;
 use gridrt_shared::glam::{UVec3, Vec3};
-use gridrt_shared::grid_traverse::{GridScene, OneVisitGrids};
+use gridrt_shared::grid_traverse::{leaf_test_class, GridScene, OneVisitGrids};
 use gridrt_shared::layout::{
     BvhNode, FrameParams, GridHeader, Hit, HitRecord, LeafEntry, QueueEntry, RayRecord, TraceParams, WalkState,
-    GRID_NODES, NO_HIT, TRACE_WORKGROUP_SIZE, TRIANGLE_NODES, WORKGROUP_SIZE,
+    GRID_NODES, LEAF_TEST_CLASSES, NO_HIT, TRACE_WORKGROUP_SIZE, TRIANGLE_NODES, WORKGROUP_SIZE,
 };
 use gridrt_shared::ray::Ray;
 use gridrt_shared::shade::{cost_pixel, render_pixel};
@@ -301,21 +301,27 @@ macro_rules! grid_ray_kernels {
 grid_ray_kernels!(stacked: trace_grids_rays, trace_grids_rays_split);
 grid_ray_kernels!(OneVisitGrids: trace_grids_rays_one_visit, trace_grids_rays_one_visit_split);
 
-// The workgroup sizes above is a literal because attribute arguments cannot name constants.
-const _: () = assert!(WORKGROUP_SIZE == 8 && TRACE_WORKGROUP_SIZE == 64);
+// The workgroup sizes are literals because attribute arguments cannot name constants; one
+// group of `order_leaf_classes` covers every class.
+const _: () = assert!(WORKGROUP_SIZE == 8 && TRACE_WORKGROUP_SIZE == 64 && LEAF_TEST_CLASSES <= 64);
 
 /// Slots of a two-phase counter block: an indirect dispatch's three group counts, then the
 /// number of items.
 const GROUPS_X: usize = 0;
 const ITEMS: usize = 3;
 
+const DEVICE: u32 = spirv_std::memory::Scope::QueueFamily as u32;
+const RELAXED: u32 = spirv_std::memory::Semantics::NONE.bits();
+
+/// Adds `n` to `counter` atomically among all the dispatch's threads; returns the value before.
+fn atomic_add(counter: &mut u32, n: u32) -> u32 {
+    unsafe { spirv_std::arch::atomic_i_add::<u32, DEVICE, RELAXED>(counter, n) }
+}
+
 /// Appends `n` items to the list counted by `counter`; returns the first's index. The block's
 /// group counts grow to cover the list.
 fn append(counter: &mut [u32], n: u32) -> u32 {
-    use spirv_std::memory::{Scope, Semantics};
-    const DEVICE: u32 = Scope::QueueFamily as u32;
-    const RELAXED: u32 = Semantics::NONE.bits();
-    let first = unsafe { spirv_std::arch::atomic_i_add::<u32, DEVICE, RELAXED>(&mut counter[ITEMS], n) };
+    let first = atomic_add(&mut counter[ITEMS], n);
     // Only an append that opens a new workgroup's worth raises the group count (fewer
     // contended writes to one counter).
     let groups = (first + n).div_ceil(TRACE_WORKGROUP_SIZE);
@@ -391,7 +397,8 @@ pub fn walk_rounds(
 }
 
 /// The two-phase schedule's second phase, first half: one queued grid per thread, its spheres
-/// and footprints; the visits that need a leaf test are queued again, the others answer a miss.
+/// and footprints; the visits that need a leaf test are queued again, counted by size class
+/// (`leaf_test_class`), the others answer a miss.
 #[allow(clippy::too_many_arguments)] // one per binding
 #[spirv(compute(threads(64, 1, 1)))]
 pub fn visit_queued(
@@ -406,6 +413,7 @@ pub fn visit_queued(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] radii: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] leaves: &mut [LeafEntry],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 9)] leaf_count: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 10)] class_counts: &mut [u32],
 ) {
     let i = id.x as usize;
     if i >= queue_count[ITEMS] as usize {
@@ -428,12 +436,55 @@ pub fn visit_queued(
         prim: NO_HIT,
     };
     if window[0] <= window[1] {
+        let class = leaf_test_class(&params.grid, window);
+        let rank = atomic_add(&mut class_counts[class as usize], 1);
         let slot = append(leaf_count, 1);
-        leaves[slot as usize] = LeafEntry::new(i as u32, window);
+        leaves[slot as usize] = LeafEntry::new(i as u32, window, rank);
     }
 }
 
-/// The two-phase schedule's second phase, second half: one queued leaf test per thread.
+/// Where each size class of the queued leaf tests begins once they are sorted by class: the
+/// counts of the classes before it. One thread per class.
+#[spirv(compute(threads(64, 1, 1)))]
+pub fn order_leaf_classes(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] class_counts: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] class_starts: &mut [u32],
+) {
+    let class = id.x as usize;
+    if class >= LEAF_TEST_CLASSES as usize {
+        return;
+    }
+    let mut start = 0;
+    let mut k = 0;
+    while k < class {
+        start += class_counts[k];
+        k += 1;
+    }
+    class_starts[class] = start;
+}
+
+/// The queued leaf tests sorted by size class, each moved to its class's start plus its rank.
+#[spirv(compute(threads(64, 1, 1)))]
+pub fn sort_queued_leaves(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] leaves: &[LeafEntry],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] leaf_count: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] class_starts: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] sorted: &mut [LeafEntry],
+) {
+    let i = id.x as usize;
+    if i >= leaf_count[ITEMS] as usize {
+        return;
+    }
+    let leaf = leaves[i];
+    let class = leaf_test_class(&params.grid, leaf.window());
+    sorted[(class_starts[class as usize] + leaf.rank) as usize] = leaf;
+}
+
+/// The two-phase schedule's second phase, second half: one queued leaf test per thread, in the
+/// order of their size classes (`sort_queued_leaves`).
 #[allow(clippy::too_many_arguments)] // one per binding
 #[spirv(compute(threads(64, 1, 1)))]
 pub fn test_queued_leaves(

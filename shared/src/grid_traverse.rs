@@ -12,6 +12,7 @@ use crate::grid_index::{
 };
 use crate::layout::{
     BvhNode, GridHeader, GridIds, GridParams, Hit, SplitParams, GRID_HEADERS, GRID_RADII, GRID_VERTICES,
+    LEAF_TEST_CLASSES,
 };
 use crate::lod::grid_level;
 use crate::quantize::{dequantize, halves_from_words, read_half, unit_from_exponent};
@@ -626,6 +627,37 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
 /// A window that holds no lattice point: `lo > hi` on both axes.
 pub const EMPTY_WINDOW: [u32; 4] = [1, 0, 1, 0];
 
+/// The size class of a leaf test over `window` (from [`OneVisitGrids::leaf_window`]): the
+/// lattice points it loads at the scene's finest depth, capped at [`LEAF_TEST_CLASSES`]` - 1`.
+/// Schedules that run leaf tests apart group them by class, so the tests of one SIMD group run
+/// their loops about as long.
+#[inline]
+pub fn leaf_test_class(params: &GridParams, window: [u32; 4]) -> u32 {
+    let points = window_points(window, 1 << params.lod);
+    if points < LEAF_TEST_CLASSES {
+        points
+    } else {
+        LEAF_TEST_CLASSES - 1
+    }
+}
+
+/// Lattice points of `window` in a sub-triangle `m` steps a side: how many a leaf test over
+/// it loads, and about half the cells it tests.
+#[inline]
+pub fn window_points(window: [u32; 4], m: u32) -> u32 {
+    let (la_lo, la_hi) = (window[0], window[1]);
+    let mut points = 0;
+    let mut lb = window[2];
+    while lb <= window[3] && lb <= m {
+        let row_end = if la_hi < m - lb { la_hi } else { m - lb };
+        if row_end >= la_lo {
+            points += row_end - la_lo + 1;
+        }
+        lb += 1;
+    }
+    points
+}
+
 /// `window` (in a sub-triangle's lattice, `2m` steps a side) grown to hold the window `w` of
 /// its child `child` (in the child's lattice, `m` steps a side) when the ray may cross the
 /// child (entered at `t`) and `w` is not empty. Children 1 and 2 are offset by `m` along `la`
@@ -892,5 +924,31 @@ pub fn trace_grids<N: Buffer<BvhNode>, H: Buffer<GridHeader>, W: Buffer<u32>>(
         trace(nodes, &OneVisitGrids(*scene), ray, t_max)
     } else {
         trace(nodes, scene, ray, t_max)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn window_points_counts_the_lattice_points_inside() {
+        for m in [1u32, 2, 4, 8] {
+            for la_lo in 0..=m {
+                for la_hi in la_lo..=m {
+                    for lb_lo in 0..=m {
+                        for lb_hi in lb_lo..=m {
+                            let window = [la_lo, la_hi, lb_lo, lb_hi];
+                            let inside = (lb_lo..=lb_hi)
+                                .flat_map(|lb| (la_lo..=la_hi).map(move |la| la + lb))
+                                .filter(|&s| s <= m)
+                                .count();
+                            assert_eq!(window_points(window, m), inside as u32, "{window:?} in {m}");
+                        }
+                    }
+                }
+            }
+            assert_eq!(window_points(EMPTY_WINDOW, m), 0);
+        }
     }
 }

@@ -409,9 +409,9 @@ pub struct QueueEntry {
     pub _pad: u32,
 }
 
-/// A queued grid visit that needs its leaf test: the queue slot it answers in and the window
-/// of the grid's lattice to test (see `OneVisitGrids::leaf_window`), each axis's bounds in
-/// 16 bits.
+/// A queued grid visit that needs its leaf test: the queue slot it answers in, the window of
+/// the grid's lattice to test (see `OneVisitGrids::leaf_window`), each axis's bounds in 16 bits,
+/// and its place among the queued tests of its size class (see [`LEAF_TEST_CLASSES`]).
 #[repr(C)]
 #[derive(Copy, Clone, Default)]
 #[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable, Debug, PartialEq))]
@@ -419,17 +419,23 @@ pub struct LeafEntry {
     pub slot: u32,
     pub la: u32,
     pub lb: u32,
-    pub _pad: u32,
+    pub rank: u32,
 }
+
+/// Size classes of queued leaf tests (see `OneVisitGrids::leaf_test_class`). The two-phase
+/// schedule runs its leaf tests class by class: a SIMD group runs its tests' loops as long as
+/// its largest window's, and tests queued in arrival order mix windows of one point with
+/// windows of a whole grid.
+pub const LEAF_TEST_CLASSES: u32 = 64;
 
 impl LeafEntry {
     #[inline]
-    pub fn new(slot: u32, window: [u32; 4]) -> Self {
+    pub fn new(slot: u32, window: [u32; 4], rank: u32) -> Self {
         LeafEntry {
             slot,
             la: window[0] | (window[1] << 16),
             lb: window[2] | (window[3] << 16),
-            _pad: 0,
+            rank,
         }
     }
 

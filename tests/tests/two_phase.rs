@@ -54,7 +54,7 @@ fn two_phase_hit(scene: &Scene, record: &RayRecord) -> (HitRecord, u32) {
                 let window = visits.leaf_window(grid, &ray, state.t, &mut scratch, &mut Uncounted);
                 if window != EMPTY_WINDOW {
                     let mut scratch = visits.scratch(&ray);
-                    let packed = LeafEntry::new(0, window);
+                    let packed = LeafEntry::new(0, window, 0);
                     visits.test_leaf_window(grid, packed.window(), &ray, &mut hit, &mut scratch, &mut Uncounted);
                 }
                 HitRecord {

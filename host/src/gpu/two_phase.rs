@@ -1,16 +1,19 @@
 //! The two-phase schedule for grid ray lists: rounds of a top-level walk kernel, which takes
 //! every ray still walking to its next leaf and queues (ray, grid, closest distance so far) for
 //! the leaf's grids, each followed by a kernel that visits one queued grid per thread as far as
-//! its spheres and footprints and queues the visits that need a leaf test, and a kernel that
-//! runs one queued leaf test per thread. The walk merges the visits' results at its next round.
-//! Once few rays still walk they finish in one pass each, their grids visited in place.
+//! its spheres and footprints and queues the visits that need a leaf test, two small kernels
+//! that sort those by size (the lattice points of their windows), and a kernel that runs one
+//! queued leaf test per thread. The walk merges the visits' results at its next round. Once few
+//! rays still walk they finish in one pass each, their grids visited in place.
 //!
 //! Why: in the one-pass walk a SIMD group visits a grid at the pace of its lanes that have one,
 //! the others masked; queued, every lane of a group visits one, and every lane of a group of
-//! leaf tests runs one (docs/RESULTS.md, "Two-phase"). It takes scenes whose grids are walked by
-//! their root's visit alone, bound whole.
+//! leaf tests runs one, of about the same size once sorted (docs/RESULTS.md, "Two-phase"). It
+//! takes scenes whose grids are walked by their root's visit alone, bound whole.
 
-use gridrt_shared::layout::{HitRecord, LeafEntry, QueueEntry, RayRecord, WalkState, TRACE_WORKGROUP_SIZE};
+use gridrt_shared::layout::{
+    HitRecord, LeafEntry, QueueEntry, RayRecord, WalkState, LEAF_TEST_CLASSES, TRACE_WORKGROUP_SIZE,
+};
 use gridrt_shared::traverse::MAX_BVH_DEPTH;
 use std::time::Instant;
 use wgpu::util::DeviceExt;
@@ -32,10 +35,12 @@ const ROUNDS_PER_SUBMIT: usize = 2;
 /// A ray's saved stack: `MAX_BVH_DEPTH` slots of a node and its distance.
 const STACK_BYTES: u64 = 2 * MAX_BVH_DEPTH as u64 * 4;
 
-/// The schedule's four kernels.
+/// The schedule's kernels.
 pub(super) struct Kernels {
     walk: wgpu::ComputePipeline,
     visit: wgpu::ComputePipeline,
+    order_classes: wgpu::ComputePipeline,
+    sort_leaves: wgpu::ComputePipeline,
     test_leaves: wgpu::ComputePipeline,
     finish: wgpu::ComputePipeline,
 }
@@ -53,10 +58,13 @@ struct Batch {
     counts: [wgpu::Buffer; 2],
     queue_count: wgpu::Buffer,
     leaf_count: wgpu::Buffer,
+    class_counts: wgpu::Buffer,
     count_readback: wgpu::Buffer,
     walk: [wgpu::BindGroup; 2],
     finish: [wgpu::BindGroup; 2],
     visit: wgpu::BindGroup,
+    order_classes: wgpu::BindGroup,
+    sort_leaves: wgpu::BindGroup,
     test_leaves: wgpu::BindGroup,
 }
 
@@ -121,6 +129,8 @@ impl Gpu {
         self.two_phase.get_or_init(|| Kernels {
             walk: compute_pipeline(&self.device, &self.module, "walk_rounds"),
             visit: compute_pipeline(&self.device, &self.module, "visit_queued"),
+            order_classes: compute_pipeline(&self.device, &self.module, "order_leaf_classes"),
+            sort_leaves: compute_pipeline(&self.device, &self.module, "sort_queued_leaves"),
             test_leaves: compute_pipeline(&self.device, &self.module, "test_queued_leaves"),
             finish: compute_pipeline(&self.device, &self.module, "finish_walks"),
         })
@@ -163,6 +173,14 @@ impl Gpu {
         let queue_count = storage("queue count", 16, counter);
         let leaves = storage("leaf queue", entries * std::mem::size_of::<LeafEntry>() as u64, plain);
         let leaf_count = storage("leaf count", 16, counter);
+        let sorted_leaves = storage(
+            "sorted leaf queue",
+            entries * std::mem::size_of::<LeafEntry>() as u64,
+            plain,
+        );
+        let class_bytes = LEAF_TEST_CLASSES as u64 * 4;
+        let class_counts = storage("leaf class counts", class_bytes, plain);
+        let class_starts = storage("leaf class starts", class_bytes, plain);
         let count_readback = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("count read-back"),
             size: 16,
@@ -229,7 +247,14 @@ impl Gpu {
                 radii,
                 &leaves,
                 &leaf_count,
+                &class_counts,
             ],
+        );
+        let order_classes = self.bind_group(&kernels.order_classes, 0, &[&class_counts, &class_starts]);
+        let sort_leaves = self.bind_group(
+            &kernels.sort_leaves,
+            0,
+            &[&params, &leaves, &leaf_count, &class_starts, &sorted_leaves],
         );
         let test_leaves = self.bind_group(
             &kernels.test_leaves,
@@ -239,7 +264,7 @@ impl Gpu {
                 &ray_buffer,
                 &queue,
                 &results,
-                &leaves,
+                &sorted_leaves,
                 &leaf_count,
                 micro_triangles,
                 headers,
@@ -259,17 +284,20 @@ impl Gpu {
             counts,
             queue_count,
             leaf_count,
+            class_counts,
             count_readback,
             walk,
             finish,
             visit,
+            order_classes,
+            sort_leaves,
             test_leaves,
         }
     }
 
     /// One round: the walk of every ray in list `from`, then the visits it queued, then the
-    /// leaf tests they queued; the rays still walking are listed for the next round in the
-    /// other list.
+    /// leaf tests they queued, sorted by size class; the rays still walking are listed for the
+    /// next round in the other list.
     fn encode_round(
         &self,
         encoder: &mut wgpu::CommandEncoder,
@@ -281,6 +309,7 @@ impl Gpu {
         encoder.clear_buffer(&batch.counts[1 - from], 0, None);
         encoder.clear_buffer(&batch.queue_count, 0, None);
         encoder.clear_buffer(&batch.leaf_count, 0, None);
+        encoder.clear_buffer(&batch.class_counts, 0, None);
         let opening = first.map(|q| wgpu::ComputePassTimestampWrites {
             query_set: &q.set,
             beginning_of_pass_write_index: Some(0),
@@ -288,6 +317,18 @@ impl Gpu {
         });
         indirect_pass(encoder, &kernels.walk, &batch.walk[from], &batch.counts[from], opening);
         indirect_pass(encoder, &kernels.visit, &batch.visit, &batch.queue_count, None);
+        let mut pass = encoder.begin_compute_pass(&Default::default());
+        pass.set_pipeline(&kernels.order_classes);
+        pass.set_bind_group(0, &batch.order_classes, &[]);
+        pass.dispatch_workgroups(1, 1, 1);
+        drop(pass);
+        indirect_pass(
+            encoder,
+            &kernels.sort_leaves,
+            &batch.sort_leaves,
+            &batch.leaf_count,
+            None,
+        );
         indirect_pass(
             encoder,
             &kernels.test_leaves,
