@@ -422,7 +422,7 @@ pub struct LeafEntry {
     pub rank: u32,
 }
 
-/// Size classes of queued leaf tests (see `OneVisitGrids::leaf_test_class`). The two-phase
+/// Size classes of queued leaf tests (see `grid_traverse::leaf_test_class`). The two-phase
 /// schedule runs its leaf tests class by class: a SIMD group runs its tests' loops as long as
 /// its largest window's, and tests queued in arrival order mix windows of one point with
 /// windows of a whole grid.
