@@ -521,7 +521,10 @@ pub fn test_queued_leaves(
 }
 
 /// The two-phase schedule's tail: the rays still walking finish in one pass each, their grids
-/// visited in place, once too few are left to fill the queue's dispatches.
+/// visited in place, once too few are left to fill the queue's dispatches. A thread takes the
+/// next ray of the list (`next`, a counter that starts past the dispatch's threads) as soon as
+/// its ray is done, one leaf a pass: in a SIMD group no lane waits idle for the group's longest
+/// walk while rays are left.
 #[allow(clippy::too_many_arguments)] // one per binding
 #[spirv(compute(threads(64, 1, 1)))]
 pub fn finish_walks(
@@ -539,20 +542,12 @@ pub fn finish_walks(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 10)] headers: &[GridHeader],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 11)] vertices: &[u32],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 12)] radii: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 13)] next: &mut [u32],
 ) {
-    let i = id.x;
-    if i >= count_in[ITEMS] {
+    let count = count_in[ITEMS];
+    if id.x >= count {
         return;
     }
-    let r = active_in[i as usize];
-    let record = &rays[r as usize];
-    let ray = ray_of(record);
-    let mut state = states[r as usize];
-    let mut stack = BufferStack {
-        words: stacks,
-        ray: r as usize,
-        rays: rays.len(),
-    };
     let grids = OneVisitGrids(GridScene {
         headers,
         vertices,
@@ -560,22 +555,38 @@ pub fn finish_walks(
         micro_triangles,
         params: params.grid,
     });
+    let mut r = active_in[id.x as usize] as usize;
+    let mut ray = ray_of(&rays[r]);
+    let mut state = states[r];
     let mut scratch = grids.scratch(&ray);
     loop {
-        let leaf = walk_round(nodes, results, &ray, record.t_max, &mut state, &mut stack);
+        let mut stack = BufferStack {
+            words: stacks,
+            ray: r,
+            rays: rays.len(),
+        };
+        let leaf = walk_round(nodes, results, &ray, rays[r].t_max, &mut state, &mut stack);
         if leaf.count == 0 {
-            break;
+            hits[r] = HitRecord {
+                t: state.t,
+                prim: state.prim,
+            };
+            let i = atomic_add(&mut next[0], 1);
+            if i >= count {
+                break;
+            }
+            r = active_in[i as usize] as usize;
+            ray = ray_of(&rays[r]);
+            state = states[r];
+            scratch.aim(&ray);
+        } else {
+            let mut hit = Hit::miss(state.t);
+            grids.intersect_leaf(leaf.first, leaf.count, &ray, &mut hit, &mut scratch, &mut Uncounted);
+            if hit.t < state.t {
+                state.t = hit.t;
+                state.prim = hit.prim;
+            }
+            state.entries = 0;
         }
-        let mut hit = Hit::miss(state.t);
-        grids.intersect_leaf(leaf.first, leaf.count, &ray, &mut hit, &mut scratch, &mut Uncounted);
-        if hit.t < state.t {
-            state.t = hit.t;
-            state.prim = hit.prim;
-        }
-        state.entries = 0;
     }
-    hits[r as usize] = HitRecord {
-        t: state.t,
-        prim: state.prim,
-    };
 }

@@ -77,6 +77,16 @@ pub struct GridScratch {
     frame: FootprintFrame,
 }
 
+impl GridScratch {
+    /// Aims the working memory at another ray: its per-ray constants made again, the arrays
+    /// kept (every visit writes what it reads of them). Cheaper than fresh working memory for a
+    /// thread that takes one ray after another.
+    pub fn aim(&mut self, ray: &Ray) {
+        self.inv_dir_len2 = 1.0 / ray.dir.dot(ray.dir);
+        self.frame = FootprintFrame::new(ray);
+    }
+}
+
 /// Most vertices a leaf can hold: a sub-triangle subdivided `MAX_LEAF_DEPTH` times.
 const LEAF_VERTICES: usize = vertex_count(MAX_LEAF_DEPTH) as usize;
 

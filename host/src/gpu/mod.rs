@@ -60,6 +60,9 @@ pub struct Gpu {
     on_demand: [std::sync::OnceLock<wgpu::ComputePipeline>; 10],
     /// The two-phase schedule's kernels, made on first use.
     two_phase: std::sync::OnceLock<two_phase::Kernels>,
+    /// Most workgroups the two-phase schedule's finish launches (see
+    /// `two_phase::finish_groups`).
+    finish_groups: u32,
 }
 
 /// A scene's geometry in GPU buffers, uploaded once and traced many times.
@@ -157,6 +160,7 @@ impl Gpu {
             whole,
             on_demand: Default::default(),
             two_phase: Default::default(),
+            finish_groups: two_phase::finish_groups_for(&adapter.get_info()),
         };
         if let Some(value) = std::env::var_os(BINDING_LIMIT_VAR) {
             let text = value.to_string_lossy();
@@ -182,6 +186,12 @@ impl Gpu {
         }
         self.binding_limit = self.binding_limit.min(bytes);
         Ok(())
+    }
+
+    /// Launches the two-phase schedule's finish in at most `groups` workgroups (at least one),
+    /// below what the adapter gets by default: each thread then takes more rays in turn.
+    pub fn limit_finish_groups(&mut self, groups: u32) {
+        self.finish_groups = self.finish_groups.min(groups.max(1));
     }
 
     /// One line naming the adapter, e.g. `llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan, Cpu)`.

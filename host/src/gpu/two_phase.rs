@@ -4,7 +4,8 @@
 //! its spheres and footprints and queues the visits that need a leaf test, two small kernels
 //! that sort those by size (the lattice points of their windows), and a kernel that runs one
 //! queued leaf test per thread. The walk merges the visits' results at its next round. Once few
-//! rays still walk they finish in one pass each, their grids visited in place.
+//! rays still walk they finish in one pass, their grids visited in place, each thread taking
+//! the next ray of the list as soon as its own is done.
 //!
 //! Why: in the one-pass walk a SIMD group visits a grid at the pace of its lanes that have one,
 //! the others masked; queued, every lane of a group visits one, and every lane of a group of
@@ -23,7 +24,7 @@ use crate::error::{error, fail, Result};
 use crate::scene::Scene;
 
 /// The rays still walking finish in one pass once fewer than this fraction (1 / FINISH_BELOW)
-/// of the list is left: every round costs a fixed time however few its rays (two dispatches
+/// of the list is left: every round costs a fixed time however few its rays (its dispatches
 /// and a share of a read-back of the count), and the last rounds hold a handful.
 const FINISH_BELOW: u32 = 32;
 
@@ -59,6 +60,8 @@ struct Batch {
     queue_count: wgpu::Buffer,
     leaf_count: wgpu::Buffer,
     class_counts: wgpu::Buffer,
+    /// The finish's next ray to take: its first value is the number of threads dispatched.
+    finish_next: wgpu::Buffer,
     count_readback: wgpu::Buffer,
     walk: [wgpu::BindGroup; 2],
     finish: [wgpu::BindGroup; 2],
@@ -181,6 +184,7 @@ impl Gpu {
         let class_bytes = LEAF_TEST_CLASSES as u64 * 4;
         let class_counts = storage("leaf class counts", class_bytes, plain);
         let class_starts = storage("leaf class starts", class_bytes, plain);
+        let finish_next = storage("finish's next ray", 16, plain);
         let count_readback = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("count read-back"),
             size: 16,
@@ -230,6 +234,7 @@ impl Gpu {
                     headers,
                     vertices,
                     radii,
+                    &finish_next,
                 ],
             )
         };
@@ -285,6 +290,7 @@ impl Gpu {
             queue_count,
             leaf_count,
             class_counts,
+            finish_next,
             count_readback,
             walk,
             finish,
@@ -317,11 +323,7 @@ impl Gpu {
         });
         indirect_pass(encoder, &kernels.walk, &batch.walk[from], &batch.counts[from], opening);
         indirect_pass(encoder, &kernels.visit, &batch.visit, &batch.queue_count, None);
-        let mut pass = encoder.begin_compute_pass(&Default::default());
-        pass.set_pipeline(&kernels.order_classes);
-        pass.set_bind_group(0, &batch.order_classes, &[]);
-        pass.dispatch_workgroups(1, 1, 1);
-        drop(pass);
+        direct_pass(encoder, &kernels.order_classes, &batch.order_classes, 1, None);
         indirect_pass(
             encoder,
             &kernels.sort_leaves,
@@ -372,7 +374,7 @@ impl Gpu {
                 break None;
             }
             if walking * FINISH_BELOW < n {
-                break Some(to);
+                break Some((to, walking));
             }
         };
         // The last pass: the rays still walking finish in one pass each, or nothing; it
@@ -384,13 +386,13 @@ impl Gpu {
             end_of_pass_write_index: Some(1),
         });
         match finish {
-            Some(from) => indirect_pass(
-                &mut encoder,
-                &kernels.finish,
-                &batch.finish[from],
-                &batch.counts[from],
-                closing,
-            ),
+            Some((from, walking)) => {
+                let groups = walking.div_ceil(TRACE_WORKGROUP_SIZE).min(self.finish_groups);
+                let threads = groups * TRACE_WORKGROUP_SIZE;
+                self.queue
+                    .write_buffer(&batch.finish_next, 0, bytemuck::bytes_of(&threads));
+                direct_pass(&mut encoder, &kernels.finish, &batch.finish[from], groups, closing);
+            }
             None => drop(encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: None,
                 timestamp_writes: closing,
@@ -420,6 +422,36 @@ impl Gpu {
             None => wall,
         })
     }
+}
+
+/// Most workgroups the finish launches on `adapter`. Each finish thread takes another ray when
+/// its own is done, so a device that runs few workgroups at once (a CPU adapter: about one a
+/// core, each running its SIMD groups one after another) gets only as many, and their first
+/// groups share the list between them to its end, no lane idle while rays are left. A GPU,
+/// which runs far more threads at once than the finish has rays, gets a thread per ray.
+pub(super) fn finish_groups_for(adapter: &wgpu::AdapterInfo) -> u32 {
+    if adapter.device_type == wgpu::DeviceType::Cpu {
+        std::thread::available_parallelism().map_or(1, |n| n.get()) as u32
+    } else {
+        u32::MAX
+    }
+}
+
+/// A pass of one dispatch of `pipeline`, `groups` workgroups.
+fn direct_pass(
+    encoder: &mut wgpu::CommandEncoder,
+    pipeline: &wgpu::ComputePipeline,
+    group: &wgpu::BindGroup,
+    groups: u32,
+    timestamps: Option<wgpu::ComputePassTimestampWrites>,
+) {
+    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        label: None,
+        timestamp_writes: timestamps,
+    });
+    pass.set_pipeline(pipeline);
+    pass.set_bind_group(0, group, &[]);
+    pass.dispatch_workgroups(groups, 1, 1);
 }
 
 /// A pass of one indirect dispatch of `pipeline`, its group counts read from the head of the
