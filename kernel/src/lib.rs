@@ -335,6 +335,23 @@ fn append(counter: &mut [u32], n: u32) -> u32 {
     first
 }
 
+/// The grids of a two-phase kernel's bindings, walked by their root's visit alone.
+fn one_visit_grids<'a>(
+    params: &TraceParams,
+    headers: &'a [GridHeader],
+    vertices: &'a [u32],
+    radii: &'a [u32],
+    micro_triangles: &'a [u32],
+) -> OneVisitGrids<'a, &'a [GridHeader], &'a [u32]> {
+    OneVisitGrids(GridScene {
+        headers,
+        vertices,
+        radii,
+        micro_triangles,
+        params: params.grid,
+    })
+}
+
 /// The two-phase schedule's first phase: one round of the top-level walk for each ray still
 /// walking, queueing the grids of the leaf it reaches.
 #[allow(clippy::too_many_arguments)] // one per binding
@@ -421,14 +438,8 @@ pub fn visit_queued(
     }
     let entry = queue[i];
     let ray = ray_of(&rays[entry.ray as usize]);
-    let grids = OneVisitGrids(GridScene {
-        headers,
-        vertices,
-        radii,
-        // The first half reads no cell table.
-        micro_triangles: vertices,
-        params: params.grid,
-    });
+    // The first half reads no cell table.
+    let grids = one_visit_grids(params, headers, vertices, radii, vertices);
     let mut scratch = grids.scratch(&ray);
     let window = grids.leaf_window(entry.grid, &ray, entry.t, &mut scratch, &mut Uncounted);
     results[i] = HitRecord {
@@ -507,20 +518,14 @@ pub fn test_queued_leaves(
     let leaf = leaves[i];
     let entry = queue[leaf.slot as usize];
     let ray = ray_of(&rays[entry.ray as usize]);
-    let grids = OneVisitGrids(GridScene {
-        headers,
-        vertices,
-        radii,
-        micro_triangles,
-        params: params.grid,
-    });
+    let grids = one_visit_grids(params, headers, vertices, radii, micro_triangles);
     let mut hit = Hit::miss(entry.t);
     let mut scratch = grids.scratch(&ray);
     grids.test_leaf_window(entry.grid, leaf.window(), &ray, &mut hit, &mut scratch, &mut Uncounted);
     results[leaf.slot as usize] = record(&hit);
 }
 
-/// The two-phase schedule's tail: the rays still walking finish in one pass each, their grids
+/// The two-phase schedule's tail: the rays still walking finish in one pass, their grids
 /// visited in place, once too few are left to fill the queue's dispatches. A thread takes the
 /// next ray of the list (`next`, a counter that starts past the dispatch's threads) as soon as
 /// its ray is done, one leaf a pass: in a SIMD group no lane waits idle for the group's longest
@@ -548,15 +553,10 @@ pub fn finish_walks(
     if id.x >= count {
         return;
     }
-    let grids = OneVisitGrids(GridScene {
-        headers,
-        vertices,
-        radii,
-        micro_triangles,
-        params: params.grid,
-    });
+    let grids = one_visit_grids(params, headers, vertices, radii, micro_triangles);
     let mut r = active_in[id.x as usize] as usize;
     let mut ray = ray_of(&rays[r]);
+    let mut t_max = rays[r].t_max;
     let mut state = states[r];
     let mut scratch = grids.scratch(&ray);
     loop {
@@ -565,7 +565,7 @@ pub fn finish_walks(
             ray: r,
             rays: rays.len(),
         };
-        let leaf = walk_round(nodes, results, &ray, rays[r].t_max, &mut state, &mut stack);
+        let leaf = walk_round(nodes, results, &ray, t_max, &mut state, &mut stack);
         if leaf.count == 0 {
             hits[r] = HitRecord {
                 t: state.t,
@@ -577,6 +577,7 @@ pub fn finish_walks(
             }
             r = active_in[i as usize] as usize;
             ray = ray_of(&rays[r]);
+            t_max = rays[r].t_max;
             state = states[r];
             scratch.aim(&ray);
         } else {

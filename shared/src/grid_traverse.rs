@@ -241,7 +241,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         // per row: in SIMD groups a nested loop runs every row as long as the group's longest,
         // and each inner loop costs a pass even where no ray of the group has a row left.
         let (la_lo, la_hi, lb_lo, lb_hi) = (window[0], window[1], window[2], window[3]);
-        let row_end = |lb: u32| if la_hi < m - lb { la_hi } else { m - lb };
+        let row_end = |lb: u32| window_row_end(la_hi, lb, m);
         // Both loops test their condition at the bottom, behind a test that they have a first
         // pass (see `traverse_bvh`).
         let mut la = la_lo;
@@ -659,13 +659,24 @@ pub fn window_points(window: [u32; 4], m: u32) -> u32 {
     let mut points = 0;
     let mut lb = window[2];
     while lb <= window[3] && lb <= m {
-        let row_end = if la_hi < m - lb { la_hi } else { m - lb };
+        let row_end = window_row_end(la_hi, lb, m);
         if row_end >= la_lo {
             points += row_end - la_lo + 1;
         }
         lb += 1;
     }
     points
+}
+
+/// The last `la` of row `lb` of a window reaching `la_hi`, in a sub-triangle `m` steps a side
+/// (whose row `lb` ends at `m - lb`).
+#[inline]
+fn window_row_end(la_hi: u32, lb: u32, m: u32) -> u32 {
+    if la_hi < m - lb {
+        la_hi
+    } else {
+        m - lb
+    }
 }
 
 /// `window` (in a sub-triangle's lattice, `2m` steps a side) grown to hold the window `w` of
