@@ -61,7 +61,7 @@ pub struct Gpu {
     /// The two-phase schedule's kernels, made on first use.
     two_phase: std::sync::OnceLock<two_phase::Kernels>,
     /// Most workgroups the two-phase schedule's finish launches (see
-    /// `two_phase::finish_groups`).
+    /// `two_phase::finish_groups_for`).
     finish_groups: u32,
 }
 

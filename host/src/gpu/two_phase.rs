@@ -445,13 +445,7 @@ fn direct_pass(
     groups: u32,
     timestamps: Option<wgpu::ComputePassTimestampWrites>,
 ) {
-    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-        label: None,
-        timestamp_writes: timestamps,
-    });
-    pass.set_pipeline(pipeline);
-    pass.set_bind_group(0, group, &[]);
-    pass.dispatch_workgroups(groups, 1, 1);
+    bound_pass(encoder, pipeline, group, timestamps).dispatch_workgroups(groups, 1, 1);
 }
 
 /// A pass of one indirect dispatch of `pipeline`, its group counts read from the head of the
@@ -463,11 +457,21 @@ fn indirect_pass(
     count: &wgpu::Buffer,
     timestamps: Option<wgpu::ComputePassTimestampWrites>,
 ) {
+    bound_pass(encoder, pipeline, group, timestamps).dispatch_workgroups_indirect(count, 0);
+}
+
+/// A compute pass with `pipeline` and its bind group set, ready for its dispatch.
+fn bound_pass<'e>(
+    encoder: &'e mut wgpu::CommandEncoder,
+    pipeline: &wgpu::ComputePipeline,
+    group: &wgpu::BindGroup,
+    timestamps: Option<wgpu::ComputePassTimestampWrites>,
+) -> wgpu::ComputePass<'e> {
     let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
         label: None,
         timestamp_writes: timestamps,
     });
     pass.set_pipeline(pipeline);
     pass.set_bind_group(0, group, &[]);
-    pass.dispatch_workgroups_indirect(count, 0);
+    pass
 }
