@@ -12,7 +12,8 @@ use gridrt_shared::glam::{UVec3, Vec3};
 use gridrt_shared::grid_traverse::{leaf_test_class, GridScene, OneVisitGrids};
 use gridrt_shared::layout::{
     BvhNode, FrameParams, GridHeader, Hit, HitRecord, LeafEntry, QueueEntry, RayRecord, TraceParams, WalkState,
-    GRID_NODES, LEAF_TEST_CLASSES, NO_HIT, TRACE_WORKGROUP_SIZE, TRIANGLE_NODES, WORKGROUP_SIZE,
+    FINISH_RAYS_PER_THREAD, GRID_NODES, LEAF_TEST_CLASSES, NO_HIT, TRACE_WORKGROUP_SIZE, TRIANGLE_NODES,
+    WORKGROUP_SIZE,
 };
 use gridrt_shared::ray::Ray;
 use gridrt_shared::shade::{cost_pixel, render_pixel};
@@ -318,6 +319,13 @@ fn atomic_add(counter: &mut u32, n: u32) -> u32 {
     unsafe { spirv_std::arch::atomic_i_add::<u32, DEVICE, RELAXED>(counter, n) }
 }
 
+/// The index in its list of the next item for a thread that takes items in turn, its first
+/// being its thread index: past the dispatch's threads, those already taken, counted in `next`
+/// (cleared before the dispatch).
+fn take_next(next: &mut [u32], groups: UVec3) -> u32 {
+    groups.x * TRACE_WORKGROUP_SIZE + atomic_add(&mut next[0], 1)
+}
+
 /// Appends `n` items to the list counted by `counter`; returns the first's index. The block's
 /// group counts grow to cover the list.
 fn append(counter: &mut [u32], n: u32) -> u32 {
@@ -527,13 +535,14 @@ pub fn test_queued_leaves(
 
 /// The two-phase schedule's tail: the rays still walking finish in one pass, their grids
 /// visited in place, once too few are left to fill the queue's dispatches. A thread takes the
-/// next ray of the list (`next`, a counter that starts past the dispatch's threads) as soon as
-/// its ray is done, one leaf a pass: in a SIMD group no lane waits idle for the group's longest
-/// walk while rays are left.
+/// next ray of the list (`take_next`) as soon as its ray is done, one leaf a pass: in a SIMD
+/// group no lane waits idle for the group's longest walk while rays are left. It takes at most
+/// `FINISH_RAYS_PER_THREAD` rays, so that its SIMD group's loops stay within a driver's limit.
 #[allow(clippy::too_many_arguments)] // one per binding
 #[spirv(compute(threads(64, 1, 1)))]
 pub fn finish_walks(
     #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(num_workgroups)] groups: UVec3,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[RayRecord],
     #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] hits: &mut [HitRecord],
@@ -559,6 +568,7 @@ pub fn finish_walks(
     let mut t_max = rays[r].t_max;
     let mut state = states[r];
     let mut scratch = grids.scratch(&ray);
+    let mut taken = 1;
     loop {
         let mut stack = BufferStack {
             words: stacks,
@@ -571,7 +581,11 @@ pub fn finish_walks(
                 t: state.t,
                 prim: state.prim,
             };
-            let i = atomic_add(&mut next[0], 1);
+            if taken == FINISH_RAYS_PER_THREAD {
+                break;
+            }
+            taken += 1;
+            let i = take_next(next, groups);
             if i >= count {
                 break;
             }

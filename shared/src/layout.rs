@@ -381,6 +381,12 @@ pub struct TraceParams {
 /// Threads per workgroup of the ray-list kernels.
 pub const TRACE_WORKGROUP_SIZE: u32 = 64;
 
+/// Most rays a thread of the two-phase schedule's finish takes, one after another. Some
+/// drivers end every loop of a SIMD group once all its loops together have run a fixed number
+/// of iterations (lavapipe: 65,535), silently: a thread that took rays without end would be
+/// cut off mid-walk. The host launches enough threads for the list.
+pub const FINISH_RAYS_PER_THREAD: u32 = 8;
+
 /// A ray's top-level walk between two rounds of the two-phase schedule (see
 /// [`crate::traverse::walk_round`]): its closest hit so far, its stack's height (the stack
 /// itself lives in a buffer of its own), whether it has begun, and the queue entries of the

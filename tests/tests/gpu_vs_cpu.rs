@@ -183,3 +183,26 @@ fn ray_lists_gpu_equal_cpu() {
         );
     }
 }
+
+/// A long list through the two-phase schedule, its finish in one workgroup: every ray keeps
+/// the one-pass kernel's hit. Some drivers silently end the loops of a SIMD group that has run
+/// too many iterations in all (lavapipe: 65,535); a finish thread that took rays without end
+/// lost a few dozen of ten million here.
+#[test]
+fn two_phase_long_list_keeps_every_ray() {
+    let Some(mut gpu) = gpu_or_skip("two_phase_long_list_keeps_every_ray") else {
+        return;
+    };
+    let Some(dir) = meshes_dir() else {
+        eprintln!("two_phase_long_list_keeps_every_ray: SKIPPED, ../shared/meshes not found");
+        return;
+    };
+    let pair = build_pair(&load_mesh(&dir.join("teapot.obj")).unwrap(), 3, 3, Scheme::Loop);
+    let rays = gridrt::rays::primary_rays(&pair.bounds, 2, 2560, 1920);
+    gpu.limit_finish_groups(1);
+    let uploaded = gpu.upload(&pair.grids).unwrap();
+    let one_pass = gpu.trace(&uploaded, &rays).unwrap();
+    let (two_phase, _) = gpu.time_trace_two_phase(&uploaded, &rays, 1).unwrap();
+    let differ = one_pass.iter().zip(&two_phase).filter(|(a, b)| a != b).count();
+    assert_eq!(differ, 0, "{differ} of {} rays lost their hit", rays.len());
+}

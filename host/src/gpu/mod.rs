@@ -189,7 +189,8 @@ impl Gpu {
     }
 
     /// Launches the two-phase schedule's finish in at most `groups` workgroups (at least one),
-    /// below what the adapter gets by default: each thread then takes more rays in turn.
+    /// below what the adapter gets by default: each thread then takes more rays in turn, up to
+    /// its limit (`FINISH_RAYS_PER_THREAD`; past it, more workgroups).
     pub fn limit_finish_groups(&mut self, groups: u32) {
         self.finish_groups = self.finish_groups.min(groups.max(1));
     }

@@ -13,7 +13,8 @@
 //! takes scenes whose grids are walked by their root's visit alone, bound whole.
 
 use gridrt_shared::layout::{
-    HitRecord, LeafEntry, QueueEntry, RayRecord, WalkState, LEAF_TEST_CLASSES, TRACE_WORKGROUP_SIZE,
+    HitRecord, LeafEntry, QueueEntry, RayRecord, WalkState, FINISH_RAYS_PER_THREAD, LEAF_TEST_CLASSES,
+    TRACE_WORKGROUP_SIZE,
 };
 use gridrt_shared::traverse::MAX_BVH_DEPTH;
 use std::time::Instant;
@@ -60,8 +61,8 @@ struct Batch {
     queue_count: wgpu::Buffer,
     leaf_count: wgpu::Buffer,
     class_counts: wgpu::Buffer,
-    /// The finish's next ray to take: its first value is the number of threads dispatched.
-    finish_next: wgpu::Buffer,
+    /// How many rays past its dispatch's threads the finish has taken (cleared before it).
+    next: wgpu::Buffer,
     count_readback: wgpu::Buffer,
     walk: [wgpu::BindGroup; 2],
     finish: [wgpu::BindGroup; 2],
@@ -184,7 +185,7 @@ impl Gpu {
         let class_bytes = LEAF_TEST_CLASSES as u64 * 4;
         let class_counts = storage("leaf class counts", class_bytes, plain);
         let class_starts = storage("leaf class starts", class_bytes, plain);
-        let finish_next = storage("finish's next ray", 16, plain);
+        let next = storage("rays taken", 16, plain);
         let count_readback = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("count read-back"),
             size: 16,
@@ -234,7 +235,7 @@ impl Gpu {
                     headers,
                     vertices,
                     radii,
-                    &finish_next,
+                    &next,
                 ],
             )
         };
@@ -290,7 +291,7 @@ impl Gpu {
             queue_count,
             leaf_count,
             class_counts,
-            finish_next,
+            next,
             count_readback,
             walk,
             finish,
@@ -340,6 +341,15 @@ impl Gpu {
         );
     }
 
+    /// Workgroups for a kernel whose threads take the rays of a list of `rays` in turn, each at
+    /// most `per_thread`: as many as the device runs at once (`finish_groups`), but no more
+    /// than a thread per ray, and enough to take the whole list.
+    fn groups_taking_turns(&self, rays: u32, per_thread: u32) -> u32 {
+        let one_each = rays.div_ceil(TRACE_WORKGROUP_SIZE);
+        let fewest = rays.div_ceil(TRACE_WORKGROUP_SIZE * per_thread);
+        one_each.min(self.finish_groups).max(fewest).max(1)
+    }
+
     /// Runs the rounds of one batch until no ray walks on; returns their seconds.
     fn run_rounds(&self, batch: &Batch) -> Result<f64> {
         let n = batch.rays;
@@ -387,10 +397,8 @@ impl Gpu {
         });
         match finish {
             Some((from, walking)) => {
-                let groups = walking.div_ceil(TRACE_WORKGROUP_SIZE).min(self.finish_groups);
-                let threads = groups * TRACE_WORKGROUP_SIZE;
-                self.queue
-                    .write_buffer(&batch.finish_next, 0, bytemuck::bytes_of(&threads));
+                let groups = self.groups_taking_turns(walking, FINISH_RAYS_PER_THREAD);
+                encoder.clear_buffer(&batch.next, 0, None);
                 direct_pass(&mut encoder, &kernels.finish, &batch.finish[from], groups, closing);
             }
             None => drop(encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -424,10 +432,11 @@ impl Gpu {
     }
 }
 
-/// Most workgroups the finish launches on `adapter`. Each finish thread takes another ray when
+/// Most workgroups the finish launches on `adapter`, unless its list needs more (each thread
+/// takes at most `FINISH_RAYS_PER_THREAD` rays). Each finish thread takes another ray when
 /// its own is done, so a device that runs few workgroups at once (a CPU adapter: about one a
 /// core, each running its SIMD groups one after another) gets only as many, and their first
-/// groups share the list between them to its end, no lane idle while rays are left. A GPU,
+/// groups share the list between them, no lane idle while rays are left. A GPU,
 /// which runs far more threads at once than the finish has rays, gets a thread per ray.
 pub(super) fn finish_groups_for(adapter: &wgpu::AdapterInfo) -> u32 {
     if adapter.device_type == wgpu::DeviceType::Cpu {
