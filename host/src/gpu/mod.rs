@@ -112,6 +112,7 @@ impl Gpu {
         quiet_device_select_layer();
         let instance = wgpu::Instance::new(&wgpu::InstanceDescriptor {
             backends: wgpu::Backends::from_env().unwrap_or(wgpu::Backends::PRIMARY),
+            flags: instance_flags(),
             ..Default::default()
         });
         let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
@@ -667,6 +668,18 @@ fn kernels(device: &wgpu::Device, module: &wgpu::ShaderModule) -> Kernels {
             trace: pipeline("trace_grids_rays_one_visit"),
         },
     }
+}
+
+/// wgpu's instance flags for this build, without the validation of indirect dispatches.
+/// That validation runs a compute pass of its own before every indirect dispatch, clamping its
+/// group counts to the device's limit: a pass and a barrier more for each of the two-phase
+/// schedule's four indirect dispatches a round, a fixed cost the rounds pay however few rays
+/// they hold. gridrt's indirect dispatches read group counts its own kernels write, each at most
+/// one per 64 queue entries, and a batch's queue is sized so that they stay within the limit
+/// (`two_phase_batch`); nor do those kernels read the `num_workgroups` built-in, which D3D12
+/// gives only through the validation. `WGPU_VALIDATION_INDIRECT_CALL=1` turns it back on.
+fn instance_flags() -> wgpu::InstanceFlags {
+    (wgpu::InstanceFlags::from_build_config() - wgpu::InstanceFlags::VALIDATION_INDIRECT_CALL).with_env()
 }
 
 /// Mesa's device-select Vulkan layer, on by default wherever Mesa's drivers are installed,
