@@ -38,6 +38,15 @@ pub fn meshes_dir() -> Option<PathBuf> {
     dir.is_dir().then_some(dir)
 }
 
+/// `../shared/meshes`, or `None` with the skip printed for `test` when it is not there.
+pub fn meshes_dir_or_skip(test: &str) -> Option<PathBuf> {
+    let dir = meshes_dir();
+    if dir.is_none() {
+        eprintln!("{test}: SKIPPED, ../shared/meshes not found");
+    }
+    dir
+}
+
 /// The `gridrt` binary, built first: `cargo test` builds the test programs of this crate but
 /// not other packages' binaries, so without this the CLI tests would find no binary on a
 /// fresh checkout, or a stale one after a change. The build runs once per test program,

@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use gridrt_tests::{gpu_or_skip, gridrt_exe, meshes_dir};
+use gridrt_tests::{gpu_or_skip, gridrt_exe, meshes_dir, meshes_dir_or_skip};
 
 fn scratch(test: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("gridrt-cli-{}-{test}", std::process::id()));
@@ -191,8 +191,7 @@ fn the_camera_can_be_placed() {
 
 #[test]
 fn renders_a_mesh_file() {
-    let Some(meshes) = meshes_dir() else {
-        eprintln!("renders_a_mesh_file: SKIPPED, ../shared/meshes not found");
+    let Some(meshes) = meshes_dir_or_skip("renders_a_mesh_file") else {
         return;
     };
     let dir = scratch("mesh");
@@ -444,8 +443,7 @@ fn bench_reports_the_schedule_it_ran() {
     let Some(_gpu) = gpu_or_skip("bench_reports_the_schedule_it_ran") else {
         return;
     };
-    let Some(dir) = meshes_dir() else {
-        eprintln!("bench_reports_the_schedule_it_ran: SKIPPED, ../shared/meshes not found");
+    let Some(dir) = meshes_dir_or_skip("bench_reports_the_schedule_it_ran") else {
         return;
     };
     let out = scratch("bench-schedule");

@@ -13,7 +13,7 @@ use gridrt::mesh::{load_mesh, Mesh};
 use gridrt::scene::{render_cpu, Scene};
 use gridrt::subdiv::Scheme;
 use gridrt_shared::layout::{SHADE_EYE_LIGHT, SHADE_NORMAL};
-use gridrt_tests::{build_pair, gpu_or_skip, meshes_dir};
+use gridrt_tests::{build_pair, gpu_or_skip, meshes_dir_or_skip};
 
 const TOLERANCE: u32 = 2;
 const MIN_FRACTION: f64 = 0.995;
@@ -116,8 +116,7 @@ fn teapot_gpu_equals_cpu() {
     let Some(gpu) = gpu_or_skip("teapot_gpu_equals_cpu") else {
         return;
     };
-    let Some(dir) = meshes_dir() else {
-        eprintln!("teapot_gpu_equals_cpu: SKIPPED, ../shared/meshes not found");
+    let Some(dir) = meshes_dir_or_skip("teapot_gpu_equals_cpu") else {
         return;
     };
     both_modes(&gpu, "teapot L=2", &load_mesh(&dir.join("teapot.obj")).unwrap(), 2);
@@ -205,8 +204,7 @@ fn two_phase_long_list_keeps_every_ray() {
     let Some(mut gpu) = gpu_or_skip("two_phase_long_list_keeps_every_ray") else {
         return;
     };
-    let Some(dir) = meshes_dir() else {
-        eprintln!("two_phase_long_list_keeps_every_ray: SKIPPED, ../shared/meshes not found");
+    let Some(dir) = meshes_dir_or_skip("two_phase_long_list_keeps_every_ray") else {
         return;
     };
     let pair = build_pair(&load_mesh(&dir.join("teapot.obj")).unwrap(), 3, 3, Scheme::Loop);

@@ -10,7 +10,7 @@ use gridrt::scene::render_cpu;
 use gridrt::subdiv::Scheme;
 use gridrt_shared::layout::SHADE_NORMAL;
 use gridrt_shared::ray::{Ray, T_FAR};
-use gridrt_tests::{build_pair, build_pair_from, meshes_dir, Rng};
+use gridrt_tests::{build_pair, build_pair_from, meshes_dir_or_skip, Rng};
 
 struct Agreement {
     rays: usize,
@@ -168,8 +168,7 @@ fn default_scene_grid_variants() {
 
 #[test]
 fn bunny_l3() {
-    let Some(dir) = meshes_dir() else {
-        eprintln!("bunny_l3: SKIPPED, ../shared/meshes not found");
+    let Some(dir) = meshes_dir_or_skip("bunny_l3") else {
         return;
     };
     let mesh = load_mesh(&dir.join("bunny.obj")).unwrap();

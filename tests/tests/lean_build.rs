@@ -4,12 +4,11 @@
 use gridrt::grid::{build, build_lean, lean_build_applies, GridBuild, GridOptions};
 use gridrt::mesh::load_mesh_quiet;
 use gridrt::subdiv::{subdivide, Scheme};
-use gridrt_tests::meshes_dir;
+use gridrt_tests::meshes_dir_or_skip;
 
 #[test]
 fn the_lean_build_equals_the_whole_mesh_build_on_the_shared_meshes() {
-    let Some(dir) = meshes_dir() else {
-        eprintln!("SKIPPED: no shared meshes");
+    let Some(dir) = meshes_dir_or_skip("the_lean_build_equals_the_whole_mesh_build_on_the_shared_meshes") else {
         return;
     };
     for (file, levels) in [("bunny.obj", 3), ("teapot.obj", 4)] {

@@ -14,7 +14,7 @@ use gridrt_shared::grid_traverse::{OneVisitGrids, EMPTY_WINDOW};
 use gridrt_shared::layout::{Hit, HitRecord, LeafEntry, RayRecord, WalkState, NO_HIT};
 use gridrt_shared::ray::Ray;
 use gridrt_shared::traverse::{walk_round, BufferStack, LeafPrimitives, MAX_BVH_DEPTH};
-use gridrt_tests::{build_pair, meshes_dir};
+use gridrt_tests::{build_pair, meshes_dir_or_skip};
 
 /// One ray through the rounds: each round walks to the next leaf, then every grid of that leaf
 /// is visited on its own from the closest distance known when it was queued.
@@ -100,8 +100,7 @@ fn rounds_find_the_one_pass_hits_on_the_default_scene() {
 
 #[test]
 fn rounds_find_the_one_pass_hits_on_the_teapot() {
-    let Some(dir) = meshes_dir() else {
-        eprintln!("rounds_find_the_one_pass_hits_on_the_teapot: SKIPPED, ../shared/meshes not found");
+    let Some(dir) = meshes_dir_or_skip("rounds_find_the_one_pass_hits_on_the_teapot") else {
         return;
     };
     check_mesh("teapot", &load_mesh(&dir.join("teapot.obj")).unwrap());
