@@ -10,7 +10,7 @@ use gridrt_shared::shade::ao_pixel;
 use rayon::prelude::*;
 
 #[cfg(feature = "gpu")]
-use crate::gpu::{Gpu, Timing};
+use crate::gpu::{Gpu, TimedList, TimedScene, Timing};
 use crate::heat_map::CostImage;
 use crate::limits::BufferSize;
 use crate::pipeline::{Image, RenderOptions, Shading};
@@ -61,6 +61,16 @@ impl Schedule {
             Schedule::TwoPhase => "two-phase",
         }
     }
+}
+
+/// What timing a list of rays through one scene gives ([`Backend::time_traces`]).
+pub struct TimedTrace {
+    /// The hits of the last repetition.
+    pub hits: Vec<HitRecord>,
+    /// The seconds of each timed repetition (after the warm-up).
+    pub seconds: Vec<f64>,
+    /// The schedule that ran, `Auto` resolved.
+    pub schedule: Schedule,
 }
 
 /// A CPU or a GPU, behind one interface: everything that traces takes a `&Backend`.
@@ -310,42 +320,96 @@ impl Backend {
         repeats: usize,
         schedule: Schedule,
     ) -> Result<(Vec<HitRecord>, Vec<f64>, Schedule)> {
-        if schedule == Schedule::TwoPhase && self.kind() != "gpu" {
+        let TimedTrace {
+            hits,
+            seconds,
+            schedule,
+        } = self.time_traces(&[(scene, schedule)], rays, warmup, repeats)?.remove(0);
+        Ok((hits, seconds, schedule))
+    }
+
+    /// Traces `rays` through each of `scenes`, by its schedule, `warmup + repeats` times; per
+    /// scene, in order, what [`TimedTrace`] holds. The scenes take turns at every repetition
+    /// (the first of one is the last of the next), so that a change in the device's speed while
+    /// they run (clocks, heat, other work on the machine) meets them alike: the ratio of their
+    /// times, which a benchmark reports, does not depend on which ran when.
+    pub fn time_traces(
+        &self,
+        scenes: &[(&Scene, Schedule)],
+        rays: &[RayRecord],
+        warmup: usize,
+        repeats: usize,
+    ) -> Result<Vec<TimedTrace>> {
+        if scenes.iter().any(|s| s.1 == Schedule::TwoPhase) && self.kind() != "gpu" {
             crate::error::fail!(
                 Options,
                 "the two-phase schedule runs on the GPU backend; use --backend gpu"
             );
         }
         match self {
-            Backend::Cpu { .. } => {
-                let mut hits = Vec::new();
-                let mut seconds = Vec::new();
-                for k in 0..warmup + repeats {
-                    let start = Instant::now();
-                    hits = trace_cpu(scene, rays);
-                    if k >= warmup {
-                        seconds.push(start.elapsed().as_secs_f64());
-                    }
-                }
-                Ok((hits, seconds, Schedule::OnePass))
-            }
+            Backend::Cpu { .. } => Ok(time_traces_cpu(scenes, rays, warmup, repeats)),
             #[cfg(feature = "gpu")]
             Backend::Gpu(gpu) => {
-                let uploaded = gpu.upload(scene)?;
-                let schedule = match schedule {
-                    Schedule::Auto if uploaded.takes_two_phase() && rays.len() >= TWO_PHASE_MIN_RAYS => {
-                        Schedule::TwoPhase
-                    }
-                    Schedule::Auto => Schedule::OnePass,
-                    chosen => chosen,
-                };
-                let (hits, mut seconds) = match schedule {
-                    Schedule::TwoPhase => gpu.time_trace_two_phase(&uploaded, rays, warmup + repeats)?,
-                    _ => gpu.time_trace(&uploaded, rays, warmup + repeats)?,
-                };
-                seconds.drain(..warmup.min(seconds.len()));
-                Ok((hits, seconds, schedule))
+                let uploaded = (scenes.iter())
+                    .map(|(scene, _)| gpu.upload(scene))
+                    .collect::<Result<Vec<_>>>()?;
+                let schedules: Vec<Schedule> = (scenes.iter().zip(&uploaded))
+                    .map(|((_, schedule), up)| match schedule {
+                        Schedule::Auto if up.takes_two_phase() && rays.len() >= TWO_PHASE_MIN_RAYS => {
+                            Schedule::TwoPhase
+                        }
+                        Schedule::Auto => Schedule::OnePass,
+                        &chosen => chosen,
+                    })
+                    .collect();
+                let timed: Vec<TimedScene> = (uploaded.iter().zip(&schedules))
+                    .map(|(scene, &schedule)| TimedScene {
+                        scene,
+                        two_phase: schedule == Schedule::TwoPhase,
+                    })
+                    .collect();
+                let lists = gpu.time_traces(&timed, rays, warmup + repeats)?;
+                Ok((lists.into_iter().zip(schedules))
+                    .map(|(TimedList { hits, mut seconds }, schedule)| {
+                        seconds.drain(..warmup.min(seconds.len()));
+                        TimedTrace {
+                            hits,
+                            seconds,
+                            schedule,
+                        }
+                    })
+                    .collect())
             }
         }
     }
+}
+
+/// [`Backend::time_traces`] on the CPU, which traces every list in one pass.
+fn time_traces_cpu(
+    scenes: &[(&Scene, Schedule)],
+    rays: &[RayRecord],
+    warmup: usize,
+    repeats: usize,
+) -> Vec<TimedTrace> {
+    let mut timed: Vec<TimedTrace> = (scenes.iter())
+        .map(|_| TimedTrace {
+            hits: Vec::new(),
+            seconds: Vec::new(),
+            schedule: Schedule::OnePass,
+        })
+        .collect();
+    for k in 0..warmup + repeats {
+        for turn in 0..scenes.len() {
+            let s = match k % 2 {
+                0 => turn,
+                _ => scenes.len() - 1 - turn,
+            };
+            let start = Instant::now();
+            timed[s].hits = trace_cpu(scenes[s].0, rays);
+            if k >= warmup {
+                timed[s].seconds.push(start.elapsed().as_secs_f64());
+            }
+        }
+    }
+    timed
 }

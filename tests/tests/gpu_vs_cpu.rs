@@ -214,3 +214,40 @@ fn two_phase_long_list_keeps_every_ray() {
     let differ = two_phase_differences(&gpu, &uploaded, &rays);
     assert_eq!(differ, 0, "{differ} of {} rays lost their hit", rays.len());
 }
+
+/// Scenes timed in turn (the benchmark's grids by the two-phase schedule, the baseline by one
+/// pass) keep the hits each finds alone, over a list cut into several batches.
+#[test]
+fn scenes_in_turn_keep_their_hits() {
+    let Some(mut gpu) = gpu_or_skip("scenes_in_turn_keep_their_hits") else {
+        return;
+    };
+    use gridrt::gpu::TimedScene;
+    let pair = build_pair(&default_scene(), 3, 3, Scheme::Loop);
+    let rays = gridrt::rays::primary_rays(&pair.bounds, 2, 96, 64);
+    // Bindings small enough that the two-phase schedule's stacks (512 bytes a ray) take
+    // several batches, large enough that the scene is still bound whole.
+    gpu.limit_bindings(1 << 20).unwrap();
+    let grids = gpu.upload(&pair.grids).unwrap();
+    let triangles = gpu.upload(&pair.triangles).unwrap();
+    assert!(
+        grids.takes_two_phase(),
+        "the default scene no longer fits the test's bindings"
+    );
+    let alone = [gpu.trace(&grids, &rays).unwrap(), gpu.trace(&triangles, &rays).unwrap()];
+    let scenes = [
+        TimedScene {
+            scene: &grids,
+            two_phase: true,
+        },
+        TimedScene {
+            scene: &triangles,
+            two_phase: false,
+        },
+    ];
+    let timed = gpu.time_traces(&scenes, &rays, 3).unwrap();
+    for ((list, alone), name) in timed.iter().zip(&alone).zip(["grids", "triangles"]) {
+        assert_eq!(list.seconds.len(), 3, "{name}: one time per repetition");
+        assert!(list.hits == *alone, "{name}: the hits taken in turn differ");
+    }
+}

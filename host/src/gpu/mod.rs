@@ -1,9 +1,10 @@
 //! The GPU backend: headless wgpu compute running the rust-gpu kernels (built from `kernel/` by
 //! the build script and embedded here) on whatever adapter exists, lavapipe included.
 
-use std::time::Instant;
-
+mod turns;
 mod two_phase;
+
+pub use turns::{TimedList, TimedScene};
 
 use crate::error::{error, fail, Result};
 use gridrt_shared::buffer::SPLIT_CHUNKS;
@@ -542,39 +543,11 @@ impl Gpu {
         rays: &[RayRecord],
         repeats: usize,
     ) -> Result<(Vec<HitRecord>, Vec<f64>)> {
-        let pipeline = self.pipeline(scene, Job::Trace)?;
-        let queries = self.timestamps.then(|| self.queries());
-        let period = self.queue.get_timestamp_period() as f64 * 1e-9;
-        let mut seconds = vec![0.0; repeats.max(1)];
-        let mut hits = Vec::with_capacity(rays.len());
-        for batch in rays.chunks(self.ray_batch().max(1)) {
-            let ((x, y), params) = self.trace_params(scene, batch.len() as u32);
-            let params = self.buffer("trace parameters", bytemuck::bytes_of(&params));
-            let ray_buffer = self.buffer("ray", bytemuck::cast_slice(batch));
-            let bytes = batch.len() as u64 * std::mem::size_of::<HitRecord>() as u64;
-            let (hit_buffer, readback) = self.output("hit", bytes);
-            let bind_groups = self.bind(pipeline, &[&params, &ray_buffer, &hit_buffer], scene);
-            for (k, time) in seconds.iter_mut().enumerate() {
-                let last = k + 1 == repeats.max(1);
-                let start = Instant::now();
-                self.dispatch(&Dispatch {
-                    pipeline,
-                    bind_groups: &bind_groups,
-                    groups: (x, y),
-                    copy: last.then_some((&hit_buffer, &readback, bytes)),
-                    queries: queries.as_ref(),
-                })?;
-                let wall = start.elapsed().as_secs_f64();
-                *time += match &queries {
-                    Some(q) => {
-                        let t: Vec<u64> = bytemuck::cast_slice(&self.read_back_bytes(&q.readback, 16)?).to_vec();
-                        t[1].saturating_sub(t[0]) as f64 * period
-                    }
-                    None => wall,
-                };
-            }
-            hits.extend_from_slice(bytemuck::cast_slice(&self.read_back_bytes(&readback, bytes)?));
-        }
+        let timed = TimedScene {
+            scene,
+            two_phase: false,
+        };
+        let TimedList { hits, seconds } = self.time_traces(&[timed], rays, repeats)?.remove(0);
         Ok((hits, seconds))
     }
 

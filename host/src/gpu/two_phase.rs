@@ -20,6 +20,7 @@ use gridrt_shared::traverse::MAX_BVH_DEPTH;
 use std::time::Instant;
 use wgpu::util::DeviceExt;
 
+use super::turns::{TimedList, TimedScene};
 use super::{compute_pipeline, Gpu, GpuScene};
 use crate::error::{error, fail, Result};
 use crate::scene::Scene;
@@ -49,7 +50,7 @@ pub(super) struct Kernels {
 
 /// One batch's buffers and bind groups; lists and counters come in pairs, read by one round
 /// and written for the next.
-struct Batch {
+pub(super) struct Batch {
     rays: u32,
     states: wgpu::Buffer,
     all_rays: wgpu::Buffer,
@@ -80,6 +81,13 @@ impl GpuScene<'_> {
     }
 }
 
+impl Batch {
+    /// The buffer the hits are written to, and the one they are read back through.
+    pub(super) fn hit_buffers(&self) -> (&wgpu::Buffer, &wgpu::Buffer) {
+        (&self.hits, &self.readback)
+    }
+}
+
 impl Gpu {
     /// Traces a list of rays by the two-phase schedule `repeats` times: the hits, and the
     /// seconds of each repetition (from the first round's start to the last's end, by GPU
@@ -90,43 +98,36 @@ impl Gpu {
         rays: &[RayRecord],
         repeats: usize,
     ) -> Result<(Vec<HitRecord>, Vec<f64>)> {
-        let grids = match scene.scene {
-            Scene::Grids(g) if scene.takes_two_phase() => g,
+        let timed = TimedScene { scene, two_phase: true };
+        let TimedList { hits, seconds } = self.time_traces(&[timed], rays, repeats)?.remove(0);
+        Ok((hits, seconds))
+    }
+
+    /// Most entries of a scene's leaves (grids), once the scene is known to take the schedule.
+    fn widest_leaf(scene: &GpuScene) -> Result<u32> {
+        match scene.scene {
+            Scene::Grids(g) if scene.takes_two_phase() => Ok(g.nodes.iter().map(|n| n.count).max().unwrap_or(0).max(1)),
             _ => fail!(
                 Options,
                 "the two-phase schedule traces grids walked by their root's visit alone (sphere levels down to 1, \
                  as at the default --levels 3) and bound whole; this scene is neither, use the one-pass schedule"
             ),
-        };
-        let widest_leaf = grids.nodes.iter().map(|n| n.count).max().unwrap_or(0).max(1);
-        let mut seconds = vec![0.0; repeats.max(1)];
-        let mut hits = Vec::with_capacity(rays.len());
-        for list in rays.chunks(self.two_phase_batch(widest_leaf)) {
-            let batch = self.two_phase_batch_buffers(scene, list, widest_leaf);
-            for time in seconds.iter_mut() {
-                *time += self.run_rounds(&batch)?;
-            }
-            let bytes = list.len() as u64 * std::mem::size_of::<HitRecord>() as u64;
-            let mut encoder = self.device.create_command_encoder(&Default::default());
-            encoder.copy_buffer_to_buffer(&batch.hits, 0, &batch.readback, 0, bytes);
-            self.queue.submit([encoder.finish()]);
-            hits.extend_from_slice(bytemuck::cast_slice(&self.read_back_bytes(&batch.readback, bytes)?));
         }
-        Ok((hits, seconds))
     }
 
-    /// Most rays a batch may hold: its stacks within one binding, and its queue (up to
-    /// `widest_leaf` entries a ray) within one dispatch.
-    fn two_phase_batch(&self, widest_leaf: u32) -> usize {
+    /// Most rays a batch of `scene` may hold: its stacks within one binding, and its queue (up
+    /// to its widest leaf's entries a ray) within one dispatch.
+    pub(super) fn two_phase_batch(&self, scene: &GpuScene) -> Result<usize> {
+        let widest_leaf = Self::widest_leaf(scene)?;
         let groups = self.limits.max_compute_workgroups_per_dimension as u64;
         let by_queue = groups * TRACE_WORKGROUP_SIZE as u64 / widest_leaf as u64;
         let by_stack = self.binding_limit / STACK_BYTES;
         let by_queue_binding = self.binding_limit / (widest_leaf as u64 * std::mem::size_of::<QueueEntry>() as u64);
-        (self.ray_batch() as u64)
+        Ok((self.ray_batch() as u64)
             .min(by_queue)
             .min(by_stack)
             .min(by_queue_binding)
-            .max(1) as usize
+            .max(1) as usize)
     }
 
     fn two_phase_kernels(&self) -> &Kernels {
@@ -140,7 +141,8 @@ impl Gpu {
         })
     }
 
-    fn two_phase_batch_buffers(&self, scene: &GpuScene, rays: &[RayRecord], widest_leaf: u32) -> Batch {
+    pub(super) fn two_phase_batch_buffers(&self, scene: &GpuScene, rays: &[RayRecord]) -> Result<Batch> {
+        let widest_leaf = Self::widest_leaf(scene)?;
         let n = rays.len() as u64;
         let storage = |name: &str, bytes: u64, extra: wgpu::BufferUsages| {
             self.device.create_buffer(&wgpu::BufferDescriptor {
@@ -280,7 +282,7 @@ impl Gpu {
         );
         let (walk, finish) = ([walk(0), walk(1)], [finish(0), finish(1)]);
         let [first_list, _] = lists;
-        Batch {
+        Ok(Batch {
             rays: n as u32,
             states,
             all_rays,
@@ -299,7 +301,7 @@ impl Gpu {
             order_classes,
             sort_leaves,
             test_leaves,
-        }
+        })
     }
 
     /// One round: the walk of every ray in list `from`, then the visits it queued, then the
@@ -351,7 +353,7 @@ impl Gpu {
     }
 
     /// Runs the rounds of one batch until no ray walks on; returns their seconds.
-    fn run_rounds(&self, batch: &Batch) -> Result<f64> {
+    pub(super) fn run_rounds(&self, batch: &Batch) -> Result<f64> {
         let n = batch.rays;
         let kernels = self.two_phase_kernels();
         let queries = self.timestamps.then(|| self.queries());
@@ -421,14 +423,7 @@ impl Gpu {
         self.device
             .poll(wgpu::PollType::wait_indefinitely())
             .map_err(|e| error!(Gpu, "GPU device lost: {e}"))?;
-        let wall = start.elapsed().as_secs_f64();
-        Ok(match &queries {
-            Some(q) => {
-                let t: Vec<u64> = bytemuck::cast_slice(&self.read_back_bytes(&q.readback, 16)?).to_vec();
-                t[1].saturating_sub(t[0]) as f64 * self.queue.get_timestamp_period() as f64 * 1e-9
-            }
-            None => wall,
-        })
+        self.seconds(queries.as_ref(), start.elapsed().as_secs_f64())
     }
 }
 

@@ -1,0 +1,162 @@
+//! Timing ray lists: a batch of rays made ready once (its buffers made and bound) and traced
+//! as often as a benchmark asks, by either schedule; several scenes traced on one list take
+//! turns at every repetition.
+//!
+//! Why turns: a benchmark's figure is a ratio between two scenes (grids and their triangles),
+//! and a device's speed changes while it runs (clocks, heat, other work on the machine). Timed
+//! one block after the other, the two scenes can meet different speeds and the ratio moves
+//! with them; taking turns, both meet each speed alike.
+
+use gridrt_shared::layout::{HitRecord, RayRecord};
+use std::time::Instant;
+
+use super::two_phase::Batch;
+use super::{Dispatch, Gpu, GpuScene, Job, Queries};
+use crate::error::Result;
+
+/// A scene to time and the schedule to trace it by.
+#[derive(Copy, Clone)]
+pub struct TimedScene<'s, 'a> {
+    pub scene: &'s GpuScene<'a>,
+    /// The two-phase schedule (`two_phase`) rather than one pass per ray.
+    pub two_phase: bool,
+}
+
+/// One batch of a list, ready to trace through one scene.
+enum ReadyBatch<'p> {
+    OnePass(OnePassBatch<'p>),
+    TwoPhase(Box<Batch>),
+}
+
+/// A one-pass batch: a thread per ray, one dispatch.
+struct OnePassBatch<'p> {
+    pipeline: &'p wgpu::ComputePipeline,
+    bind_groups: Vec<wgpu::BindGroup>,
+    groups: (u32, u32),
+    hits: wgpu::Buffer,
+    readback: wgpu::Buffer,
+    queries: Option<Queries>,
+}
+
+/// What timing a list through one scene gives: the hits of the last repetition and the
+/// seconds of each.
+pub struct TimedList {
+    pub hits: Vec<HitRecord>,
+    pub seconds: Vec<f64>,
+}
+
+impl Gpu {
+    /// Traces `rays` through each of `scenes` `repeats` times, the scenes taking turns at every
+    /// repetition (the first of one is the last of the next); per scene, in order, the hits and
+    /// the seconds of each repetition (all its batches), measured as [`Gpu::timing`] says.
+    pub fn time_traces(&self, scenes: &[TimedScene], rays: &[RayRecord], repeats: usize) -> Result<Vec<TimedList>> {
+        let repeats = repeats.max(1);
+        let mut batch = usize::MAX;
+        for s in scenes {
+            batch = batch.min(self.batch_rays(s)?);
+        }
+        let mut timed: Vec<TimedList> = (scenes.iter())
+            .map(|_| TimedList {
+                hits: Vec::with_capacity(rays.len()),
+                seconds: vec![0.0; repeats],
+            })
+            .collect();
+        for list in rays.chunks(batch.max(1)) {
+            let ready = (scenes.iter())
+                .map(|s| self.ready_batch(s, list))
+                .collect::<Result<Vec<_>>>()?;
+            for k in 0..repeats {
+                for turn in 0..ready.len() {
+                    let s = match k % 2 {
+                        0 => turn,
+                        _ => ready.len() - 1 - turn,
+                    };
+                    timed[s].seconds[k] += self.run_batch(&ready[s])?;
+                }
+            }
+            for (t, r) in timed.iter_mut().zip(&ready) {
+                t.hits.extend(self.batch_hits(r, list.len())?);
+            }
+        }
+        Ok(timed)
+    }
+
+    /// Most rays one batch of `s` holds.
+    fn batch_rays(&self, s: &TimedScene) -> Result<usize> {
+        Ok(match s.two_phase {
+            true => self.two_phase_batch(s.scene)?,
+            false => self.ray_batch(),
+        })
+    }
+
+    fn ready_batch<'p>(&'p self, s: &TimedScene, rays: &[RayRecord]) -> Result<ReadyBatch<'p>> {
+        Ok(match s.two_phase {
+            true => ReadyBatch::TwoPhase(Box::new(self.two_phase_batch_buffers(s.scene, rays)?)),
+            false => ReadyBatch::OnePass(self.one_pass_batch(s.scene, rays)?),
+        })
+    }
+
+    fn one_pass_batch<'p>(&'p self, scene: &GpuScene, rays: &[RayRecord]) -> Result<OnePassBatch<'p>> {
+        let pipeline = self.pipeline(scene, Job::Trace)?;
+        let (groups, params) = self.trace_params(scene, rays.len() as u32);
+        let params = self.buffer("trace parameters", bytemuck::bytes_of(&params));
+        let ray_buffer = self.buffer("ray", bytemuck::cast_slice(rays));
+        let (hits, readback) = self.output("hit", hit_bytes(rays.len()));
+        let bind_groups = self.bind(pipeline, &[&params, &ray_buffer, &hits], scene);
+        Ok(OnePassBatch {
+            pipeline,
+            bind_groups,
+            groups,
+            hits,
+            readback,
+            queries: self.timestamps.then(|| self.queries()),
+        })
+    }
+
+    /// Traces a ready batch once; returns its seconds.
+    fn run_batch(&self, batch: &ReadyBatch) -> Result<f64> {
+        match batch {
+            ReadyBatch::TwoPhase(b) => self.run_rounds(b),
+            ReadyBatch::OnePass(b) => {
+                let start = Instant::now();
+                self.dispatch(&Dispatch {
+                    pipeline: b.pipeline,
+                    bind_groups: &b.bind_groups,
+                    groups: b.groups,
+                    copy: None,
+                    queries: b.queries.as_ref(),
+                })?;
+                self.seconds(b.queries.as_ref(), start.elapsed().as_secs_f64())
+            }
+        }
+    }
+
+    /// The hits of a ready batch of `rays` rays, as its last run left them.
+    fn batch_hits(&self, batch: &ReadyBatch, rays: usize) -> Result<Vec<HitRecord>> {
+        let (hits, readback) = match batch {
+            ReadyBatch::OnePass(b) => (&b.hits, &b.readback),
+            ReadyBatch::TwoPhase(b) => b.hit_buffers(),
+        };
+        let bytes = hit_bytes(rays);
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(hits, 0, readback, 0, bytes);
+        self.queue.submit([encoder.finish()]);
+        Ok(bytemuck::cast_slice(&self.read_back_bytes(readback, bytes)?).to_vec())
+    }
+
+    /// Seconds of a timed span: between the timestamps of `queries` where the adapter has
+    /// them, `wall` otherwise.
+    pub(super) fn seconds(&self, queries: Option<&Queries>, wall: f64) -> Result<f64> {
+        Ok(match queries {
+            Some(q) => {
+                let t: Vec<u64> = bytemuck::cast_slice(&self.read_back_bytes(&q.readback, 16)?).to_vec();
+                t[1].saturating_sub(t[0]) as f64 * self.queue.get_timestamp_period() as f64 * 1e-9
+            }
+            None => wall,
+        })
+    }
+}
+
+fn hit_bytes(rays: usize) -> u64 {
+    rays as u64 * std::mem::size_of::<HitRecord>() as u64
+}
