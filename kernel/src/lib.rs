@@ -17,7 +17,7 @@ use gridrt_shared::layout::{
 };
 use gridrt_shared::ray::Ray;
 use gridrt_shared::shade::{cost_pixel, render_pixel};
-use gridrt_shared::traverse::{closest_hit, walk_round, BufferStack, LeafPrimitives, TriangleMesh};
+use gridrt_shared::traverse::{closest_hit, walk_first_round, walk_round, BufferStack, LeafPrimitives, TriangleMesh};
 use spirv_std::spirv;
 
 /// Where this thread's pixel goes in the tile's image buffer, or `None` outside the tile.
@@ -360,8 +360,93 @@ fn one_visit_grids<'a>(
     })
 }
 
-/// The two-phase schedule's first phase: one round of the top-level walk for each ray still
-/// walking, queueing the grids of the leaf it reaches.
+/// Where a two-phase walk round leaves its rays: the hits of those done, the queue entries and
+/// walk states of the others, and the list of rays walking in the next round.
+struct WalkOutput<'a> {
+    hits: &'a mut [HitRecord],
+    states: &'a mut [WalkState],
+    active_out: &'a mut [u32],
+    count_out: &'a mut [u32],
+    queue: &'a mut [QueueEntry],
+    queue_count: &'a mut [u32],
+}
+
+impl WalkOutput<'_> {
+    /// Ray `r`'s round ended at `leaf`: nothing left to walk (its hit written), or the leaf's
+    /// grids queued and the ray listed for the next round.
+    fn leave(&mut self, r: u32, leaf: BvhNode, mut state: WalkState) {
+        if leaf.count == 0 {
+            self.hits[r as usize] = HitRecord {
+                t: state.t,
+                prim: state.prim,
+            };
+            return;
+        }
+        let first = append(self.queue_count, leaf.count);
+        let mut g = 0;
+        loop {
+            self.queue[(first + g) as usize] = QueueEntry {
+                ray: r,
+                grid: leaf.first + g,
+                t: state.t,
+                _pad: 0,
+            };
+            g += 1;
+            if g >= leaf.count {
+                break;
+            }
+        }
+        state.first_entry = first;
+        state.entries = leaf.count;
+        let slot = append(self.count_out, 1);
+        self.active_out[slot as usize] = r;
+        self.states[r as usize] = state;
+    }
+}
+
+/// The two-phase schedule's first phase, first round: every ray of the batch (ray `i` is
+/// thread `i`) from the root down to its first leaf, queueing that leaf's grids. Its walk
+/// state is written, not read: nothing needs clearing before.
+#[allow(clippy::too_many_arguments)] // one per binding
+#[spirv(compute(threads(64, 1, 1)))]
+pub fn walk_first_rounds(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] rays: &[RayRecord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] hits: &mut [HitRecord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] nodes: &[BvhNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] states: &mut [WalkState],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] stacks: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] active_out: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] queue: &mut [QueueEntry],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] count_in: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] count_out: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 9)] queue_count: &mut [u32],
+) {
+    let r = id.x;
+    if r >= count_in[ITEMS] {
+        return;
+    }
+    let record = &rays[r as usize];
+    let mut state = WalkState::default();
+    let mut stack = BufferStack {
+        words: stacks,
+        ray: r as usize,
+        rays: rays.len(),
+    };
+    let leaf = walk_first_round(nodes, &ray_of(record), record.t_max, &mut state, &mut stack);
+    let mut out = WalkOutput {
+        hits,
+        states,
+        active_out,
+        count_out,
+        queue,
+        queue_count,
+    };
+    out.leave(r, leaf, state);
+}
+
+/// The two-phase schedule's first phase, every later round: one round of the top-level walk
+/// for each ray still walking, queueing the grids of the leaf it reaches.
 #[allow(clippy::too_many_arguments)] // one per binding
 #[spirv(compute(threads(64, 1, 1)))]
 pub fn walk_rounds(
@@ -384,41 +469,22 @@ pub fn walk_rounds(
         return;
     }
     let r = active_in[i as usize];
-    let record = &rays[r as usize];
-    let ray = ray_of(record);
     let mut state = states[r as usize];
     let mut stack = BufferStack {
         words: stacks,
         ray: r as usize,
         rays: rays.len(),
     };
-    let leaf = walk_round(nodes, results, &ray, record.t_max, &mut state, &mut stack);
-    if leaf.count == 0 {
-        hits[r as usize] = HitRecord {
-            t: state.t,
-            prim: state.prim,
-        };
-        return;
-    }
-    let first = append(queue_count, leaf.count);
-    let mut g = 0;
-    loop {
-        queue[(first + g) as usize] = QueueEntry {
-            ray: r,
-            grid: leaf.first + g,
-            t: state.t,
-            _pad: 0,
-        };
-        g += 1;
-        if g >= leaf.count {
-            break;
-        }
-    }
-    state.first_entry = first;
-    state.entries = leaf.count;
-    let slot = append(count_out, 1);
-    active_out[slot as usize] = r;
-    states[r as usize] = state;
+    let leaf = walk_round(nodes, results, &ray_of(&rays[r as usize]), &mut state, &mut stack);
+    let mut out = WalkOutput {
+        hits,
+        states,
+        active_out,
+        count_out,
+        queue,
+        queue_count,
+    };
+    out.leave(r, leaf, state);
 }
 
 /// The two-phase schedule's second phase, first half: one queued grid per thread, its spheres
@@ -565,7 +631,6 @@ pub fn finish_walks(
     let grids = one_visit_grids(params, headers, vertices, radii, micro_triangles);
     let mut r = active_in[id.x as usize] as usize;
     let mut ray = ray_of(&rays[r]);
-    let mut t_max = rays[r].t_max;
     let mut state = states[r];
     let mut scratch = grids.scratch(&ray);
     let mut taken = 1;
@@ -575,7 +640,7 @@ pub fn finish_walks(
             ray: r,
             rays: rays.len(),
         };
-        let leaf = walk_round(nodes, results, &ray, t_max, &mut state, &mut stack);
+        let leaf = walk_round(nodes, results, &ray, &mut state, &mut stack);
         if leaf.count == 0 {
             hits[r] = HitRecord {
                 t: state.t,
@@ -591,7 +656,6 @@ pub fn finish_walks(
             }
             r = active_in[i as usize] as usize;
             ray = ray_of(&rays[r]);
-            t_max = rays[r].t_max;
             state = states[r];
             scratch.aim(&ray);
         } else {

@@ -389,8 +389,7 @@ pub const FINISH_RAYS_PER_THREAD: u32 = 8;
 
 /// A ray's top-level walk between two rounds of the two-phase schedule (see
 /// [`crate::traverse::walk_round`]): its closest hit so far, its stack's height (the stack
-/// itself lives in a buffer of its own), whether it has begun, and the queue entries of the
-/// leaf it reached last.
+/// itself lives in a buffer of its own), and the queue entries of the leaf it reached last.
 #[repr(C)]
 #[derive(Copy, Clone, Default)]
 #[cfg_attr(not(target_arch = "spirv"), derive(Pod, Zeroable, Debug, PartialEq))]
@@ -398,10 +397,9 @@ pub struct WalkState {
     pub t: f32,
     pub prim: u32,
     pub sp: u32,
-    pub started: u32,
     pub first_entry: u32,
     pub entries: u32,
-    pub _pad: [u32; 2],
+    pub _pad: [u32; 3],
 }
 
 /// One grid to visit for one ray, closer than `t`: the two-phase schedule's queue entry.

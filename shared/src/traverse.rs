@@ -177,55 +177,76 @@ fn descend<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
     n
 }
 
-/// One round of the two-phase schedule's top-level walk: the results of the grids queued in
-/// the last round taken (`results`), then down to the next leaf the ray may hit closer than
-/// its closest hit, which is returned (a node with `count` 0 when the walk is over). The
-/// state and the stack are the ray's, kept between rounds by the caller.
-pub fn walk_round<N: Buffer<BvhNode>, R: Buffer<HitRecord>, S: WalkStack>(
+/// The first round of the two-phase schedule's top-level walk: the ray's state begun (no hit
+/// closer than `t_max`), then from the root down to the first leaf the ray may hit, which is
+/// returned (a node with `count` 0 when the ray misses the scene). The state and the stack are
+/// the ray's, kept by the caller for [`walk_round`]. A round of its own, because at its start
+/// there is nothing to read back: no state, no results, no stack.
+pub fn walk_first_round<N: Buffer<BvhNode>, S: WalkStack>(
     nodes: N,
-    results: R,
     ray: &Ray,
     t_max: f32,
     state: &mut WalkState,
     stack: &mut S,
 ) -> BvhNode {
     let done = BvhNode::default();
-    let mut sp = state.sp as usize;
-    let node;
-    if state.started == 0 {
-        state.started = 1;
-        state.t = t_max;
-        state.prim = NO_HIT;
-        state.sp = 0;
-        if nodes.is_empty() {
-            return done;
-        }
-        let root = nodes.load(0);
-        if intersect_aabb(Vec3::from(root.min), Vec3::from(root.max), ray, t_max) == T_FAR {
-            return done;
-        }
-        node = 0;
+    *state = WalkState {
+        t: t_max,
+        prim: NO_HIT,
+        sp: 0,
+        first_entry: 0,
+        entries: 0,
+        _pad: [0; 3],
+    };
+    if nodes.is_empty() {
+        return done;
+    }
+    let root = nodes.load(0);
+    if intersect_aabb(Vec3::from(root.min), Vec3::from(root.max), ray, t_max) == T_FAR {
+        return done;
+    }
+    let mut sp = 0;
+    let n = descend(nodes, ray, t_max, root, stack, &mut sp, &mut Uncounted);
+    state.sp = sp as u32;
+    if n.is_leaf() {
+        n
     } else {
-        // In grid order, the first of equal distances kept: as the one-pass walk tests them.
-        let mut k = 0;
-        if state.entries > 0 {
-            loop {
-                let h = results.load(state.first_entry + k);
-                if h.t < state.t {
-                    state.t = h.t;
-                    state.prim = h.prim;
-                }
-                k += 1;
-                if k >= state.entries {
-                    break;
-                }
+        done
+    }
+}
+
+/// Every later round of the two-phase schedule's top-level walk: the results of the grids
+/// queued in the last round taken (`results`), then down to the next leaf the ray may hit
+/// closer than its closest hit, which is returned (a node with `count` 0 when the walk is
+/// over). The state and the stack are the ray's, kept between rounds by the caller.
+pub fn walk_round<N: Buffer<BvhNode>, R: Buffer<HitRecord>, S: WalkStack>(
+    nodes: N,
+    results: R,
+    ray: &Ray,
+    state: &mut WalkState,
+    stack: &mut S,
+) -> BvhNode {
+    let done = BvhNode::default();
+    let mut sp = state.sp as usize;
+    // In grid order, the first of equal distances kept: as the one-pass walk tests them.
+    let mut k = 0;
+    if state.entries > 0 {
+        loop {
+            let h = results.load(state.first_entry + k);
+            if h.t < state.t {
+                state.t = h.t;
+                state.prim = h.prim;
+            }
+            k += 1;
+            if k >= state.entries {
+                break;
             }
         }
-        node = stack.pop_closer(&mut sp, state.t);
-        if node == NO_NODE {
-            state.sp = 0;
-            return done;
-        }
+    }
+    let node = stack.pop_closer(&mut sp, state.t);
+    if node == NO_NODE {
+        state.sp = 0;
+        return done;
     }
     let n = descend(nodes, ray, state.t, nodes.load(node), stack, &mut sp, &mut Uncounted);
     state.sp = sp as u32;

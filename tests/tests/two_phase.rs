@@ -13,7 +13,7 @@ use gridrt_shared::glam::Vec3;
 use gridrt_shared::grid_traverse::{OneVisitGrids, EMPTY_WINDOW};
 use gridrt_shared::layout::{Hit, HitRecord, LeafEntry, RayRecord, WalkState, NO_HIT};
 use gridrt_shared::ray::Ray;
-use gridrt_shared::traverse::{walk_round, BufferStack, LeafPrimitives, MAX_BVH_DEPTH};
+use gridrt_shared::traverse::{walk_first_round, walk_round, BufferStack, LeafPrimitives, MAX_BVH_DEPTH};
 use gridrt_tests::{build_pair, meshes_dir_or_skip};
 
 /// One ray through the rounds: each round walks to the next leaf, then every grid of that leaf
@@ -32,11 +32,10 @@ fn two_phase_hit(scene: &Scene, record: &RayRecord) -> (HitRecord, u32) {
         rays: 1,
     };
     let mut state = WalkState::default();
-    let mut results: Vec<HitRecord> = Vec::new();
+    let nodes = grids.nodes.as_slice();
+    let mut leaf = walk_first_round(nodes, &ray, record.t_max, &mut state, &mut stack);
     let mut rounds = 0;
     loop {
-        let nodes = grids.nodes.as_slice();
-        let leaf = walk_round(nodes, results.as_slice(), &ray, record.t_max, &mut state, &mut stack);
         if leaf.count == 0 {
             let hit = HitRecord {
                 t: state.t,
@@ -47,7 +46,7 @@ fn two_phase_hit(scene: &Scene, record: &RayRecord) -> (HitRecord, u32) {
         rounds += 1;
         // The queue entries of this round, each visited as GPU threads would: its spheres and
         // footprints first, then, for the visits that need one, its leaf test.
-        results = (leaf.first..leaf.first + leaf.count)
+        let results = (leaf.first..leaf.first + leaf.count)
             .map(|grid| {
                 let mut hit = Hit::miss(state.t);
                 let mut scratch = visits.scratch(&ray);
@@ -62,9 +61,10 @@ fn two_phase_hit(scene: &Scene, record: &RayRecord) -> (HitRecord, u32) {
                     prim: hit.prim,
                 }
             })
-            .collect();
+            .collect::<Vec<HitRecord>>();
         state.first_entry = 0;
         state.entries = leaf.count;
+        leaf = walk_round(nodes, results.as_slice(), &ray, &mut state, &mut stack);
     }
 }
 

@@ -1,6 +1,7 @@
 //! The two-phase schedule for grid ray lists: rounds of a top-level walk kernel, which takes
-//! every ray still walking to its next leaf and queues (ray, grid, closest distance so far) for
-//! the leaf's grids, each followed by a kernel that visits one queued grid per thread as far as
+//! every ray still walking to its next leaf (the first round, every ray of the batch from the
+//! root, a kernel of its own that reads no state) and queues (ray, grid, closest distance so
+//! far) for the leaf's grids, each followed by a kernel that visits one queued grid per thread as far as
 //! its spheres and footprints and queues the visits that need a leaf test, two small kernels
 //! that sort those by size (the lattice points of their windows), and a kernel that runs one
 //! queued leaf test per thread. The walk merges the visits' results at its next round. Once few
@@ -18,7 +19,6 @@ use gridrt_shared::layout::{
 };
 use gridrt_shared::traverse::MAX_BVH_DEPTH;
 use std::time::Instant;
-use wgpu::util::DeviceExt;
 
 use super::turns::{TimedList, TimedScene};
 use super::{compute_pipeline, Gpu, GpuScene};
@@ -40,6 +40,7 @@ const STACK_BYTES: u64 = 2 * MAX_BVH_DEPTH as u64 * 4;
 
 /// The schedule's kernels.
 pub(super) struct Kernels {
+    walk_first: wgpu::ComputePipeline,
     walk: wgpu::ComputePipeline,
     visit: wgpu::ComputePipeline,
     order_classes: wgpu::ComputePipeline,
@@ -52,9 +53,6 @@ pub(super) struct Kernels {
 /// and written for the next.
 pub(super) struct Batch {
     rays: u32,
-    states: wgpu::Buffer,
-    all_rays: wgpu::Buffer,
-    first_list: wgpu::Buffer,
     hits: wgpu::Buffer,
     readback: wgpu::Buffer,
     /// Each an indirect dispatch's three group counts, then the number of items.
@@ -65,6 +63,8 @@ pub(super) struct Batch {
     /// How many rays past its dispatch's threads the finish has taken (cleared before it).
     next: wgpu::Buffer,
     count_readback: wgpu::Buffer,
+    /// The first round's walk, then the later rounds' by the list they read.
+    walk_first: wgpu::BindGroup,
     walk: [wgpu::BindGroup; 2],
     finish: [wgpu::BindGroup; 2],
     visit: wgpu::BindGroup,
@@ -132,6 +132,7 @@ impl Gpu {
 
     fn two_phase_kernels(&self) -> &Kernels {
         self.two_phase.get_or_init(|| Kernels {
+            walk_first: compute_pipeline(&self.device, &self.module, "walk_first_rounds"),
             walk: compute_pipeline(&self.device, &self.module, "walk_rounds"),
             visit: compute_pipeline(&self.device, &self.module, "visit_queued"),
             order_classes: compute_pipeline(&self.device, &self.module, "order_leaf_classes"),
@@ -158,12 +159,6 @@ impl Gpu {
         let (hits, readback) = self.output("hit", n * std::mem::size_of::<HitRecord>() as u64);
         let states = storage("walk state", n * std::mem::size_of::<WalkState>() as u64, plain);
         let stacks = storage("walk stack", n * STACK_BYTES, plain);
-        let every: Vec<u32> = (0..n as u32).collect();
-        let all_rays = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("every ray"),
-            contents: bytemuck::cast_slice(&every),
-            usage: wgpu::BufferUsages::COPY_SRC,
-        });
         let lists = [
             storage("walking rays", n * 4, plain),
             storage("walking rays", n * 4, plain),
@@ -280,13 +275,26 @@ impl Gpu {
                 radii,
             ],
         );
+        // The first round reads no list: its thread `i` walks ray `i`.
+        let walk_first = self.bind_group(
+            &kernels.walk_first,
+            0,
+            &[
+                &ray_buffer,
+                &hits,
+                nodes,
+                &states,
+                &stacks,
+                &lists[1],
+                &queue,
+                &counts[0],
+                &counts[1],
+                &queue_count,
+            ],
+        );
         let (walk, finish) = ([walk(0), walk(1)], [finish(0), finish(1)]);
-        let [first_list, _] = lists;
         Ok(Batch {
             rays: n as u32,
-            states,
-            all_rays,
-            first_list,
             hits,
             readback,
             counts,
@@ -295,6 +303,7 @@ impl Gpu {
             class_counts,
             next,
             count_readback,
+            walk_first,
             walk,
             finish,
             visit,
@@ -304,27 +313,37 @@ impl Gpu {
         })
     }
 
-    /// One round: the walk of every ray in list `from`, then the visits it queued, then the
-    /// leaf tests they queued, sorted by size class; the rays still walking are listed for the
-    /// next round in the other list.
+    /// One round: the walk of every ray of the batch (round 0) or of the list the last round
+    /// wrote, then the visits it queued, then the leaf tests they queued, sorted by size class;
+    /// the rays still walking are listed for the next round in the other list. Round 0 opens
+    /// the timed span of `queries`.
     fn encode_round(
         &self,
         encoder: &mut wgpu::CommandEncoder,
         batch: &Batch,
-        from: usize,
-        first: Option<&super::Queries>,
+        round: usize,
+        queries: Option<&super::Queries>,
     ) {
         let kernels = self.two_phase_kernels();
+        let from = round % 2;
         encoder.clear_buffer(&batch.counts[1 - from], 0, None);
         encoder.clear_buffer(&batch.queue_count, 0, None);
         encoder.clear_buffer(&batch.leaf_count, 0, None);
         encoder.clear_buffer(&batch.class_counts, 0, None);
-        let opening = first.map(|q| wgpu::ComputePassTimestampWrites {
-            query_set: &q.set,
-            beginning_of_pass_write_index: Some(0),
-            end_of_pass_write_index: None,
-        });
-        indirect_pass(encoder, &kernels.walk, &batch.walk[from], &batch.counts[from], opening);
+        let opening = queries
+            .filter(|_| round == 0)
+            .map(|q| wgpu::ComputePassTimestampWrites {
+                query_set: &q.set,
+                beginning_of_pass_write_index: Some(0),
+                end_of_pass_write_index: None,
+            });
+        match round {
+            0 => {
+                let groups = batch.rays.div_ceil(TRACE_WORKGROUP_SIZE);
+                direct_pass(encoder, &kernels.walk_first, &batch.walk_first, groups, opening);
+            }
+            _ => indirect_pass(encoder, &kernels.walk, &batch.walk[from], &batch.counts[from], opening),
+        }
         indirect_pass(encoder, &kernels.visit, &batch.visit, &batch.queue_count, None);
         direct_pass(encoder, &kernels.order_classes, &batch.order_classes, 1, None);
         indirect_pass(
@@ -363,18 +382,12 @@ impl Gpu {
             0,
             bytemuck::cast_slice(&[n.div_ceil(TRACE_WORKGROUP_SIZE), 1, 1, n]),
         );
-        let mut encoder = self.device.create_command_encoder(&Default::default());
-        // Fresh walk states (zero: not begun), and every ray walking.
-        encoder.clear_buffer(&batch.states, 0, None);
-        encoder.copy_buffer_to_buffer(&batch.all_rays, 0, &batch.first_list, 0, n as u64 * 4);
-        self.queue.submit([encoder.finish()]);
         let start = Instant::now();
         let mut round = 0;
         let finish = loop {
             let mut encoder = self.device.create_command_encoder(&Default::default());
             for _ in 0..ROUNDS_PER_SUBMIT {
-                let first = (round == 0).then_some(()).and(queries.as_ref());
-                self.encode_round(&mut encoder, batch, round % 2, first);
+                self.encode_round(&mut encoder, batch, round, queries.as_ref());
                 round += 1;
             }
             let to = round % 2;
