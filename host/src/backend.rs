@@ -14,7 +14,7 @@ use crate::gpu::{Gpu, TimedList, TimedScene, Timing};
 use crate::heat_map::CostImage;
 use crate::limits::BufferSize;
 use crate::pipeline::{Image, RenderOptions, Shading};
-use crate::rays::trace_cpu;
+use crate::rays::{in_turn, trace_cpu};
 use crate::scene::{render_cpu, Scene};
 
 /// Most ambient-occlusion samples per pixel one render pass casts.
@@ -400,10 +400,7 @@ fn time_traces_cpu(
         .collect();
     for k in 0..warmup + repeats {
         for turn in 0..scenes.len() {
-            let s = match k % 2 {
-                0 => turn,
-                _ => scenes.len() - 1 - turn,
-            };
+            let s = in_turn(k, turn, scenes.len());
             let start = Instant::now();
             timed[s].hits = trace_cpu(scenes[s].0, rays);
             if k >= warmup {

@@ -149,6 +149,16 @@ fn spread_bits(x: u32) -> u64 {
     (v | v << 2) & 0x0924_9249
 }
 
+/// Which of `scenes` scenes takes turn `turn` of repetition `repetition` when several are timed
+/// on one ray list: in order, then in reverse, so that the first of one repetition is the last
+/// of the next and a change in the machine's speed meets every scene alike.
+pub fn in_turn(repetition: usize, turn: usize, scenes: usize) -> usize {
+    match repetition % 2 {
+        0 => turn,
+        _ => scenes - 1 - turn,
+    }
+}
+
 /// Traces a ray list on the CPU, in parallel: the closest hit of each.
 pub fn trace_cpu(scene: &Scene, rays: &[RayRecord]) -> Vec<HitRecord> {
     use rayon::prelude::*;

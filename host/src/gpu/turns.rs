@@ -5,7 +5,7 @@
 //! Why turns: a benchmark's figure is a ratio between two scenes (grids and their triangles),
 //! and a device's speed changes while it runs (clocks, heat, other work on the machine). Timed
 //! one block after the other, the two scenes can meet different speeds and the ratio moves
-//! with them; taking turns, both meet each speed alike.
+//! with them; taking turns ([`in_turn`]), both meet each speed alike.
 
 use gridrt_shared::layout::{HitRecord, RayRecord};
 use std::time::Instant;
@@ -13,6 +13,7 @@ use std::time::Instant;
 use super::two_phase::Batch;
 use super::{Dispatch, Gpu, GpuScene, Job, Queries};
 use crate::error::Result;
+use crate::rays::in_turn;
 
 /// A scene to time and the schedule to trace it by.
 #[derive(Copy, Clone)]
@@ -67,10 +68,7 @@ impl Gpu {
                 .collect::<Result<Vec<_>>>()?;
             for k in 0..repeats {
                 for turn in 0..ready.len() {
-                    let s = match k % 2 {
-                        0 => turn,
-                        _ => ready.len() - 1 - turn,
-                    };
+                    let s = in_turn(k, turn, ready.len());
                     timed[s].seconds[k] += self.run_batch(&ready[s])?;
                 }
             }

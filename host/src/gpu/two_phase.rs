@@ -1,12 +1,12 @@
 //! The two-phase schedule for grid ray lists: rounds of a top-level walk kernel, which takes
 //! every ray still walking to its next leaf (the first round, every ray of the batch from the
 //! root, a kernel of its own that reads no state) and queues (ray, grid, closest distance so
-//! far) for the leaf's grids, each followed by a kernel that visits one queued grid per thread as far as
-//! its spheres and footprints and queues the visits that need a leaf test, two small kernels
-//! that sort those by size (the lattice points of their windows), and a kernel that runs one
-//! queued leaf test per thread. The walk merges the visits' results at its next round. Once few
-//! rays still walk they finish in one pass, their grids visited in place, each thread taking
-//! the next ray of the list as soon as its own is done.
+//! far) for the leaf's grids, each followed by a kernel that visits one queued grid per thread
+//! as far as its spheres and footprints and queues the visits that need a leaf test, two small
+//! kernels that sort those by size (the lattice points of their windows), and a kernel that
+//! runs one queued leaf test per thread. The walk merges the visits' results at its next
+//! round. Once few rays still walk they finish in one pass, their grids visited in place, each
+//! thread taking the next ray of the list as soon as its own is done.
 //!
 //! Why: in the one-pass walk a SIMD group visits a grid at the pace of its lanes that have one,
 //! the others masked; queued, every lane of a group visits one, and every lane of a group of
@@ -63,6 +63,8 @@ pub(super) struct Batch {
     /// How many rays past its dispatch's threads the finish has taken (cleared before it).
     next: wgpu::Buffer,
     count_readback: wgpu::Buffer,
+    /// Timestamps around a run of the rounds, where the adapter has them.
+    queries: Option<super::Queries>,
     /// The first round's walk, then the later rounds' by the list they read.
     walk_first: wgpu::BindGroup,
     walk: [wgpu::BindGroup; 2],
@@ -303,6 +305,7 @@ impl Gpu {
             class_counts,
             next,
             count_readback,
+            queries: self.timestamps.then(|| self.queries()),
             walk_first,
             walk,
             finish,
@@ -375,7 +378,7 @@ impl Gpu {
     pub(super) fn run_rounds(&self, batch: &Batch) -> Result<f64> {
         let n = batch.rays;
         let kernels = self.two_phase_kernels();
-        let queries = self.timestamps.then(|| self.queries());
+        let queries = batch.queries.as_ref();
         self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         self.queue.write_buffer(
             &batch.counts[0],
@@ -387,7 +390,7 @@ impl Gpu {
         let finish = loop {
             let mut encoder = self.device.create_command_encoder(&Default::default());
             for _ in 0..ROUNDS_PER_SUBMIT {
-                self.encode_round(&mut encoder, batch, round, queries.as_ref());
+                self.encode_round(&mut encoder, batch, round, queries);
                 round += 1;
             }
             let to = round % 2;
@@ -405,7 +408,7 @@ impl Gpu {
         // The last pass: the rays still walking finish in one pass each, or nothing; it
         // closes the timed span.
         let mut encoder = self.device.create_command_encoder(&Default::default());
-        let closing = queries.as_ref().map(|q| wgpu::ComputePassTimestampWrites {
+        let closing = queries.map(|q| wgpu::ComputePassTimestampWrites {
             query_set: &q.set,
             beginning_of_pass_write_index: None,
             end_of_pass_write_index: Some(1),
@@ -421,7 +424,7 @@ impl Gpu {
                 timestamp_writes: closing,
             })),
         }
-        if let Some(q) = &queries {
+        if let Some(q) = queries {
             encoder.resolve_query_set(&q.set, 0..2, &q.resolve, 0);
             encoder.copy_buffer_to_buffer(&q.resolve, 0, &q.readback, 0, 16);
         }
@@ -436,7 +439,7 @@ impl Gpu {
         self.device
             .poll(wgpu::PollType::wait_indefinitely())
             .map_err(|e| error!(Gpu, "GPU device lost: {e}"))?;
-        self.seconds(queries.as_ref(), start.elapsed().as_secs_f64())
+        self.seconds(queries, start.elapsed().as_secs_f64())
     }
 }
 
