@@ -3,12 +3,14 @@
 
 use gridrt::error::{Error, ErrorKind, Result};
 use gridrt::grid::{self, GridOptions};
-use gridrt::mesh::Mesh;
+use gridrt::mesh::{Mesh, WorldMesh};
 use gridrt::scene::{closest_hit_slack, hit_uncertainty, hits_only_by_rounding, Scene};
 use gridrt::subdiv::{subdivide_creased, Scheme};
 use gridrt::triangles;
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::ray::{Ray, T_FAR};
+
+pub mod gltf_mutation;
 
 /// Every error gridrt prints is one line, and a loader's is about the input.
 fn assert_one_line(e: &Error) {
@@ -22,7 +24,7 @@ fn assert_one_line(e: &Error) {
 
 /// A loader's result: an error on one line, or a mesh that validation accepts or refuses on
 /// one line.
-pub fn check_loaded(result: Result<Mesh>) {
+pub fn check_loaded(result: Result<WorldMesh>) {
     match result {
         Err(e) => assert_one_line(&e),
         Ok(mesh) => match mesh.validate("fuzz") {
@@ -31,9 +33,23 @@ pub fn check_loaded(result: Result<Mesh>) {
                 let n = mesh.positions.len();
                 assert!(mesh.positions.iter().all(|p| p.is_finite()));
                 assert!(mesh.triangles.iter().flatten().all(|&i| (i as usize) < n));
+                let (local, _) = mesh.into_local();
+                assert!(local.positions.iter().all(|p| p.is_finite()));
             }
         },
     }
+}
+
+/// A glTF or GLB file's bytes through the glTF loader, external buffers looked for in an
+/// empty folder of their own: the same checks as [`check_loaded`].
+pub fn check_gltf(data: &[u8]) {
+    static FOLDER: std::sync::OnceLock<std::path::PathBuf> = std::sync::OnceLock::new();
+    let folder = FOLDER.get_or_init(|| {
+        let dir = std::env::temp_dir().join(format!("gridrt-fuzz-gltf-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("a scratch folder");
+        dir
+    });
+    check_loaded(gridrt::mesh::gltf::parse_gltf(data, Some(folder)));
 }
 
 /// Reads bytes front to back; zeros once they run out.

@@ -111,6 +111,16 @@ pub fn view(bounds: &Aabb, viewpoint: &Viewpoint, width: u32, height: u32) -> Re
             v.fov_degrees
         );
     }
+    let narrowest = narrowest_fov_degrees(height);
+    if v.fov_degrees < narrowest {
+        fail!(
+            Options,
+            "a field of view of {} degrees is too narrow for a picture {height} pixels high: 32-bit \
+             rays cannot tell its pixels apart; use at least {:.4} degrees",
+            v.fov_degrees,
+            (narrowest * 1e4).ceil() / 1e4
+        );
+    }
     let angles = [v.azimuth_degrees, v.elevation_degrees];
     let points_finite = [v.eye, v.target, Some(v.up)]
         .into_iter()
@@ -141,6 +151,15 @@ pub fn view(bounds: &Aabb, viewpoint: &Viewpoint, width: u32, height: u32) -> Re
             target + back * distance
         }
     };
+    let size = (bounds.max - bounds.min).length().max(f32::MIN_POSITIVE) as f64;
+    let far = (target.as_dvec3() - eye.as_dvec3()).length() / size;
+    if far > FARTHEST {
+        fail!(
+            Options,
+            "the eye is {far:.1e} times the scene's size from the target: at most {FARTHEST:.0e}, \
+             beyond which 32-bit rays lose the scene"
+        );
+    }
     let forward = (target - eye).normalize_or_zero();
     if forward == Vec3::ZERO {
         fail!(Options, "the eye is on the target: no direction to look in");
@@ -153,6 +172,20 @@ pub fn view(bounds: &Aabb, viewpoint: &Viewpoint, width: u32, height: u32) -> Re
         );
     }
     Ok(look_at_up(eye, forward, up, v.fov_degrees, width, height))
+}
+
+/// The farthest an eye may stand from its target, in sizes of the scene (its bounding box's
+/// diagonal).
+pub const FARTHEST: f64 = 1e6;
+
+/// The angle between neighbouring pixels' rays below which 32-bit directions (unit length,
+/// their parts rounded to 2^-24) no longer step evenly from pixel to pixel: 2^-18 radians
+/// leaves 64 steps of rounding between them.
+const NARROWEST_PIXEL_RADIANS: f32 = 1.0 / 262_144.0;
+
+/// The narrowest vertical field of view a picture `height` pixels high can be rendered at.
+pub fn narrowest_fov_degrees(height: u32) -> f32 {
+    (NARROWEST_PIXEL_RADIANS * height as f32).to_degrees()
 }
 
 /// Share of the frame the auto-framed box's picture may fill, each way.

@@ -5,11 +5,22 @@ use std::path::Path;
 use crate::error::{error, fail, Result};
 
 /// Checks, before any work, that `path` can take a file of the given kind: its parent folder
-/// exists and takes new files, and it is not a folder itself. Leaves nothing behind.
+/// exists and takes new files, it is not a folder itself (nor ends in a separator, which
+/// only a folder's name may), and anything already there is a plain file that writing
+/// replaces. Leaves nothing behind, and clears what an earlier run killed while writing
+/// `path` left beside it.
 pub fn check_writable(path: &Path) -> Result<()> {
     let name = path.display();
-    if path.is_dir() {
+    if path.is_dir() || path.as_os_str().to_string_lossy().ends_with(std::path::is_separator) {
         fail!(Output, "{name}: is a folder, not a file name");
+    }
+    if let Ok(meta) = std::fs::metadata(path) {
+        if !meta.is_file() {
+            fail!(
+                Output,
+                "{name}: is not a plain file (a device or a pipe): name a file to write"
+            );
+        }
     }
     let parent = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
@@ -22,6 +33,7 @@ pub fn check_writable(path: &Path) -> Result<()> {
             parent.display()
         );
     }
+    remove_stale_temporaries(path);
     let probe = temporary_sibling(path);
     std::fs::File::create(&probe).map_err(|e| error!(Output, "{name}: cannot write: {}", io_reason(&e)))?;
     let _ = std::fs::remove_file(&probe);
@@ -30,7 +42,7 @@ pub fn check_writable(path: &Path) -> Result<()> {
 
 /// [`check_writable`] for a file of one format: the name must also end in `.extension`.
 pub fn check_output(path: &Path, extension: &str) -> Result<()> {
-    if path.is_dir() {
+    if path.is_dir() || path.as_os_str().to_string_lossy().ends_with(std::path::is_separator) {
         fail!(Output, "{}: is a folder, not a file name", path.display());
     }
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
@@ -54,11 +66,104 @@ pub fn check_png_path(path: &Path) -> Result<()> {
     check_output(path, "png")
 }
 
+/// Refuses an output that is one of the `inputs` (the same file, through whatever links or
+/// other names): writing it would destroy what is being read.
+pub fn check_not_input(output: &Path, inputs: &[&Path]) -> Result<()> {
+    let Ok(out) = std::fs::metadata(output) else {
+        return Ok(()); // Nothing there yet: no input can be it.
+    };
+    for input in inputs {
+        if std::fs::metadata(input).is_ok_and(|inp| same_file(&out, &inp, output, input)) {
+            fail!(
+                Output,
+                "{}: is the input {}: writing it would destroy the input; name another file",
+                output.display(),
+                input.display()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Whether two paths name one file.
+#[cfg(unix)]
+fn same_file(a: &std::fs::Metadata, b: &std::fs::Metadata, _: &Path, _: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    (a.dev(), a.ino()) == (b.dev(), b.ino())
+}
+
+#[cfg(not(unix))]
+fn same_file(_: &std::fs::Metadata, _: &std::fs::Metadata, a: &Path, b: &Path) -> bool {
+    matches!((a.canonicalize(), b.canonicalize()), (Ok(a), Ok(b)) if a == b)
+}
+
+/// Refuses two outputs of one run that are one file: the second would overwrite the first.
+pub fn check_distinct(outputs: &[&Path]) -> Result<()> {
+    for (k, a) in outputs.iter().enumerate() {
+        for b in &outputs[k + 1..] {
+            let same_name = a == b || matches!((absolute(a), absolute(b)), (Some(x), Some(y)) if x == y);
+            let same_file = check_not_input(a, &[b]).is_err();
+            if same_name || same_file {
+                fail!(
+                    Output,
+                    "{} and {} are one file: each output needs a name of its own",
+                    a.display(),
+                    b.display()
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+/// `path` made absolute, its folder's links resolved (the file itself may not exist yet).
+fn absolute(path: &Path) -> Option<std::path::PathBuf> {
+    let folder = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    Some(folder.canonicalize().ok()?.join(path.file_name()?))
+}
+
+/// The suffix that marks a file being written, before the process id.
+const TEMPORARY_MARK: &str = ".gridrt-";
+
 /// A name beside `path` for writing before renaming over it.
 fn temporary_sibling(path: &Path) -> std::path::PathBuf {
     let mut name = path.file_name().unwrap_or_default().to_os_string();
-    name.push(format!(".gridrt-{}.tmp", std::process::id()));
+    name.push(format!("{TEMPORARY_MARK}{}.tmp", std::process::id()));
     path.with_file_name(name)
+}
+
+/// Removes the temporary files beside `path` that processes no longer running left behind
+/// (killed while writing it). Only where the system lists running processes (`/proc`).
+fn remove_stale_temporaries(path: &Path) {
+    let (Some(name), Some(folder)) = (path.file_name(), path.parent()) else {
+        return;
+    };
+    let processes = Path::new("/proc/self");
+    if !processes.exists() {
+        return;
+    }
+    let folder = if folder.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        folder
+    };
+    let prefix = format!("{}{TEMPORARY_MARK}", name.to_string_lossy());
+    let Ok(entries) = std::fs::read_dir(folder) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let file = entry.file_name().to_string_lossy().into_owned();
+        let pid = file.strip_prefix(&prefix).and_then(|rest| rest.strip_suffix(".tmp"));
+        let Some(pid) = pid.and_then(|p| p.parse::<u32>().ok()) else {
+            continue;
+        };
+        if pid != std::process::id() && !Path::new("/proc").join(pid.to_string()).exists() {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
 }
 
 /// Runs `write` on a temporary file beside `path`, then renames it over `path`: a failure

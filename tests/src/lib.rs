@@ -1,6 +1,7 @@
 //! Helpers shared by the integration tests.
 
 use std::path::PathBuf;
+use std::process::{Command, Output};
 
 use gridrt::bvh::Aabb;
 use gridrt::error::ErrorKind;
@@ -170,4 +171,49 @@ impl Rng {
     pub fn point_in(&mut self, b: &Aabb) -> Vec3 {
         b.min + (b.max - b.min) * Vec3::new(self.next_f32(), self.next_f32(), self.next_f32())
     }
+}
+
+/// A scratch folder of this test process's own, named for `test`.
+pub fn scratch(test: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("gridrt-cli-{}-{test}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Runs the `gridrt` binary with `args`.
+pub fn gridrt(args: &[&str]) -> Output {
+    Command::new(gridrt_exe()).args(args).output().expect("run gridrt")
+}
+
+/// What a run printed on standard error.
+pub fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Runs gridrt with extra environment variables; expects a failure with exactly one line
+/// starting with `error`, containing every one of `needles`, no panic, and nothing built.
+/// Returns stderr.
+pub fn fails_with(args: &[&str], env: &[(&str, &str)], needles: &[&str]) -> String {
+    let o = Command::new(gridrt_exe())
+        .args(args)
+        .envs(env.iter().copied())
+        .output()
+        .expect("run gridrt");
+    let err = stderr(&o);
+    assert!(!o.status.success(), "gridrt {args:?} succeeded: {err}");
+    assert!(!err.contains("panicked"), "gridrt {args:?} panicked: {err}");
+    let lines: Vec<&str> = err.lines().filter(|l| l.starts_with("error")).collect();
+    assert_eq!(lines.len(), 1, "gridrt {args:?}: expected one error line, got {err}");
+    for needle in needles {
+        assert!(
+            lines[0].contains(needle),
+            "gridrt {args:?}: error lacks {needle:?}: {err}"
+        );
+    }
+    // Refused before any work: nothing was built.
+    assert!(
+        !err.contains("B per micro-triangle"),
+        "gridrt {args:?} built before failing: {err}"
+    );
+    err
 }

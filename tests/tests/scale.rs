@@ -1,12 +1,13 @@
 //! Meshes in any units and at any place render the same picture: the default scene written
-//! to OBJ files scaled by 1e-10 .. 1e8 and moved by up to 1e4 times its size, rendered by the
+//! to OBJ files scaled by 1e-10 .. 1e8 and moved by up to 1e7 times its size, rendered by the
 //! `gridrt` binary on both backends, against the same scene at unit scale.
 //!
-//! Tolerance: at least 99% of pixels within 2/255 per channel of the unit render, on the
-//! same backend. What differs is the input itself: written as `f32` in other units, the
-//! vertices round differently, and 1e4 sizes from the origin they move by up to
-//! `1e4 * 2^-24` (6e-4) of the scene's size, a fifteenth of a pixel here, which moves a
-//! few silhouette pixels and shading steps.
+//! The files hold every digit of `p * scale + offset * size` in `f64`, as a scan's or a
+//! CAD tool's text would: gridrt reads them in `f64` and moves them to the local frame
+//! there, so however far the mesh is placed it renders the unit picture. Tolerance: at
+//! least 99% of pixels within 2/255 per channel of the unit render, on the same backend;
+//! what may differ is the rounding of the scaled coordinates themselves (a power of ten
+//! is not a power of two), a few silhouette pixels and shading steps.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -24,8 +25,8 @@ fn scratch() -> PathBuf {
     dir
 }
 
-/// The mesh as an OBJ file with every vertex `p * scale + offset * size` (computed in `f64`,
-/// written as the nearest `f32`), `size` being the mesh's largest extent.
+/// The mesh as an OBJ file with every vertex `p * scale + offset * size`, computed and written
+/// in `f64` (every digit), `size` being the mesh's largest extent.
 fn write_obj(mesh: &Mesh, scale: f64, offset: f64, path: &Path) {
     let (lo, hi) = mesh.bounds();
     let size = (hi - lo).max_element() as f64;
@@ -33,7 +34,7 @@ fn write_obj(mesh: &Mesh, scale: f64, offset: f64, path: &Path) {
     let mut text = String::new();
     for p in &mesh.positions {
         let c: Vec<String> = (0..3)
-            .map(|k| (((p[k] as f64) * scale + shift[k] * scale) as f32).to_string())
+            .map(|k| ((p[k] as f64) * scale + shift[k] * scale).to_string())
             .collect();
         text += &format!("v {}\n", c.join(" "));
     }
@@ -82,6 +83,10 @@ fn check_backend(backend: &str) {
         (1.0, 1e4),
         (1e-6, 1e4),
         (1e6, 1e4),
+        (1.0, 1e5),
+        (1.0, 1e7),
+        (1e-3, 1e7),
+        (1e6, 1e7),
     ];
     for (scale, offset) in cases {
         let name = format!("{backend}-s{scale:e}-o{offset:e}");

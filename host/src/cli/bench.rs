@@ -58,9 +58,18 @@ const RAY_BYTES: u64 = 2 * std::mem::size_of::<RayRecord>() as u64 + 2 * std::me
 
 /// Every file the run will write, checked before the first mesh is measured.
 fn check_outputs(args: &BenchArgs) -> Result<()> {
-    for path in [&args.json, &args.markdown].into_iter().flatten() {
-        gridrt::image_io::check_writable(path)?;
+    if let Some(json) = &args.json {
+        gridrt::image_io::check_output(json, "json")?;
     }
+    if let Some(markdown) = &args.markdown {
+        gridrt::image_io::check_output(markdown, "md")?;
+    }
+    let outputs: Vec<&std::path::Path> = [&args.json, &args.markdown, &args.chart]
+        .into_iter()
+        .flatten()
+        .map(|p| p.as_path())
+        .collect();
+    gridrt::image_io::check_distinct(&outputs)?;
     if let Some(chart) = &args.chart {
         gridrt::image_io::check_png_path(chart)?;
         if let Err(e) = std::fs::metadata(&args.font) {

@@ -41,13 +41,19 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 pub enum Command {
+    // Negative numbers are values: `--levels -1` is refused as out of range, not taken for
+    // a flag.
     /// Render a mesh (or the built-in scene) to a PNG.
+    #[command(allow_negative_numbers = true)]
     Render(RenderArgs),
     /// Print the memory and build time of both representations of a mesh.
+    #[command(allow_negative_numbers = true)]
     Stats(StatsArgs),
     /// Measure memory, build time and ray throughput of grids against the baseline.
+    #[command(allow_negative_numbers = true)]
     Bench(BenchArgs),
     /// Write a mesh subdivided L times as binary PLY, in the input's own units.
+    #[command(allow_negative_numbers = true)]
     Export(ExportArgs),
 }
 
@@ -515,12 +521,32 @@ pub fn load(path: Option<&Path>) -> Result<Input> {
 /// [`load`] for several meshes rendered together.
 pub fn load_all(paths: &[&Path]) -> Result<Input> {
     let input = mesh::open_all(paths)?;
+    let cleaning = &input.cleaning;
+    if cleaning.welded > 0 {
+        eprintln!(
+            "note: {}: welded {} vertices to others at the same position (split at seams, or unindexed)",
+            input.name, cleaning.welded
+        );
+    }
     if input.dropped > 0 {
         eprintln!(
             "warning: {}: dropped {} degenerate triangles ({})",
             input.name,
             input.dropped,
             mesh::DEGENERATE
+        );
+    }
+    if cleaning.zero_area == input.mesh.triangles.len() {
+        eprintln!(
+            "warning: {}: every triangle has zero area (its corners lie on one line): nothing of it can be seen",
+            input.name
+        );
+    } else if cleaning.zero_area > 0 {
+        eprintln!(
+            "note: {}: {} of {} triangles have zero area (corners on one line)",
+            input.name,
+            cleaning.zero_area,
+            input.mesh.triangles.len()
         );
     }
     Ok(input)
@@ -560,14 +586,20 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
         bail!("--lod {lod} is deeper than --levels {}", args.build.levels);
     }
     args.check_mode()?;
-    image_io::check_png_path(&args.output)?;
+    let frames = args.turntable.unwrap_or(1);
+    let outputs: Vec<PathBuf> = (0..frames)
+        .map(|k| frame_path(&args.output, k, args.turntable))
+        .collect();
+    for output in &outputs {
+        image_io::check_png_path(output)?;
+    }
     let paths: Vec<&Path> = args.meshes.iter().map(PathBuf::as_path).collect();
     let Input { name, mesh, frame, .. } = stages.run("load", || load_all(&paths))?;
     let viewpoint = args.camera.viewpoint(&frame);
     // A view with no direction is refused before the build (bounds only matter for defaults).
+    check_render_memory(&name, &mesh, args)?;
     let whole = Aabb::from_points(mesh.positions.iter().copied());
     camera::view(&whole, &viewpoint, args.width, args.height)?;
-    check_render_memory(&name, &mesh, args)?;
     let sizes = match args.mode {
         Mode::Grid => args.build.check_grid_limits(&name, &mesh)?,
         Mode::Triangles => triangles::least_buffer_sizes(
@@ -598,8 +630,7 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
         scene.memory() as f64 / stored as f64
     ));
     let render = args.render_options(&frame);
-    let frames = args.turntable.unwrap_or(1);
-    for k in 0..frames {
+    for (k, output) in (0..frames).zip(&outputs) {
         // A turntable turns the orbit's azimuth by equal steps, the first frame the plain view.
         let turned = Viewpoint {
             azimuth_degrees: viewpoint.azimuth_degrees + 360.0 * k as f32 / frames as f32,
@@ -626,8 +657,7 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
                 backend.render_reporting(&scene, &view, &render, &|done| bar.set_position(done as u64))
             })?
         };
-        let output = frame_path(&args.output, k, args.turntable);
-        stages.run("write", || image.write_png(&output))?;
+        stages.run("write", || image.write_png(output))?;
         stages.say(format!(
             "rendered {}x{} on {} -> {}",
             args.width,
@@ -686,6 +716,8 @@ fn frame_path(output: &Path, k: u32, turntable: Option<u32>) -> PathBuf {
 /// Subdivides a mesh and writes the micro-mesh, in the input's units, as binary PLY.
 fn export(args: &ExportArgs, stages: &mut Stages) -> Result<()> {
     image_io::check_output(&args.output, "ply")?;
+    let inputs: Vec<&Path> = args.mesh.iter().map(PathBuf::as_path).collect();
+    image_io::check_not_input(&args.output, &inputs)?;
     let Input { name, mesh, frame, .. } = stages.run("load", || load(args.mesh.as_deref()))?;
     limits::check_build(
         &format!("subdividing {name}"),

@@ -1,9 +1,15 @@
 //! Triangle meshes as loaded from disk (OBJ, PLY, glTF) or generated in code.
+//!
+//! Loaders read coordinates in double precision into a [`WorldMesh`], in the file's own units;
+//! [`WorldMesh::validate`] checks and cleans it (welds equal positions, drops degenerate
+//! triangles), and [`WorldMesh::into_local`] moves it, still in double precision, into the
+//! [`frame::LocalFrame`] where everything after loading works in `f32` as a [`Mesh`].
 
+use std::collections::{HashMap, HashSet};
 use std::path::Path;
 
 use crate::error::{error, fail, Result};
-use gridrt_shared::glam::Vec3;
+use gridrt_shared::glam::{DVec3, Vec3};
 
 pub mod frame;
 pub mod gltf;
@@ -11,11 +17,40 @@ pub mod obj;
 pub mod ply;
 pub mod scene;
 
-/// A triangle mesh as loaded: positions and counter-clockwise triangles.
+/// A triangle mesh ready to build: positions and counter-clockwise triangles.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Mesh {
     pub positions: Vec<Vec3>,
     pub triangles: Vec<[u32; 3]>,
+}
+
+/// A triangle mesh as a file holds it: positions in the file's units, in double precision, so
+/// that a mesh far from the origin keeps every digit its file has until it is moved into its
+/// local frame.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct WorldMesh {
+    pub positions: Vec<DVec3>,
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// What [`WorldMesh::validate`] changed or found.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Cleaning {
+    /// Vertices merged into an earlier vertex at the same position (a mesh split at UV or
+    /// normal seams, or drawn without an index list).
+    pub welded: usize,
+    /// Triangles dropped: a repeated vertex, or the same three vertices as an earlier one.
+    pub dropped: usize,
+    /// Triangles kept whose corners are (to `f32` precision) on one line: they have no area.
+    pub zero_area: usize,
+}
+
+impl Cleaning {
+    fn add(&mut self, other: Cleaning) {
+        self.welded += other.welded;
+        self.dropped += other.dropped;
+        self.zero_area += other.zero_area;
+    }
 }
 
 impl Mesh {
@@ -29,16 +64,58 @@ impl Mesh {
             })
     }
 
-    /// Checks and cleans a freshly loaded mesh: error if any position is not finite (name the first offending
-    /// vertex index), if any index is out of range (name triangle and index), or if no triangle is left.
-    /// Dropped, and their count returned: triangles that repeat a vertex index, and triangles with the same three
-    /// vertices as an earlier one (in any order: a double-sided export's back faces). Such a duplicate adds nothing
-    /// to the surface, and would share its inner subdivision vertices with the first (Loop subdivision names new
-    /// vertices by the edges they split), where the grids need each inner vertex to belong to one grid.
-    /// Vertices no triangle uses are removed (the others keep their order): a stray point of a
-    /// scan would otherwise count in the bounds that frame the picture.
+    /// [`WorldMesh::validate`] for a mesh made in `f32` (a generated one): the cleaned mesh
+    /// and the number of triangles dropped.
+    pub fn validate(self, source: &str) -> Result<(Mesh, usize)> {
+        let (world, cleaning) = WorldMesh::from(self).validate(source)?;
+        Ok((world.to_f32(), cleaning.dropped))
+    }
+}
+
+impl From<Mesh> for WorldMesh {
+    fn from(mesh: Mesh) -> Self {
+        WorldMesh {
+            positions: mesh.positions.iter().map(|p| p.as_dvec3()).collect(),
+            triangles: mesh.triangles,
+        }
+    }
+}
+
+impl WorldMesh {
+    /// The mesh with its positions rounded to `f32`, in the same units.
+    pub fn to_f32(&self) -> Mesh {
+        Mesh {
+            positions: self.positions.iter().map(|p| p.as_vec3()).collect(),
+            triangles: self.triangles.clone(),
+        }
+    }
+
+    /// Min/max over all positions (infinite and inverted when empty).
+    pub fn bounds(&self) -> (DVec3, DVec3) {
+        self.positions
+            .iter()
+            .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), &p| {
+                (lo.min(p), hi.max(p))
+            })
+    }
+
+    /// Checks and cleans a freshly loaded mesh. Errors: a position that is not finite (naming
+    /// the first such vertex), an index out of range (naming triangle and index), no triangle
+    /// left, or a mesh with no size. Then, in this order:
+    /// - vertices at exactly the same position are welded into the first of them, because a
+    ///   grid shares its edge and corner vertices with its neighbours through the indices: an
+    ///   exporter that splits vertices at UV or normal seams, or writes no index list, would
+    ///   otherwise leave every such seam open;
+    /// - triangles that repeat a vertex, and triangles with the same three vertices as an
+    ///   earlier one (in any order: a double-sided export's back faces), are dropped. Such a
+    ///   duplicate adds nothing to the surface, and would share its inner subdivision vertices
+    ///   with the first (Loop subdivision names new vertices by the edges they split), where
+    ///   the grids need each inner vertex to belong to one grid;
+    /// - vertices no triangle uses are removed (the others keep their order): a stray point
+    ///   of a scan would otherwise count in the bounds that frame the picture.
+    ///
     /// `source` is the file name used in messages.
-    pub fn validate(mut self, source: &str) -> Result<(Mesh, usize)> {
+    pub fn validate(mut self, source: &str) -> Result<(WorldMesh, Cleaning)> {
         if let Some(i) = self.positions.iter().position(|p| !p.is_finite()) {
             let p = self.positions[i];
             fail!(
@@ -58,8 +135,9 @@ impl Mesh {
                 );
             }
         }
+        let welded = self.weld();
         let before = self.triangles.len();
-        let mut seen = std::collections::HashSet::with_capacity(before);
+        let mut seen = HashSet::with_capacity(before);
         self.triangles.retain(|&[a, b, c]| {
             let mut key = [a, b, c];
             key.sort_unstable();
@@ -67,6 +145,7 @@ impl Mesh {
         });
         let dropped = before - self.triangles.len();
         if self.triangles.is_empty() {
+            self.check_size(source)?;
             if dropped > 0 {
                 fail!(
                     Input,
@@ -76,7 +155,69 @@ impl Mesh {
             fail!(Input, "{source}: no triangles");
         }
         self.remove_unused_vertices();
-        Ok((self, dropped))
+        self.check_size(source)?;
+        let zero_area = self.triangles.iter().filter(|&&t| self.has_no_area(t)).count();
+        Ok((
+            self,
+            Cleaning {
+                welded,
+                dropped,
+                zero_area,
+            },
+        ))
+    }
+
+    /// Refuses a mesh whose vertices all lie at one point (or so close together that no frame
+    /// can tell them apart): nothing of it could be seen.
+    fn check_size(&self, source: &str) -> Result<()> {
+        let used: HashSet<u32> = self.triangles.iter().flatten().copied().collect();
+        let mut points = self
+            .positions
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| self.triangles.is_empty() || used.contains(&(*i as u32)));
+        let Some((_, &first)) = points.next() else {
+            return Ok(());
+        };
+        let extent = points.fold(0.0f64, |e, (_, p)| e.max((*p - first).abs().max_element()));
+        if extent < f64::MIN_POSITIVE {
+            fail!(
+                Input,
+                "{source}: the mesh has no size: all its vertices are at ({}, {}, {})",
+                first.x,
+                first.y,
+                first.z
+            );
+        }
+        Ok(())
+    }
+
+    /// True when the triangle's corners lie on one line, as far as `f32` can tell.
+    fn has_no_area(&self, t: [u32; 3]) -> bool {
+        let [a, b, c] = t.map(|i| self.positions[i as usize]);
+        let (u, v) = (b - a, c - a);
+        u.cross(v).length() <= 1e-7 * u.length() * v.length()
+    }
+
+    /// Points every triangle at the first vertex of its position; returns how many vertices
+    /// some triangle used that were merged so.
+    fn weld(&mut self) -> usize {
+        // -0.0 and 0.0 are one position.
+        let key = |p: DVec3| (p + DVec3::ZERO).to_array().map(f64::to_bits);
+        let mut first: HashMap<[u64; 3], u32> = HashMap::with_capacity(self.positions.len());
+        let canonical: Vec<u32> = (0..)
+            .zip(&self.positions)
+            .map(|(i, &p)| *first.entry(key(p)).or_insert(i))
+            .collect();
+        let mut merged = vec![false; self.positions.len()];
+        for i in self.triangles.iter_mut().flatten() {
+            let to = canonical[*i as usize];
+            if to != *i {
+                merged[*i as usize] = true;
+                *i = to;
+            }
+        }
+        merged.iter().filter(|&&m| m).count()
     }
 
     /// Drops the vertices no triangle refers to, renumbering the rest in their order.
@@ -98,13 +239,29 @@ impl Mesh {
             *i = new_id[*i as usize];
         }
     }
+
+    /// Moves the mesh into its [`frame::LocalFrame`] (in double precision, then rounded once
+    /// to `f32`) and returns it with that frame.
+    pub fn into_local(self) -> (Mesh, frame::LocalFrame) {
+        if self.positions.is_empty() {
+            return (Mesh::default(), frame::LocalFrame::IDENTITY);
+        }
+        let (lo, hi) = self.bounds();
+        let frame = frame::LocalFrame::of_bounds(lo, hi);
+        let mesh = Mesh {
+            positions: self.positions.iter().map(|&p| frame.to_local(p)).collect(),
+            triangles: self.triangles,
+        };
+        (mesh, frame)
+    }
 }
 
 /// What a dropped triangle is, for messages.
 pub const DEGENERATE: &str = "a repeated vertex, or the same three vertices as an earlier triangle";
 
-/// Loads .obj, .ply, .gltf or .glb (case-insensitive extension) and validates it. Every error is one line that starts with the
-/// file path. Degenerate triangles are dropped silently: [`load_mesh_quiet`] and [`open`] say how many.
+/// Loads .obj, .ply, .gltf or .glb (case-insensitive extension) and validates it, in the
+/// file's units rounded to `f32`. Every error is one line that starts with the file path.
+/// [`load_mesh_quiet`] and [`open`] say what cleaning changed.
 pub fn load_mesh(path: &Path) -> Result<Mesh> {
     Ok(load_mesh_quiet(path)?.0)
 }
@@ -120,6 +277,8 @@ pub struct Input {
     /// Degenerate triangles dropped while loading (a repeated vertex, or the same three
     /// vertices as an earlier triangle).
     pub dropped: usize,
+    /// Everything cleaning changed or found, summed over the files.
+    pub cleaning: Cleaning,
 }
 
 /// Loads `path` (`.obj`, `.ply`, `.gltf` or `.glb`), or the built-in scene when `None`, and moves it into its
@@ -129,53 +288,49 @@ pub fn open(path: Option<&Path>) -> Result<Input> {
 }
 
 /// Several files as one mesh (each loaded and checked on its own, then put side by side in
-/// the files' common units), or the built-in scene when `paths` is empty; in its local frame.
+/// the files' common units, in double precision), or the built-in scene when `paths` is
+/// empty; in its local frame.
 pub fn open_all(paths: &[&Path]) -> Result<Input> {
-    let mut all = match paths.first() {
-        Some(first) => open_world(first)?,
-        None => Input {
+    let Some(first) = paths.first() else {
+        let (mesh, frame) = WorldMesh::from(scene::default_scene()).into_local();
+        return Ok(Input {
             name: "default scene".to_string(),
-            mesh: scene::default_scene(),
-            frame: frame::LocalFrame::IDENTITY,
+            mesh,
+            frame,
             dropped: 0,
-        },
+            cleaning: Cleaning::default(),
+        });
     };
-    let rest = paths.get(1..).unwrap_or_default();
-    for path in rest {
-        let next = open_world(path)?;
-        let base = all.mesh.positions.len() as u32;
-        all.mesh.positions.extend(next.mesh.positions);
-        all.mesh
-            .triangles
-            .extend(next.mesh.triangles.iter().map(|t| t.map(|i| base + i)));
-        all.name = format!("{} + {}", all.name, next.name);
-        all.dropped += next.dropped;
+    let (mut all, mut cleaning) = load_world(first)?;
+    let mut name = first.display().to_string();
+    for path in &paths[1..] {
+        let (next, next_cleaning) = load_world(path)?;
+        let base = all.positions.len() as u32;
+        all.positions.extend(next.positions);
+        all.triangles.extend(next.triangles.iter().map(|t| t.map(|i| base + i)));
+        name = format!("{name} + {}", path.display());
+        cleaning.add(next_cleaning);
     }
-    all.frame = all.mesh.into_local_frame();
-    Ok(all)
-}
-
-/// A file loaded and checked, still in its own units.
-fn open_world(path: &Path) -> Result<Input> {
-    let (mesh, dropped) = load_mesh_quiet(path)?;
+    let (mesh, frame) = all.into_local();
     Ok(Input {
-        name: path.display().to_string(),
+        name,
         mesh,
-        frame: frame::LocalFrame::IDENTITY,
-        dropped,
+        frame,
+        dropped: cleaning.dropped,
+        cleaning,
     })
 }
 
 /// [`load_mesh`] without the warning: returns the number of dropped degenerate triangles instead.
 pub fn load_mesh_quiet(path: &Path) -> Result<(Mesh, usize)> {
+    let (mesh, cleaning) = load_world(path)?;
+    Ok((mesh.to_f32(), cleaning.dropped))
+}
+
+/// Loads and validates one file, in its own units and in double precision.
+pub fn load_world(path: &Path) -> Result<(WorldMesh, Cleaning)> {
     let name = path.display().to_string();
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-    let folder = path.parent();
-    let parse = |bytes: &[u8]| match ext.as_deref() {
-        Some("obj") => obj::parse_obj(bytes),
-        Some("ply") => ply::parse_ply(bytes),
-        _ => gltf::parse_gltf(bytes, folder),
-    };
     if !matches!(ext.as_deref(), Some("obj" | "ply" | "gltf" | "glb")) {
         fail!(Input, "{name}: unsupported format (expected .obj, .ply, .gltf or .glb)");
     }
@@ -183,7 +338,13 @@ pub fn load_mesh_quiet(path: &Path) -> Result<(Mesh, usize)> {
     if bytes.is_empty() {
         fail!(Input, "{name}: no triangles (empty file)");
     }
-    let mesh = parse(&bytes).map_err(|e| error!(Input, "{name}: {}", one_line(&e.to_string())))?;
+    let parsed = match ext.as_deref() {
+        Some("obj") => obj::parse_obj(&bytes),
+        Some("ply") => ply::parse_ply(&bytes),
+        Some("glb") => gltf::parse_glb(&bytes, path.parent()),
+        _ => gltf::parse_gltf(&bytes, path.parent()),
+    };
+    let mesh = parsed.map_err(|e| error!(Input, "{name}: {}", one_line(&e.to_string())))?;
     mesh.validate(&name)
 }
 
@@ -390,7 +551,8 @@ mod tests {
         }
         for (file, tris, verts) in [
             ("bunny.obj", 3674, 1839),
-            ("teapot.obj", 992, 792),
+            // The teapot's patches repeat the vertices along their seams: welded.
+            ("teapot.obj", 992, 529),
             // The dragons' files also hold 2 and 16 vertices no face uses.
             ("dragon_res4.ply", 11102, 5203),
             ("dragon_res3.ply", 47794, 22982),

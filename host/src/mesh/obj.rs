@@ -4,17 +4,20 @@
 //! `o`/`g`/`usemtl` (duplicating the vertices the parts share) and may follow `mtllib` to other files. So the
 //! pre-pass checks every `v` and `f` line itself, with line numbers, and hands tobj a canonical buffer holding only
 //! `v x y z` and `f i j k ...` lines with absolute 1-based indices: one model, no materials, nothing left to fail.
+//! Coordinates are read in double precision. A line whose statement is not OBJ's, or is OBJ's but shapes a surface
+//! gridrt cannot draw (free-form curves and surfaces, another file called in), is an error naming the line: skipping
+//! it would drop faces without a word.
 
 use std::io::Cursor;
 
 use crate::error::{error, fail, Result};
-use gridrt_shared::glam::Vec3;
+use gridrt_shared::glam::DVec3;
 
-use super::{is_integer, quote, Mesh};
+use super::{is_integer, quote, WorldMesh};
 
 /// Parses an OBJ file's bytes into positions and counter-clockwise triangles (polygons are fan-triangulated).
 /// Only vertices that some face uses are kept, in order of first use. Errors carry no file name; the caller adds it.
-pub fn parse_obj(bytes: &[u8]) -> Result<Mesh> {
+pub fn parse_obj(bytes: &[u8]) -> Result<WorldMesh> {
     // Lossy, so that stray Latin-1 in comments or names does not reject a file; a damaged number still fails.
     let text = String::from_utf8_lossy(bytes);
     // A byte-order mark would otherwise glue itself to the first line's keyword.
@@ -35,11 +38,11 @@ pub fn parse_obj(bytes: &[u8]) -> Result<Mesh> {
     })
     .map_err(|e| error!(Input, "{e} (reported by tobj)"))?;
 
-    let mut mesh = Mesh::default();
+    let mut mesh = WorldMesh::default();
     for model in models {
         let base = mesh.positions.len() as u32;
         let (positions, _) = model.mesh.positions.as_chunks::<3>();
-        mesh.positions.extend(positions.iter().map(|&p| Vec3::from_array(p)));
+        mesh.positions.extend(positions.iter().map(|&p| DVec3::from_array(p)));
         let (triangles, _) = model.mesh.indices.as_chunks::<3>();
         mesh.triangles.extend(triangles.iter().map(|t| t.map(|i| base + i)));
     }
@@ -100,7 +103,8 @@ fn canonicalize(text: &str, total: usize) -> Result<String> {
                 out.push_str(&xyz.join(" "));
                 out.push('\n');
             }
-            Some("f") => {
+            // `fo` is an old spelling of `f`.
+            Some("f" | "fo") => {
                 faces += 1;
                 let mut refs = 0;
                 out.push('f');
@@ -116,11 +120,53 @@ fn canonicalize(text: &str, total: usize) -> Result<String> {
                 out.push('\n');
             }
             // Normals, texture coordinates, groups, materials, points and lines do not shape the surface.
-            _ => {}
+            Some(word) if IGNORED.contains(&word) || word.starts_with('#') => {}
+            Some(word) if UNSUPPORTED.contains(&word) => fail!(
+                Input,
+                "line {line_no}: the OBJ statement {} is not supported (free-form curves and surfaces, and other \
+                 files called in, are not drawn; gridrt reads polygons)",
+                quote(word)
+            ),
+            Some(word) => fail!(
+                Input,
+                "line {line_no}: unknown statement {} (an OBJ line starts with v, f, vt, vn, g, o, s, usemtl, ...)",
+                quote(word)
+            ),
+            None => {}
         }
     }
     Ok(out)
 }
+
+/// OBJ statements that do not shape a polygonal surface: skipped.
+const IGNORED: &[&str] = &[
+    "vt",
+    "vn",
+    "vp",
+    "l",
+    "p",
+    "g",
+    "o",
+    "s",
+    "mg",
+    "usemtl",
+    "mtllib",
+    "usemap",
+    "maplib",
+    "lod",
+    "bevel",
+    "c_interp",
+    "d_interp",
+    "shadow_obj",
+    "trace_obj",
+];
+
+/// OBJ statements that shape surfaces gridrt does not draw: free-form geometry, and other
+/// files called in.
+const UNSUPPORTED: &[&str] = &[
+    "cstype", "deg", "bmat", "step", "curv", "curv2", "surf", "parm", "trim", "hole", "scrv", "sp", "end", "con",
+    "ctech", "stech", "call", "csh",
+];
 
 /// Turns one face word (`7`, `7/1`, `7//3`, `-2/...`) into an absolute 1-based vertex index.
 /// `before` is the number of vertices defined above the face, which relative indices count back from.
@@ -158,7 +204,7 @@ fn resolve(word: &str, before: usize, total: usize) -> std::result::Result<usize
 #[cfg(test)]
 mod tests {
     use super::super::test_util::*;
-    use super::*;
+    use gridrt_shared::glam::Vec3;
 
     const SQUARE: &[u8] = b"# unit square\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n";
 

@@ -4,9 +4,9 @@
 //! because in PLY the only way past data is to decode it. Polygons are fan-triangulated.
 
 use crate::error::{error, fail, Error, Result};
-use gridrt_shared::glam::Vec3;
+use gridrt_shared::glam::DVec3;
 
-use super::{is_integer, quote, Mesh};
+use super::{is_integer, quote, WorldMesh};
 
 mod write;
 pub use write::write_ply;
@@ -67,10 +67,14 @@ struct Header {
 }
 
 /// Parses a PLY file's bytes. Errors carry no file name; the caller adds it.
-pub fn parse_ply(bytes: &[u8]) -> Result<Mesh> {
+pub fn parse_ply(bytes: &[u8]) -> Result<WorldMesh> {
     let header = parse_header(bytes)?;
     let roles = Roles::find(&header)?;
     let data = &bytes[header.data_start..];
+    match header.big_endian {
+        None => check_line_count(data, &header)?,
+        Some(_) => check_not_text(data, &header)?,
+    }
     match header.big_endian {
         None => read_body(
             &mut Ascii {
@@ -92,6 +96,54 @@ pub fn parse_ply(bytes: &[u8]) -> Result<Mesh> {
             &roles,
         ),
     }
+}
+
+/// An ASCII body holds one line per element: fewer lines than the header's counts add up to
+/// means the counts are wrong (or the file is cut short), which reading on would only report
+/// as a line with the wrong number of values, elements later.
+fn check_line_count(data: &[u8], header: &Header) -> Result<()> {
+    let declared: usize = (header.elements.iter())
+        .filter(|e| !e.props.is_empty())
+        .fold(0usize, |sum, e| sum.saturating_add(e.count));
+    let lines = data
+        .split(|&b| b == b'\n')
+        .filter(|line| line.iter().any(|b| !b.is_ascii_whitespace()))
+        .count();
+    if lines < declared {
+        let counts: Vec<String> = (header.elements.iter())
+            .filter(|e| !e.props.is_empty())
+            .map(|e| format!("{} {}", e.count, plural(&e.name)))
+            .collect();
+        let counts = match counts.split_last() {
+            Some((last, rest)) if !rest.is_empty() => format!("{} and {last}", rest.join(", ")),
+            _ => counts.concat(),
+        };
+        fail!(
+            Input,
+            "truncated, or the header's counts are wrong: it declares {} ({declared} lines), the body has {lines} lines",
+            counts
+        );
+    }
+    Ok(())
+}
+
+/// A body that reads as lines of numbers under a header that says binary: the format line
+/// is wrong, and decoding the text as binary would report nonsense values.
+fn check_not_text(data: &[u8], header: &Header) -> Result<()> {
+    let sample = &data[..data.len().min(256)];
+    let numeric = |b: &u8| b.is_ascii_digit() || b" \t\r\n+-.eE".contains(b);
+    if sample.len() >= 8 && sample.contains(&b'\n') && sample.iter().all(numeric) {
+        let format = if header.big_endian == Some(true) {
+            "binary_big_endian"
+        } else {
+            "binary_little_endian"
+        };
+        fail!(
+            Input,
+            "the header says {format} but the body is ASCII text (lines of numbers): its format line should say ascii"
+        );
+    }
+    Ok(())
 }
 
 fn parse_header(bytes: &[u8]) -> Result<Header> {
@@ -438,8 +490,8 @@ fn check_position(xyz: &[f64; 3], i: usize, line: Option<usize>) -> Result<()> {
     Ok(())
 }
 
-fn read_body(src: &mut impl Source, header: &Header, roles: &Roles) -> Result<Mesh> {
-    let mut mesh = Mesh::default();
+fn read_body(src: &mut impl Source, header: &Header, roles: &Roles) -> Result<WorldMesh> {
+    let mut mesh = WorldMesh::default();
     let mut polygon: Vec<u32> = Vec::new();
     for (e, element) in header.elements.iter().enumerate() {
         // An element without properties occupies no bytes; looping over a huge count of them would only hang.
@@ -493,8 +545,7 @@ fn read_body(src: &mut impl Source, header: &Header, roles: &Roles) -> Result<Me
             src.end_element().map_err(|err| read_error(err, element, i, ""))?;
             if is_vertex {
                 check_position(&xyz, i, src.line())?;
-                mesh.positions
-                    .push(Vec3::new(xyz[0] as f32, xyz[1] as f32, xyz[2] as f32));
+                mesh.positions.push(DVec3::from_array(xyz));
             } else if is_face {
                 if polygon.len() < 3 {
                     fail!(Input, "face {i} has only {} vertices", polygon.len());

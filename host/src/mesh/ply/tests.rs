@@ -2,6 +2,8 @@
 
 use super::super::test_util::*;
 use super::*;
+use crate::mesh::Mesh;
+use gridrt_shared::glam::Vec3;
 
 /// One data row: the values of one element, each with the type it is stored as.
 type Row = Vec<(Scalar, f64)>;
@@ -106,7 +108,7 @@ fn truncated_data() {
     expect_err(
         "trunc.ply",
         cut.as_bytes(),
-        &["truncated: expected 8 vertices, file ends after 3"],
+        &["truncated, or the header's counts are wrong: it declares 8 vertices, 6 faces and 1 'edge' elements (15 lines), the body has 3 lines"],
     );
     let bin = cube("binary_little_endian");
     // Cut inside the fifth face: the edge (8 bytes) and part of the last two faces are missing.
