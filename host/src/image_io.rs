@@ -11,9 +11,7 @@ use crate::error::{error, fail, Result};
 /// `path` left beside it.
 pub fn check_writable(path: &Path) -> Result<()> {
     let name = path.display();
-    if path.is_dir() || path.as_os_str().to_string_lossy().ends_with(std::path::is_separator) {
-        fail!(Output, "{name}: is a folder, not a file name");
-    }
+    refuse_folder(path)?;
     if let Ok(meta) = std::fs::metadata(path) {
         if !meta.is_file() {
             fail!(
@@ -40,11 +38,24 @@ pub fn check_writable(path: &Path) -> Result<()> {
     Ok(())
 }
 
-/// [`check_writable`] for a file of one format: the name must also end in `.extension`.
-pub fn check_output(path: &Path, extension: &str) -> Result<()> {
-    if path.is_dir() || path.as_os_str().to_string_lossy().ends_with(std::path::is_separator) {
+/// Refuses a folder, or a name ending in a separator (which only a folder's name may).
+fn refuse_folder(path: &Path) -> Result<()> {
+    if path.is_dir() {
         fail!(Output, "{}: is a folder, not a file name", path.display());
     }
+    if path.as_os_str().to_string_lossy().ends_with(std::path::is_separator) {
+        fail!(
+            Output,
+            "{}: names a folder (it ends in a separator), not a file",
+            path.display()
+        );
+    }
+    Ok(())
+}
+
+/// [`check_writable`] for a file of one format: the name must also end in `.extension`.
+pub fn check_output(path: &Path, extension: &str) -> Result<()> {
+    refuse_folder(path)?;
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     if ext.as_deref() != Some(extension) {
         let found = match &ext {

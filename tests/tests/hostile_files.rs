@@ -69,19 +69,19 @@ fn every_output_is_checked_before_any_work() {
     let dir = scratch("outputs");
     let d = dir.to_str().unwrap();
     let slash = format!("{d}/new.png/");
-    fails_with(
-        &render_args(&["-o", &slash]),
-        &[],
-        &["new.png/", "is a folder, not a file name"],
-    );
+    fails_with(&render_args(&["-o", &slash]), &[], &["new.png/", "names a folder"]);
     fails_with(
         &["export", "-o", &format!("{d}/e.ply/")],
         &[],
-        &["e.ply/", "is a folder"],
+        &["e.ply/", "names a folder"],
     );
     let obj = dir.join("x.obj");
     let x = write(&obj, SQUARE);
-    fails_with(&["bench", x, "--json", &format!("{d}/x.json/")], &[], &["is a folder"]);
+    fails_with(
+        &["bench", x, "--json", &format!("{d}/x.json/")],
+        &[],
+        &["names a folder"],
+    );
     #[cfg(unix)]
     {
         fails_with(&["bench", x, "--json", "/dev/full"], &[], &["/dev/full"]);
@@ -268,56 +268,102 @@ fn damaged_plys_name_the_real_problem() {
     );
 }
 
-/// A GLB drawing a square as two triangles without indices: three vertices each.
-fn unindexed_square() -> Vec<u8> {
-    let mut bin = Vec::new();
-    for p in [
-        [0f32, 0., 0.],
-        [1., 0., 0.],
-        [1., 1., 0.],
-        [0., 0., 0.],
-        [1., 1., 0.],
-        [0., 1., 0.],
-    ] {
-        bin.extend(p.iter().flat_map(|c| c.to_le_bytes()));
+/// The glTF fuzz target's seeds (`fuzz/corpus/gltf`): hostile files made from the
+/// specification, and each what the command line must say of it.
+const GLTF_SEEDS: &[(&str, Option<&str>)] = &[
+    ("bad_magic.glb", Some("not a GLB file: it starts with \"glTX\"")),
+    (
+        "chunk_too_long.glb",
+        Some("truncated GLB: chunk 0 declares 65535 bytes"),
+    ),
+    (
+        "cycle.glb",
+        Some("node 0 is its own ancestor: the node hierarchy has a cycle"),
+    ),
+    ("own_child.glb", Some("node 0 is its own ancestor")),
+    ("two_parents.glb", Some("node 2 is a child of both node 0 and node 1")),
+    (
+        "index_float.glb",
+        Some("index accessor 2 is SCALAR FLOAT: glTF indices are SCALAR"),
+    ),
+    ("index_short.glb", Some("index accessor 2 is SCALAR SHORT")),
+    ("index_vec3.glb", Some("index accessor 2 is VEC3 UNSIGNED_SHORT")),
+    (
+        "position_vec2.glb",
+        Some("POSITION accessor 0 is VEC2 FLOAT: glTF positions are VEC3 FLOAT"),
+    ),
+    ("position_ubyte.glb", Some("POSITION accessor 0 is VEC3 UNSIGNED_BYTE")),
+    (
+        "position_normalized_short.glb",
+        Some("POSITION accessor 0 is VEC3 NORMALIZED SHORT"),
+    ),
+    (
+        "position_too_short.glb",
+        Some("its 4 elements reach byte 48 of buffer view 0, which has 36 bytes"),
+    ),
+    ("scale_zero.glb", Some("the mesh has no size")),
+    (
+        "translation_1e39.glb",
+        Some("node 0: its translation holds 1e39, beyond the 32-bit float range"),
+    ),
+    (
+        "truncated.glb",
+        Some("truncated GLB: its header declares 920 bytes, the file has 910"),
+    ),
+    (
+        "uri_absolute.gltf",
+        Some("buffer 0: its uri \"/etc/passwd\" is an absolute path"),
+    ),
+    ("uri_escaped_parent.gltf", Some("steps out of its folder")),
+    ("uri_file_url.gltf", Some("is a URL")),
+    (
+        "uri_parent.gltf",
+        Some("buffer 0: its uri \"../../../../etc/passwd\" steps out of its folder"),
+    ),
+    (
+        "position_accessor_missing.glb",
+        Some("its POSITION accessor 0 does not exist (the file has 0)"),
+    ),
+    ("deep_1000.glb", None),
+    ("embedded.gltf", None),
+    ("matrix_far.glb", None),
+    ("scene.glb", None),
+    ("sparse.glb", None),
+    ("unindexed_strip.glb", None),
+];
+
+#[test]
+fn gltf_seeds_render_or_name_their_problem() {
+    let seeds = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../fuzz/corpus/gltf"));
+    let on_disk = std::fs::read_dir(seeds).unwrap().count();
+    assert_eq!(
+        on_disk,
+        GLTF_SEEDS.len(),
+        "a seed without a test, or a test without a seed"
+    );
+    let out = scratch("gltf_seeds").join("seed.png");
+    for (name, problem) in GLTF_SEEDS {
+        let path = seeds.join(name);
+        let args = render_args(&[path.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+        match problem {
+            Some(problem) => {
+                fails_with(&args, &[], &[&format!("error: {}: ", path.display()), problem]);
+            }
+            None => {
+                let o = gridrt(&args);
+                assert!(o.status.success(), "{name}: {}", stderr(&o));
+            }
+        }
     }
-    let mut json = r#"{"asset": {"version": "2.0"}, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
-        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
-        "buffers": [{"byteLength": 72}], "bufferViews": [{"buffer": 0, "byteLength": 72}],
-        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 6, "type": "VEC3",
-        "min": [0, 0, 0], "max": [1, 1, 0]}]}"#
-        .as_bytes()
-        .to_vec();
-    while !json.len().is_multiple_of(4) {
-        json.push(b' ');
-    }
-    let mut out = b"glTF".to_vec();
-    out.extend(2u32.to_le_bytes());
-    out.extend((12 + 8 + json.len() as u32 + 8 + bin.len() as u32).to_le_bytes());
-    out.extend((json.len() as u32).to_le_bytes());
-    out.extend(b"JSON");
-    out.extend(&json);
-    out.extend((bin.len() as u32).to_le_bytes());
-    out.extend(b"BIN\0");
-    out.extend(&bin);
-    out
 }
 
 #[test]
 fn gltf_seams_are_welded_and_said() {
-    let dir = scratch("welded");
-    let glb = dir.join("square.glb");
-    let g = write(&glb, unindexed_square());
-    let o = gridrt(&render_args(&[g, "-o", dir.join("square.png").to_str().unwrap()]));
+    let seeds = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../fuzz/corpus/gltf"));
+    let strip = seeds.join("unindexed_strip.glb");
+    let out = scratch("welded").join("strip.png");
+    let o = gridrt(&render_args(&[strip.to_str().unwrap(), "-o", out.to_str().unwrap()]));
     let err = stderr(&o);
     assert!(o.status.success(), "{err}");
-    assert!(err.contains("square.glb: welded 2 vertices"), "{err}");
-    let outside = dir.join("outside.gltf");
-    let json = r#"{"asset": {"version": "2.0"}, "buffers": [{"uri": "../../../../etc/passwd", "byteLength": 4}]}"#;
-    let p = write(&outside, json);
-    fails_with(
-        &render_args(&[p]),
-        &[],
-        &["outside.gltf", "buffer 0", "steps out of its folder"],
-    );
+    assert!(err.contains("unindexed_strip.glb: welded 4 vertices"), "{err}");
 }

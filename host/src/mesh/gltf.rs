@@ -120,9 +120,11 @@ fn glb_chunks(bytes: &[u8]) -> Result<(&[u8], Option<&[u8]>)> {
 
 /// Reads the document's default scene into one mesh.
 fn parse_document(json: &[u8], bin: Option<&[u8]>, folder: Option<&Path>) -> Result<WorldMesh> {
-    let document = gltf::Gltf::from_slice(json).map_err(|e| error!(Input, "{e}"))?.document;
-    // The same text again, for the node transforms' numbers in full precision.
+    // The text as plain JSON first: for the node transforms' numbers in full precision, and
+    // for what the crate's validation would index without checking.
     let raw: Value = serde_json::from_slice(json).map_err(|e| error!(Input, "{e}"))?;
+    check_position_accessors_exist(&raw)?;
+    let document = gltf::Gltf::from_slice(json).map_err(|e| error!(Input, "{e}"))?.document;
     let transforms = node_transforms(&raw, document.nodes().len())?;
     check_node_trees(&document)?;
     let buffers = load_buffers(&document, bin, folder)?;
@@ -138,6 +140,27 @@ fn parse_document(json: &[u8], bin: Option<&[u8]>, folder: Option<&Path>) -> Res
         fail!(Input, "no triangle primitives in its scene");
     }
     Ok(mesh)
+}
+
+/// Refuses a primitive whose POSITION names an accessor the file does not have: the `gltf`
+/// crate's validation looks that accessor up (for its bounds) before it checks the index,
+/// and panics. Anything else malformed there is left to the crate to report.
+fn check_position_accessors_exist(raw: &Value) -> Result<()> {
+    let accessors = raw.get("accessors").and_then(Value::as_array).map_or(0, Vec::len);
+    let meshes = raw.get("meshes").and_then(Value::as_array).into_iter().flatten();
+    for (m, mesh) in meshes.enumerate() {
+        let primitives = mesh.get("primitives").and_then(Value::as_array).into_iter().flatten();
+        for (p, primitive) in primitives.enumerate() {
+            let position = primitive.pointer("/attributes/POSITION").and_then(Value::as_u64);
+            if let Some(a) = position.filter(|&a| a >= accessors as u64) {
+                fail!(
+                    Input,
+                    "mesh {m} primitive {p}: its POSITION accessor {a} does not exist (the file has {accessors})"
+                );
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Each node's own transform, from the JSON's numbers as `f64`: its matrix, or its
@@ -855,6 +878,12 @@ mod tests {
             "short.glb",
             &short,
             &["POSITION accessor 0: its 4 elements reach byte 48 of buffer view 0, which has 36 bytes"],
+        );
+        let missing = glb(&doc.replace(r#""POSITION": 0"#, r#""POSITION": 7"#), &buffer());
+        expect_err(
+            "missing.glb",
+            &missing,
+            &["mesh 0 primitive 0: its POSITION accessor 7 does not exist (the file has 3)"],
         );
         let past_buffer = glb(&doc.replace(r#""byteLength": 6}"#, r#""byteLength": 60}"#), &buffer());
         expect_err(
