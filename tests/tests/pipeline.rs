@@ -32,7 +32,7 @@ fn both_scenes() -> Vec<(Representation, Scene)> {
 #[test]
 fn the_pipeline_renders_both_representations_on_both_backends() {
     let input = mesh::open(None).unwrap();
-    assert_eq!((input.name.as_str(), input.dropped), ("default scene", 0));
+    assert_eq!((input.name.as_str(), input.cleaning.dropped), ("default scene", 0));
     let gpu = gpu_backend("the_pipeline_renders_both_representations_on_both_backends");
     let mut images = Vec::new();
     for (representation, scene) in both_scenes() {

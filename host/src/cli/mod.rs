@@ -528,11 +528,11 @@ pub fn load_all(paths: &[&Path]) -> Result<Input> {
             input.name, cleaning.welded
         );
     }
-    if input.dropped > 0 {
+    if cleaning.dropped > 0 {
         eprintln!(
             "warning: {}: dropped {} degenerate triangles ({})",
             input.name,
-            input.dropped,
+            cleaning.dropped,
             mesh::DEGENERATE
         );
     }

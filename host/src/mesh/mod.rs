@@ -274,10 +274,8 @@ pub struct Input {
     pub mesh: Mesh,
     /// Maps the mesh back to the file's units.
     pub frame: frame::LocalFrame,
-    /// Degenerate triangles dropped while loading (a repeated vertex, or the same three
-    /// vertices as an earlier triangle).
-    pub dropped: usize,
-    /// Everything cleaning changed or found, summed over the files.
+    /// What cleaning changed or found, summed over the files: vertices welded, degenerate
+    /// triangles dropped, triangles without area.
     pub cleaning: Cleaning,
 }
 
@@ -297,7 +295,6 @@ pub fn open_all(paths: &[&Path]) -> Result<Input> {
             name: "default scene".to_string(),
             mesh,
             frame,
-            dropped: 0,
             cleaning: Cleaning::default(),
         });
     };
@@ -316,7 +313,6 @@ pub fn open_all(paths: &[&Path]) -> Result<Input> {
         name,
         mesh,
         frame,
-        dropped: cleaning.dropped,
         cleaning,
     })
 }
@@ -444,7 +440,7 @@ mod tests {
         let b = write_temp("b.obj", b"v 4 0 0\nv 5 0 0\nv 4 1 0\nv 9 9 9\nf 1 2 3\nf 1 1 2\n");
         let all = open_all(&[&a, &b]).unwrap();
         assert_eq!(all.name, format!("{} + {}", a.display(), b.display()));
-        assert_eq!(all.dropped, 1);
+        assert_eq!(all.cleaning.dropped, 1);
         assert_eq!(all.mesh.triangles, vec![[0, 1, 2], [3, 4, 5]]);
         let world: Vec<_> = all
             .mesh
