@@ -46,4 +46,5 @@ pub mod rays;
 pub mod scene;
 pub mod split;
 pub mod subdiv;
+pub mod surface_distance;
 pub mod triangles;

@@ -915,3 +915,38 @@ fn smooth_shading_and_ambient_occlusion_render() {
         &["--smooth", "grids"],
     );
 }
+
+/// `compare`: two parallel squares a quarter apart (in millimetres, far from the origin) are
+/// a quarter apart everywhere, as a fraction of the reference's diagonal; a surface is at no
+/// distance from itself.
+#[test]
+fn compare_measures_the_distance_between_surfaces() {
+    let dir = scratch("compare");
+    let square = |z: f64| {
+        let v: String = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)]
+            .iter()
+            .map(|(x, y)| format!("v {} {} {}\n", 1e6 + x, 2e6 + y, z))
+            .collect();
+        v + "f 1 2 3\nf 1 3 4\n"
+    };
+    let (a, b) = (dir.join("a.obj"), dir.join("b.obj"));
+    std::fs::write(&a, square(5.0)).unwrap();
+    std::fs::write(&b, square(5.25)).unwrap();
+    let (a, b) = (a.to_str().unwrap(), b.to_str().unwrap());
+    let o = gridrt(&["compare", a, b, "--samples", "2000", "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(
+        (report["diagonal"].as_f64().unwrap() - 2f64.sqrt()).abs() < 1e-9,
+        "{report}"
+    );
+    for key in ["reference_to_other", "other_to_reference", "symmetric"] {
+        let rms = report[key]["rms"].as_f64().unwrap();
+        assert!((rms - 0.25 / 2f64.sqrt()).abs() < 1e-6, "{key}: {report}");
+    }
+    let o = gridrt(&["compare", a, a, "--samples", "2000"]);
+    let table = String::from_utf8_lossy(&o.stdout);
+    let both = table.lines().find(|l| l.starts_with("| both (symmetric) |")).unwrap();
+    let max: f64 = both.split('|').nth(4).unwrap().trim().parse().unwrap();
+    assert!(max < 1e-12 && both.ends_with("| 4000 |"), "{table}");
+}

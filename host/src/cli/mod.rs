@@ -22,6 +22,7 @@ use progress::Stages;
 
 mod bench;
 mod chart;
+mod compare;
 mod progress;
 mod stats;
 
@@ -55,6 +56,10 @@ pub enum Command {
     /// Write a mesh subdivided L times as binary PLY, in the input's own units.
     #[command(allow_negative_numbers = true)]
     Export(ExportArgs),
+    /// Measure how far apart two surfaces are: RMS, 99th percentile and maximum of the
+    /// distances from points sampled on each to the other.
+    #[command(allow_negative_numbers = true)]
+    Compare(CompareArgs),
 }
 
 /// Where rays are traced.
@@ -439,6 +444,21 @@ pub struct ExportArgs {
 }
 
 #[derive(clap::Args, Debug)]
+pub struct CompareArgs {
+    /// The reference surface (.obj, .ply, .gltf or .glb): distances are given as fractions of
+    /// its bounding-box diagonal.
+    pub reference: PathBuf,
+    /// The surface compared with it, in the same units.
+    pub other: PathBuf,
+    /// Points sampled on each surface, by area.
+    #[arg(long, default_value_t = 1_000_000, value_parser = at_least_one())]
+    pub samples: usize,
+    /// Print one JSON object instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(clap::Args, Debug)]
 pub struct StatsArgs {
     /// Mesh to measure (.obj, .ply, .gltf or .glb); the built-in scene when absent.
     pub mesh: Option<PathBuf>,
@@ -509,6 +529,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Stats(args) => stats::run(&args, cli.quiet),
         Command::Bench(args) => bench::run(&args, cli.quiet),
         Command::Export(args) => export(&args, &mut stages),
+        Command::Compare(args) => compare::run(&args),
     }
 }
 

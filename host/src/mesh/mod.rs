@@ -248,11 +248,15 @@ impl WorldMesh {
         }
         let (lo, hi) = self.bounds();
         let frame = frame::LocalFrame::of_bounds(lo, hi);
-        let mesh = Mesh {
+        (self.in_frame(&frame), frame)
+    }
+
+    /// The mesh moved into `frame` (another mesh's, to compare the two in one frame).
+    pub fn in_frame(&self, frame: &frame::LocalFrame) -> Mesh {
+        Mesh {
             positions: self.positions.iter().map(|&p| frame.to_local(p)).collect(),
-            triangles: self.triangles,
-        };
-        (mesh, frame)
+            triangles: self.triangles.clone(),
+        }
     }
 }
 
