@@ -52,6 +52,23 @@ pub fn check_gltf(data: &[u8]) {
     check_loaded(gridrt::mesh::gltf::parse_gltf(data, Some(folder)));
 }
 
+/// A `.bary` file's bytes through the reader: an error on one line, or a micromap whose
+/// triangles each hold their level's values, no more values than the file's bytes could hold,
+/// and which writes back to a file that reads as the same micromap.
+pub fn check_bary(data: &[u8]) {
+    use gridrt::bary;
+    match bary::read(data) {
+        Err(e) => assert_one_line(&e),
+        Ok(map) => {
+            for t in 0..map.triangles.len() {
+                assert!(map.triangle_values(t).iter().all(|&v| v <= bary::UNORM11_MAX));
+            }
+            assert!(map.values.len() <= 8 * data.len() / 11 + 3 * map.triangles.len());
+            assert_eq!(bary::read(&bary::write(&map)).expect("a written file reads"), map);
+        }
+    }
+}
+
 /// Reads bytes front to back; zeros once they run out.
 struct Bytes<'a>(&'a [u8]);
 

@@ -29,6 +29,7 @@
 //! ([`scene`]) or the GPU (`gpu`), with the one implementation in `gridrt_shared`.
 
 pub mod backend;
+pub mod bary;
 pub mod bvh;
 pub mod camera;
 pub mod error;

@@ -1,0 +1,643 @@
+//! NVIDIA's `.bary` files (the BaryFile format, version 00100): the displacement values of a
+//! micromap, one list per base triangle, read and written.
+//!
+//! A file is a header (a 16-byte version identifier, the total size, and where the table of
+//! properties lies), the table (64 bytes a property: a 128-bit identifier, a byte range, and
+//! supercompression fields that must say "none"), and the properties' bytes. Three properties
+//! are mandatory: the values (a `ValuesInfo` header then the values), the groups (triangle and
+//! value ranges, the subdivision levels used, and the bias and scale that map a stored value
+//! to a displacement) and the triangles (each its values' offset within its group, its
+//! subdivision level and a block format). Other properties are skipped when reading.
+//!
+//! What is supported: per-vertex scalar displacements as 11-bit unorm values, packed
+//! (`eR11_unorm_packed_align32`: each triangle's values one LSB-first bit stream over
+//! little-endian 32-bit words, padded to a whole word, offsets and counts in bytes) or one to
+//! 16 bits (`eR11_unorm_pack16`), in u-major order: for `u` in `0..=N`, for `v` in `0..=N-u`,
+//! the vertex with barycentrics `(N-u-v, u, v)` on the triangle's corners, `N = 2^level`.
+//! Compressed blocks, the bird-curve order and per-triangle values are refused by name. Every
+//! offset, count and level in a file is checked against the bytes there are before anything
+//! is read, so a damaged file gives a one-line error, never a panic or a huge allocation.
+
+use crate::error::{error, fail, Result};
+
+/// The version identifier every file starts with: "«BARY 00100»\r\n\x1A\n".
+pub const MAGIC: [u8; 16] = *b"\xABBARY 00100\xBB\r\n\x1A\n";
+
+/// The deepest subdivision level read: `(2^10 + 1)(2^10 + 2) / 2` values a triangle already.
+pub const MAX_LEVEL: u32 = 10;
+
+const HEADER_BYTES: usize = 40;
+const PROPERTY_INFO_BYTES: usize = 64;
+const VALUES_INFO_BYTES: usize = 24;
+const GROUP_BYTES: usize = 56;
+const TRIANGLE_BYTES: usize = 8;
+
+const VALUES_ID: [u32; 4] = [0xb44d_aa04, 0xc9e0_44d5, 0x9a94_4de0, 0xcfd8_fe35];
+const GROUPS_ID: [u32; 4] = [0x39ee_40d0, 0x9dc4_4517, 0x8e5a_b15d, 0xb09c_74bc];
+const TRIANGLES_ID: [u32; 4] = [0x0045_8e68, 0xee59_426c, 0xb3bf_1b7f, 0x749d_eb8e];
+
+const FORMAT_DISP_C1_BLOCK: u32 = 1_000_397_000;
+const FORMAT_R11_PACK16: u32 = 1_000_397_001;
+const FORMAT_R11_PACKED_ALIGN32: u32 = 1_000_397_002;
+const LAYOUT_U_MAJOR: u32 = 1;
+const LAYOUT_BIRD_CURVE: u32 = 2;
+const FREQUENCY_PER_VERTEX: u32 = 1;
+
+/// The largest 11-bit unorm value: `d = value / 2047 * scale + bias`.
+pub const UNORM11_MAX: u16 = 2047;
+
+/// A micromap's displacement values, as a program uses them.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Micromap {
+    pub groups: Vec<MicromapGroup>,
+    pub triangles: Vec<MicromapTriangle>,
+    /// Every triangle's values, each triangle's in u-major order, back to back.
+    pub values: Vec<u16>,
+}
+
+/// Consecutive triangles sharing one mapping of stored values to displacements.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MicromapGroup {
+    pub triangle_first: u32,
+    pub triangle_count: u32,
+    /// A stored value `q` is the displacement `q / 2047 * scale + bias`.
+    pub bias: f32,
+    pub scale: f32,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MicromapTriangle {
+    pub level: u32,
+    /// Where its values start in [`Micromap::values`].
+    pub first_value: u32,
+}
+
+/// Values of one triangle at `level`: the vertices of its level-`level` lattice.
+pub fn values_per_triangle(level: u32) -> usize {
+    let n = 1usize << level;
+    (n + 1) * (n + 2) / 2
+}
+
+/// Bytes of one triangle's values packed 11 bits each into whole 32-bit words.
+pub fn packed_bytes(level: u32) -> usize {
+    (values_per_triangle(level) * 11).div_ceil(32) * 4
+}
+
+impl Micromap {
+    /// Triangle `t`'s values, u-major.
+    pub fn triangle_values(&self, t: usize) -> &[u16] {
+        let triangle = &self.triangles[t];
+        let first = triangle.first_value as usize;
+        &self.values[first..first + values_per_triangle(triangle.level)]
+    }
+
+    /// A micromap of one group: each triangle's level and values (u-major), in order.
+    pub fn from_triangles(bias: f32, scale: f32, triangles: &[(u32, Vec<u16>)]) -> Micromap {
+        let mut map = Micromap {
+            groups: vec![MicromapGroup {
+                triangle_first: 0,
+                triangle_count: triangles.len() as u32,
+                bias,
+                scale,
+            }],
+            ..Micromap::default()
+        };
+        for (level, values) in triangles {
+            assert_eq!(
+                values.len(),
+                values_per_triangle(*level),
+                "values of a level-{level} triangle"
+            );
+            map.triangles.push(MicromapTriangle {
+                level: *level,
+                first_value: map.values.len() as u32,
+            });
+            map.values.extend(values.iter().map(|&v| v.min(UNORM11_MAX)));
+        }
+        map
+    }
+}
+
+/// Little-endian reads at byte offsets, checked.
+struct Reader<'a>(&'a [u8]);
+
+impl Reader<'_> {
+    fn u32(&self, at: usize) -> Result<u32> {
+        let b = self
+            .0
+            .get(at..at.saturating_add(4))
+            .ok_or_else(|| error!(Input, "truncated at byte {at}"))?;
+        Ok(u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+    }
+
+    fn u64(&self, at: usize) -> Result<u64> {
+        Ok(u64::from(self.u32(at)?) | u64::from(self.u32(at + 4)?) << 32)
+    }
+
+    fn f32(&self, at: usize) -> Result<f32> {
+        Ok(f32::from_bits(self.u32(at)?))
+    }
+}
+
+/// A byte range of the file, checked to lie within it.
+fn range(file: &Reader, at: usize, what: &str) -> Result<std::ops::Range<usize>> {
+    let (offset, length) = (file.u64(at)?, file.u64(at + 8)?);
+    let end = offset.checked_add(length).filter(|&e| e <= file.0.len() as u64);
+    match end {
+        Some(end) => Ok(offset as usize..end as usize),
+        None => fail!(
+            Input,
+            "{what} spans bytes {offset} to {} of a {}-byte file",
+            offset as u128 + length as u128,
+            file.0.len()
+        ),
+    }
+}
+
+/// Reads a `.bary` file's bytes. Errors carry no file name; the caller adds it.
+pub fn read(bytes: &[u8]) -> Result<Micromap> {
+    let file = Reader(bytes);
+    if bytes.len() < HEADER_BYTES || bytes[..16] != MAGIC {
+        let shown = String::from_utf8_lossy(&bytes[..bytes.len().min(16)])
+            .escape_debug()
+            .to_string();
+        fail!(
+            Input,
+            "not a .bary file of version 00100: it starts with \"{shown}\" ({} bytes)",
+            bytes.len()
+        );
+    }
+    let total = file.u64(16)?;
+    if total != bytes.len() as u64 {
+        let what = if total > bytes.len() as u64 {
+            "truncated"
+        } else {
+            "damaged"
+        };
+        fail!(
+            Input,
+            "{what}: its header declares {total} bytes, the file has {}",
+            bytes.len()
+        );
+    }
+    let table = range(&file, 24, "the property table")?;
+    if table.start < HEADER_BYTES || !table.len().is_multiple_of(PROPERTY_INFO_BYTES) {
+        fail!(
+            Input,
+            "damaged property table: {} bytes at byte {}",
+            table.len(),
+            table.start
+        );
+    }
+    let (mut values, mut groups, mut triangles) = (None, None, None);
+    for at in table.clone().step_by(PROPERTY_INFO_BYTES) {
+        let id = [0, 4, 8, 12].map(|k| file.u32(at + k).unwrap_or(0));
+        let slot = match id {
+            VALUES_ID => &mut values,
+            GROUPS_ID => &mut groups,
+            TRIANGLES_ID => &mut triangles,
+            _ => continue,
+        };
+        let name = property_name(id);
+        if file.u32(at + 32)? != 0 {
+            fail!(
+                Input,
+                "its {name} property is supercompressed, which no reader supports"
+            );
+        }
+        let bytes = range(&file, at + 16, &format!("its {name} property"))?;
+        if slot.replace(bytes).is_some() {
+            fail!(Input, "its {name} property appears twice");
+        }
+    }
+    let missing = |name: &str| error!(Input, "it has no {name} property");
+    let values = values.ok_or_else(|| missing("values"))?;
+    let groups = groups.ok_or_else(|| missing("groups"))?;
+    let triangles = triangles.ok_or_else(|| missing("triangles"))?;
+    let stream = value_stream(&file, values)?;
+    decode(&file, &stream, groups, triangles)
+}
+
+fn property_name(id: [u32; 4]) -> &'static str {
+    match id {
+        VALUES_ID => "values",
+        GROUPS_ID => "groups",
+        _ => "triangles",
+    }
+}
+
+/// How the values are stored, and their bytes.
+struct ValueStream<'a> {
+    /// 11-bit values packed into words (offsets in bytes), or one value to two bytes
+    /// (offsets in values).
+    packed: bool,
+    bytes: &'a [u8],
+}
+
+fn value_stream<'a>(file: &Reader<'a>, values: std::ops::Range<usize>) -> Result<ValueStream<'a>> {
+    if values.len() < VALUES_INFO_BYTES {
+        fail!(
+            Input,
+            "its values property has {} bytes, less than its header",
+            values.len()
+        );
+    }
+    let at = values.start;
+    let [format, layout, frequency, count, size, alignment] =
+        [0, 4, 8, 12, 16, 20].map(|k| file.u32(at + k).unwrap_or(0));
+    let packed = match format {
+        FORMAT_R11_PACKED_ALIGN32 => true,
+        FORMAT_R11_PACK16 => false,
+        FORMAT_DISP_C1_BLOCK => fail!(
+            Input,
+            "its values are compressed blocks (eDispC1_r11_unorm_block), which gridrt does not read yet"
+        ),
+        other => fail!(
+            Input,
+            "its values have format {other}: gridrt reads 11-bit unorm displacements (eR11_unorm_packed_align32 or eR11_unorm_pack16)"
+        ),
+    };
+    match layout {
+        LAYOUT_U_MAJOR => {}
+        LAYOUT_BIRD_CURVE => fail!(
+            Input,
+            "its values are in bird-curve order, which gridrt does not read yet"
+        ),
+        other => fail!(Input, "its values have an unknown layout {other}"),
+    }
+    if frequency != FREQUENCY_PER_VERTEX {
+        fail!(
+            Input,
+            "its values are not per vertex (frequency {frequency}): gridrt reads vertex displacements"
+        );
+    }
+    let expected_size = if packed { 1 } else { 2 };
+    if size != expected_size {
+        fail!(
+            Input,
+            "its values claim {size} bytes each where the format has {expected_size}"
+        );
+    }
+    if alignment < 4 || !alignment.is_power_of_two() {
+        fail!(
+            Input,
+            "its values' alignment of {alignment} bytes is not a power of two of at least 4"
+        );
+    }
+    let start = VALUES_INFO_BYTES.next_multiple_of(alignment as usize);
+    let length = count as usize * size as usize;
+    let bytes = file
+        .0
+        .get(at + start..at + start + length)
+        .filter(|_| start + length <= values.len());
+    let bytes = bytes.ok_or_else(|| {
+        error!(
+            Input,
+            "its {count} values of {size} bytes do not fit in its values property of {} bytes",
+            values.len()
+        )
+    })?;
+    Ok(ValueStream { packed, bytes })
+}
+
+/// The groups and triangles, each triangle's values read from the stream.
+fn decode(
+    file: &Reader,
+    stream: &ValueStream,
+    groups: std::ops::Range<usize>,
+    triangles: std::ops::Range<usize>,
+) -> Result<Micromap> {
+    if !groups.len().is_multiple_of(GROUP_BYTES) || !triangles.len().is_multiple_of(TRIANGLE_BYTES) {
+        fail!(
+            Input,
+            "its groups ({} bytes) or triangles ({} bytes) are not whole records",
+            groups.len(),
+            triangles.len()
+        );
+    }
+    let triangle_count = triangles.len() / TRIANGLE_BYTES;
+    let mut map = Micromap::default();
+    let mut next_triangle = 0u32;
+    for (g, at) in groups.step_by(GROUP_BYTES).enumerate() {
+        let [first, count, value_first, value_count] = [0, 4, 8, 12].map(|k| file.u32(at + k).unwrap_or(0));
+        if first != next_triangle || first as usize + count as usize > triangle_count {
+            fail!(
+                Input,
+                "group {g} holds triangles {first} to {} of {triangle_count}: groups must cover the triangles in order",
+                first as u64 + count as u64
+            );
+        }
+        next_triangle = first + count;
+        let unit = if stream.packed { 1 } else { 2 };
+        let group_bytes = (value_first as usize * unit)..(value_first as usize + value_count as usize) * unit;
+        let group_values = stream.bytes.get(group_bytes).ok_or_else(|| {
+            error!(
+                Input,
+                "group {g}'s values {value_first} to {} lie past the values stored",
+                value_first as u64 + value_count as u64
+            )
+        })?;
+        let (bias, scale) = (file.f32(at + 24)?, file.f32(at + 40)?);
+        if !(bias.is_finite() && scale.is_finite()) {
+            fail!(Input, "group {g}'s bias {bias} or scale {scale} is not a finite number");
+        }
+        map.groups.push(MicromapGroup {
+            triangle_first: first,
+            triangle_count: count,
+            bias,
+            scale,
+        });
+        // Offsets ascend, each triangle's values after the last one's: so no file decodes to
+        // more values than it stores.
+        let mut free_from = 0usize;
+        for t in first as usize..(first + count) as usize {
+            let at = triangles.start + t * TRIANGLE_BYTES;
+            let (offset, level) = (file.u32(at)? as usize, file.u32(at + 4)? & 0xffff);
+            if offset < free_from {
+                fail!(
+                    Input,
+                    "triangle {t}'s values at {offset} overlap the triangle before it's"
+                );
+            }
+            let values = triangle_values(stream.packed, group_values, offset, level)
+                .map_err(|e| error!(Input, "triangle {t}: {e}"))?;
+            free_from = offset
+                + if stream.packed {
+                    packed_bytes(level)
+                } else {
+                    values.len()
+                };
+            map.triangles.push(MicromapTriangle {
+                level,
+                first_value: map.values.len() as u32,
+            });
+            map.values.extend(values);
+        }
+    }
+    if next_triangle as usize != triangle_count {
+        fail!(
+            Input,
+            "its groups cover {next_triangle} of its {triangle_count} triangles"
+        );
+    }
+    Ok(map)
+}
+
+/// One triangle's values from its group's bytes.
+fn triangle_values(packed: bool, group: &[u8], offset: usize, level: u32) -> Result<Vec<u16>> {
+    if level > MAX_LEVEL {
+        fail!(
+            Input,
+            "subdivision level {level} is past the deepest gridrt reads ({MAX_LEVEL})"
+        );
+    }
+    let count = values_per_triangle(level);
+    let (start, length) = match packed {
+        true => (offset, packed_bytes(level)),
+        false => (offset * 2, count * 2),
+    };
+    let bytes = group.get(start..start + length).ok_or_else(|| {
+        error!(
+            Input,
+            "its level-{level} values at {offset} lie past its group's {} bytes",
+            group.len()
+        )
+    })?;
+    let word = |k: usize| u32::from_le_bytes([bytes[4 * k], bytes[4 * k + 1], bytes[4 * k + 2], bytes[4 * k + 3]]);
+    Ok((0..count)
+        .map(|i| match packed {
+            true => {
+                // Value i is bits 11i .. 11i + 10 of the stream, which may straddle two words.
+                let bit = 11 * i;
+                let (k, shift) = (bit / 32, bit % 32);
+                let low = word(k) >> shift;
+                let high = if shift > 21 { word(k + 1) << (32 - shift) } else { 0 };
+                ((low | high) & 0x7ff) as u16
+            }
+            false => u16::from_le_bytes([bytes[2 * i], bytes[2 * i + 1]]) & 0x7ff,
+        })
+        .collect())
+}
+
+/// Packs values 11 bits each, LSB first, into little-endian words: [`packed_bytes`] bytes.
+fn pack(values: &[u16], out: &mut Vec<u8>) {
+    let mut words = vec![0u32; (values.len() * 11).div_ceil(32)];
+    for (i, &v) in values.iter().enumerate() {
+        let (bit, v) = (11 * i, u32::from(v.min(UNORM11_MAX)));
+        words[bit / 32] |= v << (bit % 32);
+        if bit % 32 > 21 {
+            words[bit / 32 + 1] |= v >> (32 - bit % 32);
+        }
+    }
+    out.extend(words.iter().flat_map(|w| w.to_le_bytes()));
+}
+
+/// The bytes of a `.bary` file holding `map`: packed 11-bit values (`eR11_unorm_packed_align32`),
+/// u-major, per vertex, its groups and triangles; no optional property.
+pub fn write(map: &Micromap) -> Vec<u8> {
+    let mut values = Vec::new();
+    let mut triangles = Vec::with_capacity(map.triangles.len() * TRIANGLE_BYTES);
+    let mut groups = Vec::with_capacity(map.groups.len() * GROUP_BYTES);
+    for group in &map.groups {
+        let value_first = values.len();
+        let range = group.triangle_first as usize..(group.triangle_first + group.triangle_count) as usize;
+        let levels = range.clone().map(|t| map.triangles[t].level);
+        let (min_level, max_level) = (levels.clone().min().unwrap_or(0), levels.max().unwrap_or(0));
+        for t in range {
+            triangles.extend(((values.len() - value_first) as u32).to_le_bytes());
+            triangles.extend((map.triangles[t].level as u16).to_le_bytes());
+            triangles.extend(0u16.to_le_bytes());
+            pack(map.triangle_values(t), &mut values);
+        }
+        let words = [
+            group.triangle_first,
+            group.triangle_count,
+            value_first as u32,
+            (values.len() - value_first) as u32,
+            min_level,
+            max_level,
+        ];
+        groups.extend(words.iter().flat_map(|w| w.to_le_bytes()));
+        for first in [group.bias, group.scale] {
+            groups.extend([first, 0.0, 0.0, 0.0].iter().flat_map(|f| f.to_le_bytes()));
+        }
+    }
+    let info = [
+        FORMAT_R11_PACKED_ALIGN32,
+        LAYOUT_U_MAJOR,
+        FREQUENCY_PER_VERTEX,
+        values.len() as u32,
+        1,
+        4,
+    ];
+    let values: Vec<u8> = info.iter().flat_map(|w| w.to_le_bytes()).chain(values).collect();
+    let properties = [(VALUES_ID, values), (GROUPS_ID, groups), (TRIANGLES_ID, triangles)];
+    container(&properties)
+}
+
+/// Header, property table and properties (each at an 8-byte boundary).
+fn container(properties: &[([u32; 4], Vec<u8>)]) -> Vec<u8> {
+    let table = properties.len() * PROPERTY_INFO_BYTES;
+    let mut offsets = Vec::new();
+    let mut end = HEADER_BYTES + table;
+    for (_, bytes) in properties {
+        end = end.next_multiple_of(8);
+        offsets.push(end);
+        end += bytes.len();
+    }
+    let mut out = Vec::with_capacity(end);
+    out.extend(MAGIC);
+    out.extend((end as u64).to_le_bytes());
+    out.extend((HEADER_BYTES as u64).to_le_bytes());
+    out.extend((table as u64).to_le_bytes());
+    for ((id, bytes), offset) in properties.iter().zip(&offsets) {
+        out.extend(id.iter().flat_map(|w| w.to_le_bytes()));
+        out.extend((*offset as u64).to_le_bytes());
+        out.extend((bytes.len() as u64).to_le_bytes());
+        // No supercompression: scheme, padding, uncompressed length and global data all zero.
+        out.extend([0u8; 32]);
+    }
+    for ((_, bytes), &offset) in properties.iter().zip(&offsets) {
+        out.resize(offset, 0);
+        out.extend(bytes);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn lcg(seed: &mut u64) -> u64 {
+        *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        *seed >> 33
+    }
+
+    fn sample_map() -> Micromap {
+        let mut seed = 11;
+        let triangles: Vec<(u32, Vec<u16>)> = [0, 1, 2, 3, 5, 3]
+            .iter()
+            .map(|&level| {
+                let values = (0..values_per_triangle(level))
+                    .map(|_| (lcg(&mut seed) % 2048) as u16)
+                    .collect();
+                (level, values)
+            })
+            .collect();
+        Micromap::from_triangles(-0.25, 1.5, &triangles)
+    }
+
+    #[test]
+    fn packed_sizes_match_the_format() {
+        let sizes: Vec<usize> = (0..=5).map(packed_bytes).collect();
+        assert_eq!(sizes, [8, 12, 24, 64, 212, 772]);
+    }
+
+    #[test]
+    fn a_written_file_reads_back_identically() {
+        let map = sample_map();
+        let bytes = write(&map);
+        assert_eq!(read(&bytes).unwrap(), map);
+    }
+
+    /// A file laid out by hand from the format's description, independently of `write`: one
+    /// group, one level-1 triangle (six values), the properties in another order (triangles,
+    /// an unknown property, groups, values) and the values as 16-bit words.
+    #[test]
+    fn a_file_written_by_hand_is_read() {
+        let le = |words: &[u32]| words.iter().flat_map(|w| w.to_le_bytes()).collect::<Vec<u8>>();
+        let values = [0u16, 2047, 1, 1024, 77, 2000];
+        let mut values_property = le(&[FORMAT_R11_PACK16, 1, 1, 6, 2, 4]);
+        values_property.extend(values.iter().flat_map(|v| v.to_le_bytes()));
+        let mut groups_property = le(&[0, 1, 0, 6, 1, 1]);
+        groups_property.extend(le(&[0.5f32.to_bits(), 0, 0, 0, 2.0f32.to_bits(), 0, 0, 0]));
+        let triangles_property = le(&[0, 1]);
+        let unknown = vec![7u8; 12];
+        let properties = [
+            (TRIANGLES_ID, triangles_property),
+            ([1, 2, 3, 4], unknown),
+            (GROUPS_ID, groups_property),
+            (VALUES_ID, values_property),
+        ];
+        let map = read(&container(&properties)).unwrap();
+        assert_eq!(map.groups[0].bias, 0.5);
+        assert_eq!(map.groups[0].scale, 2.0);
+        assert_eq!(
+            map.triangles,
+            vec![MicromapTriangle {
+                level: 1,
+                first_value: 0
+            }]
+        );
+        assert_eq!(map.triangle_values(0), values);
+    }
+
+    /// The packed stream bit by bit: value i at bits 11i .. 11i + 10, straddling words.
+    #[test]
+    fn packing_is_lsb_first_across_words() {
+        let mut out = Vec::new();
+        pack(&[1, 2, 2047], &mut out);
+        let word0 = u32::from_le_bytes(out[0..4].try_into().unwrap());
+        let word1 = u32::from_le_bytes(out[4..8].try_into().unwrap());
+        assert_eq!(word0, 1 | 2 << 11 | (2047 & 0x3ff) << 22);
+        assert_eq!(word1, 2047 >> 10);
+    }
+
+    /// The fuzz target's seeds, written by a script of their own from the format's
+    /// description: packed and 16-bit values, mixed and uniform levels.
+    #[test]
+    fn the_seed_files_read() {
+        let seeds = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../fuzz/corpus/bary"));
+        for (name, levels) in [
+            ("packed_levels_0_to_3.bary", vec![0, 1, 2, 3]),
+            ("pack16_levels_1_2.bary", vec![1, 2]),
+            ("uniform_level_3.bary", vec![3; 4]),
+        ] {
+            let map = read(&std::fs::read(seeds.join(name)).unwrap()).unwrap_or_else(|e| panic!("{name}: {e}"));
+            let read_levels: Vec<u32> = map.triangles.iter().map(|t| t.level).collect();
+            assert_eq!(read_levels, levels, "{name}");
+            // The script's values: (37 i + 101 k) mod 2048 for value i of triangle k.
+            for k in 0..levels.len() {
+                let expected: Vec<u16> = (0..values_per_triangle(levels[k]))
+                    .map(|i| ((37 * i + 101 * k) % 2048) as u16)
+                    .collect();
+                assert_eq!(map.triangle_values(k), expected, "{name} triangle {k}");
+            }
+            assert_eq!((map.groups[0].bias, map.groups[0].scale), (0.0, 1.0));
+        }
+    }
+
+    #[test]
+    fn damaged_files_give_one_line_errors() {
+        let good = write(&sample_map());
+        let expect = |bytes: &[u8], needle: &str| {
+            let e = read(bytes).unwrap_err().to_string();
+            assert!(e.contains(needle) && !e.contains('\n'), "{needle:?}: {e}");
+        };
+        expect(b"not a bary file at all, not at all", "not a .bary file");
+        expect(&good[..good.len() - 4], "truncated: its header declares");
+        let mut compressed = good.clone();
+        let values_at = u64::from_le_bytes(good[56..64].try_into().unwrap()) as usize;
+        compressed[values_at..values_at + 4].copy_from_slice(&FORMAT_DISP_C1_BLOCK.to_le_bytes());
+        expect(&compressed, "compressed blocks");
+        let mut bird = good.clone();
+        bird[values_at + 4] = 2;
+        expect(&bird, "bird-curve order");
+        let mut deep = good.clone();
+        let triangles_at = u64::from_le_bytes(good[184..192].try_into().unwrap()) as usize;
+        deep[triangles_at + 4] = 40;
+        expect(&deep, "triangle 0: subdivision level 40");
+        let mut no_groups = good.clone();
+        no_groups[104..108].copy_from_slice(&[9; 4]);
+        expect(&no_groups, "no groups property");
+        let mut seed = 5;
+        for round in 0..2000 {
+            let mut bytes = good.clone();
+            for _ in 0..1 + round % 4 {
+                let at = (lcg(&mut seed) as usize) % bytes.len();
+                bytes[at] = lcg(&mut seed) as u8;
+            }
+            let _ = read(&bytes);
+        }
+    }
+}
