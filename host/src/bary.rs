@@ -597,8 +597,8 @@ mod tests {
             let read_levels: Vec<u32> = map.triangles.iter().map(|t| t.level).collect();
             assert_eq!(read_levels, levels, "{name}");
             // The script's values: (37 i + 101 k) mod 2048 for value i of triangle k.
-            for k in 0..levels.len() {
-                let expected: Vec<u16> = (0..values_per_triangle(levels[k]))
+            for (k, &level) in levels.iter().enumerate() {
+                let expected: Vec<u16> = (0..values_per_triangle(level))
                     .map(|i| ((37 * i + 101 * k) % 2048) as u16)
                     .collect();
                 assert_eq!(map.triangle_values(k), expected, "{name} triangle {k}");

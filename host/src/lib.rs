@@ -32,6 +32,7 @@ pub mod backend;
 pub mod bary;
 pub mod bvh;
 pub mod camera;
+pub mod displaced;
 pub mod error;
 #[cfg(feature = "gpu")]
 pub mod gpu;

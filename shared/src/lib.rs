@@ -11,6 +11,7 @@ pub mod aabb;
 pub mod buffer;
 pub mod camera;
 pub mod cost;
+pub mod displacement;
 pub mod footprint;
 pub mod grid_index;
 pub mod grid_traverse;

@@ -1,0 +1,211 @@
+//! Displaced micro-meshes: a base mesh, a direction vector per base vertex and a micromap of
+//! 11-bit displacement values per base triangle (see `gridrt_shared::displacement` for what a
+//! micro-vertex is), checked, and decoded into the micro-triangles they stand for.
+//!
+//! The decoded triangles are what a triangle BVH over the same surface traces (the baseline
+//! next to displaced grids) and what `export` writes. Every micro-vertex is computed by the
+//! shared decoder, so a point on a base edge comes out with the same bits from both triangles
+//! that share the edge: welding the decoded mesh's equal positions closes every seam.
+
+use crate::bary::Micromap;
+use crate::error::{fail, Result};
+use crate::mesh::Mesh;
+use gridrt_shared::displacement::{displaced_point, u_major_index, unorm11_displacement, DisplacedTriangle};
+use gridrt_shared::glam::Vec3;
+use gridrt_shared::grid_index::{grid_size, lattice_points, sub_triangle, triangle_count};
+
+/// A base mesh with per-vertex directions and a micromap whose triangle `t` displaces base
+/// triangle `t`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DisplacedMesh {
+    pub positions: Vec<Vec3>,
+    pub directions: Vec<Vec3>,
+    pub triangles: Vec<[u32; 3]>,
+    pub micromap: Micromap,
+}
+
+/// The deepest subdivision level decoded.
+pub const MAX_LEVEL: u32 = 6;
+
+impl DisplacedMesh {
+    /// Refuses what cannot be decoded: directions not one per vertex, a micromap of another
+    /// triangle count, a level past [`MAX_LEVEL`], non-finite positions or directions.
+    /// Errors carry no file name; the caller adds it.
+    pub fn check(&self) -> Result<()> {
+        let (vertices, triangles) = (self.positions.len(), self.triangles.len());
+        if self.directions.len() != vertices {
+            fail!(
+                Input,
+                "{} displacement directions for {vertices} vertices",
+                self.directions.len()
+            );
+        }
+        if self.micromap.triangles.len() != triangles {
+            fail!(
+                Input,
+                "its micromap has {} triangles, its mesh {triangles}",
+                self.micromap.triangles.len()
+            );
+        }
+        if let Some(t) = self.micromap.triangles.iter().position(|t| t.level > MAX_LEVEL) {
+            let level = self.micromap.triangles[t].level;
+            fail!(
+                Input,
+                "triangle {t} is subdivided {level} times, past the deepest gridrt decodes ({MAX_LEVEL})"
+            );
+        }
+        let finite = |v: &[Vec3]| v.iter().position(|p| !p.is_finite());
+        if let Some(i) = finite(&self.positions).or(finite(&self.directions)) {
+            fail!(Input, "vertex {i}'s position or direction is not finite");
+        }
+        if let Some(&bad) = self.triangles.iter().flatten().find(|&&i| i as usize >= vertices) {
+            fail!(Input, "a triangle refers to vertex {bad} of {vertices}");
+        }
+        Ok(())
+    }
+
+    /// Base triangle `t` as the decoder reads it.
+    pub fn base_triangle(&self, t: usize) -> DisplacedTriangle {
+        let ids = self.triangles[t];
+        DisplacedTriangle {
+            positions: ids.map(|i| self.positions[i as usize]),
+            directions: ids.map(|i| self.directions[i as usize]),
+            ids,
+        }
+    }
+
+    /// The bias and scale of the micromap group that holds triangle `t`.
+    fn bias_scale(&self, t: usize) -> (f32, f32) {
+        let group = self
+            .micromap
+            .groups
+            .iter()
+            .find(|g| (g.triangle_first as usize..(g.triangle_first + g.triangle_count) as usize).contains(&t));
+        group.map_or((0.0, 1.0), |g| (g.bias, g.scale))
+    }
+
+    /// Every micro-vertex of triangle `t` at its level, in lattice order.
+    pub fn micro_vertices(&self, t: usize) -> Vec<Vec3> {
+        let level = self.micromap.triangles[t].level;
+        let n = grid_size(level);
+        let base = self.base_triangle(t);
+        let values = self.micromap.triangle_values(t);
+        let (bias, scale) = self.bias_scale(t);
+        lattice_points(n)
+            .map(|p| {
+                let q = values[u_major_index(p, n) as usize];
+                displaced_point(&base, p, n, unorm11_displacement(q as u32, scale, bias))
+            })
+            .collect()
+    }
+
+    /// The micro-triangles, each base triangle's at its own level, with the parent's winding.
+    /// Vertices are stored per base triangle (those on shared edges once for each side, with
+    /// equal bits); `WorldMesh::validate` welds them.
+    pub fn decoded(&self) -> Mesh {
+        let mut mesh = Mesh::default();
+        for t in 0..self.triangles.len() {
+            let level = self.micromap.triangles[t].level;
+            let n = grid_size(level);
+            let first = mesh.positions.len() as u32;
+            mesh.positions.extend(self.micro_vertices(t));
+            let index = |[i, j]: [u32; 2]| first + gridrt_shared::grid_index::lattice_index(i, j, n);
+            mesh.triangles
+                .extend((0..triangle_count(level)).map(|k| sub_triangle(n, level, k).map(index)));
+        }
+        mesh
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bary::{values_per_triangle, Micromap};
+    use crate::mesh::WorldMesh;
+
+    /// Two triangles sharing the edge between vertices 1 and 2, in opposite orientations,
+    /// whose values agree on that edge (as a micromap's must) and differ elsewhere.
+    fn two_triangles(level: u32) -> DisplacedMesh {
+        let n = grid_size(level);
+        let positions = vec![
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(1.3, 0.1, 0.0),
+            Vec3::new(0.2, 1.1, 0.1),
+            Vec3::new(1.4, 1.2, -0.2),
+        ];
+        let directions = vec![Vec3::Z, Vec3::new(0.1, 0.0, 0.9), Vec3::new(0.0, 0.2, 1.1), Vec3::Z];
+        let triangles = vec![[0, 1, 2], [3, 2, 1]];
+        // Any values inside; on the shared edge, the same function of the distance from
+        // vertex 1 on both sides. Triangle 0's corners 1 and 2 are vertices 1 and 2: the point
+        // k steps from vertex 1 is (n - k, k). Triangle 1's corners 1 and 2 are vertices 2 and
+        // 1: the same point is (k, n - k).
+        let values = |t: u32, edge: fn(u32, u32) -> [u32; 2]| -> Vec<u16> {
+            let mut v = vec![0u16; values_per_triangle(level)];
+            for [i, j] in lattice_points(n) {
+                v[u_major_index([i, j], n) as usize] = ((500 + 13 * i + 7 * j + 300 * t) % 2048) as u16;
+            }
+            for k in 0..=n {
+                v[u_major_index(edge(k, n), n) as usize] = (100 + 37 * k) as u16;
+            }
+            v
+        };
+        let first = values(0, |k, n| [n - k, k]);
+        let second = values(1, |k, n| [k, n - k]);
+        DisplacedMesh {
+            positions,
+            directions,
+            triangles,
+            micromap: Micromap::from_triangles(-0.05, 0.2, &[(level, first), (level, second)]),
+        }
+    }
+
+    #[test]
+    fn shared_edges_weld_into_one_watertight_seam() {
+        for level in [0, 1, 3] {
+            let mesh = two_triangles(level);
+            mesh.check().unwrap();
+            let decoded = mesh.decoded();
+            let n = grid_size(level);
+            assert_eq!(decoded.triangles.len(), 2 * triangle_count(level) as usize);
+            let (welded, cleaning) = WorldMesh::from(decoded).validate("decoded").unwrap();
+            // The n + 1 points of the shared edge are decoded twice, bit for bit.
+            assert_eq!(cleaning.welded, n as usize + 1, "level {level}");
+            assert_eq!(
+                welded.positions.len(),
+                2 * values_per_triangle(level) - (n as usize + 1),
+                "level {level}"
+            );
+        }
+    }
+
+    #[test]
+    fn values_move_vertices_along_their_directions() {
+        let mesh = two_triangles(2);
+        let vertices = mesh.micro_vertices(0);
+        // Corner 0 (vertex 0): value of lattice (0, 0), displaced along +z from the origin.
+        let q = mesh.micromap.triangle_values(0)[0];
+        let d = unorm11_displacement(q as u32, 0.2, -0.05);
+        assert_eq!(vertices[0], Vec3::new(0.0, 0.0, d));
+    }
+
+    #[test]
+    fn inconsistent_meshes_are_refused() {
+        let mut mesh = two_triangles(1);
+        mesh.directions.pop();
+        assert!(mesh
+            .check()
+            .unwrap_err()
+            .to_string()
+            .contains("3 displacement directions for 4 vertices"));
+        let mut mesh = two_triangles(1);
+        mesh.triangles.push([0, 1, 3]);
+        assert!(mesh
+            .check()
+            .unwrap_err()
+            .to_string()
+            .contains("micromap has 2 triangles, its mesh 3"));
+        let mut mesh = two_triangles(1);
+        mesh.micromap.triangles[1].level = 9;
+        assert!(mesh.check().unwrap_err().to_string().contains("subdivided 9 times"));
+    }
+}

@@ -1,0 +1,181 @@
+//! Displaced micro-vertices: a point of a base triangle's level-`L` lattice moved along the
+//! interpolated direction by its displacement, `p = lerp(P) + lerp(D) * d`, as NVIDIA's
+//! displacement micro-maps define them (`P` the base corners, `D` their direction vectors,
+//! neither normalised; `d` the stored value mapped by the micromap's bias and scale).
+//!
+//! Watertight by construction: a point on a base edge is interpolated from the two corners of
+//! that edge alone, always from the corner with the smaller vertex id towards the other, so
+//! the two triangles that share the edge (whatever their orientation and corner order)
+//! compute the same bits for it from the same value; a corner is its own position and
+//! direction. Points inside a triangle belong to it alone.
+//!
+//! Lattice point `(i, j)` of a triangle with lattice size `n = 2^L` has barycentrics
+//! `(n - i - j, i, j) / n` on corners `(0, 1, 2)`, as in [`crate::grid_index`], and is
+//! value `i * (n + 1) - i * (i - 1) / 2 + j` of the triangle's values in u-major order.
+
+use crate::glam::Vec3;
+use crate::grid_index::Lattice;
+
+/// The largest 11-bit unorm value.
+pub const UNORM11_MAX: u32 = 2047;
+
+/// A base triangle as displacement needs it: its corners' positions, directions and vertex
+/// ids (which order the interpolation along its edges).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DisplacedTriangle {
+    pub positions: [Vec3; 3],
+    pub directions: [Vec3; 3],
+    pub ids: [u32; 3],
+}
+
+/// The displacement a stored 11-bit value stands for: `q / 2047 * scale + bias`.
+#[inline]
+pub fn unorm11_displacement(q: u32, scale: f32, bias: f32) -> f32 {
+    q as f32 / UNORM11_MAX as f32 * scale + bias
+}
+
+/// Where lattice point `(i, j)`'s value sits among a triangle's u-major values.
+#[inline]
+pub const fn u_major_index(p: Lattice, n: u32) -> u32 {
+    let [i, j] = p;
+    i * (n + 1) - (i * i - i) / 2 + j
+}
+
+/// Lattice point `p` of `triangle`'s size-`n` lattice, displaced by `d`.
+#[inline]
+pub fn displaced_point(triangle: &DisplacedTriangle, p: Lattice, n: u32, d: f32) -> Vec3 {
+    let (position, direction) = interpolated(triangle, p, n);
+    position + direction * d
+}
+
+/// The position and direction interpolated at lattice point `p` (see the module docs for the
+/// order of operations on edges).
+#[inline]
+pub fn interpolated(triangle: &DisplacedTriangle, p: Lattice, n: u32) -> (Vec3, Vec3) {
+    let [i, j] = p;
+    let weights = [n - i - j, i, j];
+    let t = &triangle;
+    // A corner is its own position and direction, exactly.
+    let corner = if weights[0] == n {
+        0
+    } else if i == n {
+        1
+    } else if j == n {
+        2
+    } else {
+        3
+    };
+    if corner < 3 {
+        return (t.positions[corner], t.directions[corner]);
+    }
+    // The corners this point lies between: on an edge exactly two weights are non-zero.
+    let zero = if weights[0] == 0 {
+        0
+    } else if weights[1] == 0 {
+        1
+    } else if weights[2] == 0 {
+        2
+    } else {
+        3
+    };
+    if zero == 3 {
+        let (u, v) = (i as f32 / n as f32, j as f32 / n as f32);
+        let [p0, p1, p2] = t.positions;
+        let [d0, d1, d2] = t.directions;
+        return (p0 + (p1 - p0) * u + (p2 - p0) * v, d0 + (d1 - d0) * u + (d2 - d0) * v);
+    }
+    // The edge's two corners, from the smaller vertex id.
+    let (a, b) = ((zero + 1) % 3, (zero + 2) % 3);
+    let (from, to) = if t.ids[a] <= t.ids[b] { (a, b) } else { (b, a) };
+    let s = weights[to] as f32 / n as f32;
+    (
+        t.positions[from] + (t.positions[to] - t.positions[from]) * s,
+        t.directions[from] + (t.directions[to] - t.directions[from]) * s,
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::grid_index::lattice_points;
+
+    fn triangle(ids: [u32; 3]) -> DisplacedTriangle {
+        DisplacedTriangle {
+            positions: [
+                Vec3::new(0.1, 0.2, 0.3),
+                Vec3::new(1.7, -0.2, 0.1),
+                Vec3::new(0.3, 1.9, -0.7),
+            ],
+            directions: [
+                Vec3::new(0.0, 0.3, 1.0),
+                Vec3::new(0.2, 0.1, 0.9),
+                Vec3::new(-0.1, 0.0, 1.1),
+            ],
+            ids,
+        }
+    }
+
+    /// The u-major order counts every lattice point once, in order.
+    #[test]
+    fn u_major_indices_enumerate_the_lattice() {
+        let n = 8;
+        let mut seen = [false; 45];
+        for u in 0..=n {
+            for v in 0..=n - u {
+                let k = u_major_index([u, v], n) as usize;
+                assert!(!seen[k]);
+                seen[k] = true;
+            }
+        }
+        assert!(seen.iter().all(|&s| s));
+        assert_eq!(u_major_index([0, 1], 8), 1);
+        assert_eq!(u_major_index([1, 0], 8), 9);
+    }
+
+    /// Corners are exact, and the same edge read from either side gives the same bits.
+    #[test]
+    fn shared_edges_decode_alike_from_both_sides() {
+        let n = 16;
+        let t = triangle([40, 7, 12]);
+        for (c, p) in [[0, 0], [n, 0], [0, n]].into_iter().enumerate() {
+            assert_eq!(displaced_point(&t, p, n, 0.5), t.positions[c] + t.directions[c] * 0.5);
+        }
+        // The edge from corner 1 to corner 2, seen by a neighbour whose corners 0 and 2 are
+        // this triangle's 2 and 1 (the opposite orientation).
+        let other = DisplacedTriangle {
+            positions: [t.positions[2], Vec3::new(2.0, 2.0, 2.0), t.positions[1]],
+            directions: [t.directions[2], Vec3::Z, t.directions[1]],
+            ids: [12, 99, 7],
+        };
+        for k in 0..=n {
+            // (n - k, k) on this triangle is k steps from corner 1 towards corner 2; on the
+            // other, the same point is (0, n - k): n - k steps from its corner 0 (id 12).
+            let here = displaced_point(&t, [n - k, k], n, 0.25);
+            let there = displaced_point(&other, [0, n - k], n, 0.25);
+            assert_eq!(
+                here.to_array().map(f32::to_bits),
+                there.to_array().map(f32::to_bits),
+                "k = {k}"
+            );
+        }
+    }
+
+    /// Interpolation reproduces the base triangle when nothing is displaced.
+    #[test]
+    fn without_displacement_points_lie_on_the_base_triangle() {
+        let n = 8;
+        let t = triangle([0, 1, 2]);
+        for p in lattice_points(n) {
+            let [i, j] = p;
+            let w = [(n - i - j) as f32, i as f32, j as f32].map(|w| w / n as f32);
+            let expected = t.positions[0] * w[0] + t.positions[1] * w[1] + t.positions[2] * w[2];
+            assert!((displaced_point(&t, p, n, 0.0) - expected).length() < 1e-6, "{p:?}");
+        }
+    }
+
+    #[test]
+    fn unorm_values_span_bias_to_bias_plus_scale() {
+        assert_eq!(unorm11_displacement(0, 2.0, -0.5), -0.5);
+        assert_eq!(unorm11_displacement(UNORM11_MAX, 2.0, -0.5), 1.5);
+    }
+}
