@@ -27,6 +27,12 @@
 //! [`quantize`] may snap its inner vertices to 16 bits), [`grid`] and [`triangles`] build the
 //! two representations (each over [`bvh`]), and a [`backend`] traces them: the CPU
 //! ([`scene`]) or the GPU (`gpu`), with the one implementation in `gridrt_shared`.
+//!
+//! Displaced micro-meshes (a base mesh, directions, and a micromap of 11-bit values per
+//! triangle) are taking shape beside them: [`bary`] reads and writes micromaps, [`displaced`]
+//! decodes them into micro-triangles through `gridrt_shared::displacement`, and
+//! [`micromesh_gltf`] writes them as glTF with NVIDIA's micromap extensions. [`surface_distance`]
+//! measures how far apart two surfaces are (`gridrt compare`).
 
 pub mod backend;
 pub mod bary;
@@ -42,6 +48,7 @@ pub mod image_io;
 pub mod limits;
 pub mod lod;
 pub mod mesh;
+pub mod micromesh_gltf;
 pub mod pipeline;
 pub mod quantize;
 pub mod rays;
