@@ -118,8 +118,18 @@ fn glb_chunks(bytes: &[u8]) -> Result<(&[u8], Option<&[u8]>)> {
     Ok((json, bin))
 }
 
-/// Reads the document's default scene into one mesh.
-fn parse_document(json: &[u8], bin: Option<&[u8]>, folder: Option<&Path>) -> Result<WorldMesh> {
+/// A glTF document checked and ready to read: the crate's view of it, its JSON as plain
+/// values (for numbers in full precision and for extensions), its buffers' bytes, and the
+/// nodes its scene draws with their transforms, parents first.
+pub(super) struct OpenedGltf {
+    pub document: gltf::Document,
+    pub raw: Value,
+    pub buffers: Vec<Vec<u8>>,
+    pub drawn: Vec<(usize, DMat4)>,
+}
+
+/// Parses and checks a document (the JSON, and a GLB's binary chunk if any).
+pub(super) fn open_document(json: &[u8], bin: Option<&[u8]>, folder: Option<&Path>) -> Result<OpenedGltf> {
     // The text as plain JSON first: for the node transforms' numbers in full precision, and
     // for what the crate's validation would index without checking.
     let raw: Value = serde_json::from_slice(json).map_err(|e| error!(Input, "{e}"))?;
@@ -128,11 +138,34 @@ fn parse_document(json: &[u8], bin: Option<&[u8]>, folder: Option<&Path>) -> Res
     let transforms = node_transforms(&raw, document.nodes().len())?;
     check_node_trees(&document)?;
     let buffers = load_buffers(&document, bin, folder)?;
+    let drawn = (scene_nodes(&document, &transforms)?.into_iter())
+        .map(|(node, transform)| (node.index(), transform))
+        .collect();
+    Ok(OpenedGltf {
+        document,
+        raw,
+        buffers,
+        drawn,
+    })
+}
+
+/// The JSON and binary chunk of a `.gltf` or `.glb` file's bytes.
+pub(super) fn split_file(bytes: &[u8]) -> Result<(&[u8], Option<&[u8]>)> {
+    match bytes.starts_with(b"glTF") {
+        true => glb_chunks(bytes),
+        false => Ok((bytes, None)),
+    }
+}
+
+/// Reads the document's default scene into one mesh.
+fn parse_document(json: &[u8], bin: Option<&[u8]>, folder: Option<&Path>) -> Result<WorldMesh> {
+    let opened = open_document(json, bin, folder)?;
+    let nodes: Vec<gltf::Node> = opened.document.nodes().collect();
     let mut mesh = WorldMesh::default();
-    for (node, transform) in scene_nodes(&document, &transforms)? {
-        let Some(m) = node.mesh() else { continue };
+    for &(n, transform) in &opened.drawn {
+        let Some(m) = nodes[n].mesh() else { continue };
         for primitive in m.primitives() {
-            add_primitive(&mut mesh, &primitive, &transform, &buffers)
+            add_primitive(&mut mesh, &primitive, &transform, &opened.buffers)
                 .map_err(|e| error!(Input, "mesh {} primitive {}: {e}", m.index(), primitive.index()))?;
         }
     }
@@ -317,7 +350,7 @@ fn load_buffers(document: &gltf::Document, bin: Option<&[u8]>, folder: Option<&P
 }
 
 /// The bytes a buffer's `uri` names, and where they came from (for messages).
-fn read_uri(uri: &str, folder: Option<&Path>) -> Result<(Vec<u8>, String)> {
+pub(super) fn read_uri(uri: &str, folder: Option<&Path>) -> Result<(Vec<u8>, String)> {
     if let Some(data) = uri.strip_prefix("data:") {
         let Some((_, encoded)) = data.split_once(";base64,") else {
             fail!(Input, "its data URI is not base64-encoded");
@@ -468,7 +501,7 @@ impl<'a> Elements<'a> {
 }
 
 /// Names of the types and component types the specification numbers.
-fn describe(accessor: &gltf::Accessor) -> String {
+pub(super) fn describe(accessor: &gltf::Accessor) -> String {
     let component = match accessor.data_type() {
         DataType::I8 => "BYTE",
         DataType::U8 => "UNSIGNED_BYTE",
@@ -483,7 +516,7 @@ fn describe(accessor: &gltf::Accessor) -> String {
 
 /// An accessor's values as `f64`, each element's `N` components; its sparse substitutions
 /// applied. The caller has checked its type.
-fn read_accessor<const N: usize>(accessor: &gltf::Accessor, buffers: &[Vec<u8>]) -> Result<Vec<[f64; N]>> {
+pub(super) fn read_accessor<const N: usize>(accessor: &gltf::Accessor, buffers: &[Vec<u8>]) -> Result<Vec<[f64; N]>> {
     let ty = accessor.data_type();
     let width = ty.size();
     let decode =
@@ -537,7 +570,7 @@ fn component(ty: DataType, b: &[u8]) -> f64 {
     }
 }
 
-fn add_primitive(
+pub(super) fn add_primitive(
     mesh: &mut WorldMesh,
     primitive: &gltf::Primitive,
     transform: &DMat4,

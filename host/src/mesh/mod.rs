@@ -13,6 +13,7 @@ use gridrt_shared::glam::{DVec3, Vec3};
 
 pub mod frame;
 pub mod gltf;
+pub mod gltf_micromap;
 pub mod obj;
 pub mod ply;
 pub mod scene;
