@@ -950,3 +950,86 @@ fn compare_measures_the_distance_between_surfaces() {
     let max: f64 = both.split('|').nth(4).unwrap().trim().parse().unwrap();
     assert!(max < 1e-12 && both.ends_with("| 4000 |"), "{table}");
 }
+
+/// A displaced micro-mesh (glTF + .bin + .bary as gridrt writes them) renders, measures and
+/// exports as its decoded micro-triangles, welded along the shared base edge, and says so;
+/// the benchmark, which needs displaced grids, refuses it by name.
+#[test]
+fn displaced_micro_meshes_are_decoded_not_subdivided() {
+    use gridrt::bary::{values_per_triangle, Micromap};
+    use gridrt::displaced::DisplacedMesh;
+    use gridrt::mesh::frame::LocalFrame;
+    use gridrt_shared::glam::Vec3;
+
+    let dir = scratch("displaced");
+    let level = 3;
+    let values = |seed: u32| -> Vec<u16> {
+        (0..values_per_triangle(level) as u32)
+            .map(|k| ((k * 7919 + seed) % 2048) as u16)
+            .collect()
+    };
+    // Values on the shared edge (vertices 1 and 2) must agree: constant there on both sides.
+    let mut first = values(1);
+    let mut second = values(2);
+    let n = 1u32 << level;
+    for k in 0..=n {
+        first[gridrt_shared::displacement::u_major_index([n - k, k], n) as usize] = 1000;
+        second[gridrt_shared::displacement::u_major_index([k, n - k], n) as usize] = 1000;
+    }
+    let mesh = DisplacedMesh {
+        positions: vec![
+            Vec3::new(-1.0, -1.0, 0.0),
+            Vec3::new(1.0, -1.0, 0.0),
+            Vec3::new(-1.0, 1.0, 0.0),
+            Vec3::new(1.0, 1.0, 0.0),
+        ],
+        directions: vec![Vec3::Z; 4],
+        triangles: vec![[0, 1, 2], [3, 2, 1]],
+        micromap: Micromap::from_triangles(-0.1, 0.2, &[(level, first), (level, second)]),
+    };
+    let gltf = dir.join("baked.gltf");
+    gridrt::micromesh_gltf::write(&gltf, &mesh, &LocalFrame::IDENTITY).unwrap();
+    let g = gltf.to_str().unwrap();
+
+    let png = dir.join("baked.png");
+    let o = gridrt(&[
+        "render",
+        g,
+        "--backend",
+        "cpu",
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("a displaced micro-mesh of 2 base triangles at level 3: its 128 decoded micro-triangles"),
+        "{err}"
+    );
+    check_png(&png, 64, 48);
+
+    let ply = dir.join("decoded.ply");
+    let o = gridrt(&["export", g, "-o", ply.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let decoded = gridrt::mesh::ply::parse_ply(&std::fs::read(&ply).unwrap()).unwrap();
+    // 45 lattice points a triangle, the 9 of the shared edge welded into one row.
+    assert_eq!((decoded.triangles.len(), decoded.positions.len()), (128, 81));
+
+    let o = gridrt(&["stats", g, "--json"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let stats: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(
+        (stats["levels"].as_u64(), stats["micro_triangles"].as_u64()),
+        (Some(0), Some(128))
+    );
+
+    fails_with(
+        &["bench", g],
+        &[],
+        &["baked.gltf", "displaced micro-mesh", "not built yet"],
+    );
+}

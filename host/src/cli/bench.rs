@@ -147,6 +147,13 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
         .iter()
         .map(|path| super::load(Some(path)))
         .collect::<Result<Vec<_>>>()?;
+    if let Some(input) = meshes.iter().find(|m| m.displaced.is_some()) {
+        bail!(
+            "{}: a displaced micro-mesh: benchmarking it against its decoded triangles needs displaced grids, \
+             which are not built yet",
+            input.name
+        );
+    }
     let rays_per_view = args.width as u64 * args.height as u64 * (1 + args.ao_samples as u64);
     let ray_bytes = (args.views as u64 * rays_per_view).saturating_mul(RAY_BYTES);
     for Input { name, mesh, .. } in &meshes {

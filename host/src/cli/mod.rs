@@ -235,7 +235,7 @@ impl BuildArgs {
     }
 }
 
-#[derive(clap::Args, Debug)]
+#[derive(clap::Args, Debug, Clone)]
 pub struct RenderArgs {
     /// Meshes to render together (.obj, .ply, .gltf or .glb); the built-in scene when none.
     pub meshes: Vec<PathBuf>,
@@ -375,6 +375,16 @@ impl RenderArgs {
     /// Host bytes of the image being rendered and written.
     fn image_bytes(&self) -> u64 {
         (self.width as u64 * self.height as u64).saturating_mul(limits::IMAGE_BYTES_PER_PIXEL)
+    }
+
+    /// These arguments for a displaced micro-mesh's decoded micro-triangles: built as they
+    /// are (no further subdivision, one depth).
+    fn as_decoded(&self) -> RenderArgs {
+        let mut args = self.clone();
+        args.build.levels = 0;
+        args.build.subdivision = SubdivisionArg::Flat;
+        args.lod = None;
+        args
     }
 
     /// The library's build options for these arguments.
@@ -543,7 +553,19 @@ pub fn load(path: Option<&Path>) -> Result<Input> {
 pub fn load_all(paths: &[&Path]) -> Result<Input> {
     let input = mesh::open_all(paths)?;
     let cleaning = &input.cleaning;
-    if cleaning.welded > 0 {
+    if let Some(d) = input.displaced {
+        let levels = match d.min_level == d.max_level {
+            true => format!("level {}", d.max_level),
+            false => format!("levels {} to {}", d.min_level, d.max_level),
+        };
+        eprintln!(
+            "note: {}: a displaced micro-mesh of {} base triangles at {levels}: its {} decoded micro-triangles are \
+             traced as they are (displaced grids are not built yet)",
+            input.name,
+            d.base_triangles,
+            input.mesh.triangles.len()
+        );
+    } else if cleaning.welded > 0 {
         eprintln!(
             "note: {}: welded {} vertices to others at the same position (split at seams, or unindexed)",
             input.name, cleaning.welded
@@ -615,7 +637,22 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
         image_io::check_png_path(output)?;
     }
     let paths: Vec<&Path> = args.meshes.iter().map(PathBuf::as_path).collect();
-    let Input { name, mesh, frame, .. } = stages.run("load", || load_all(&paths))?;
+    let Input {
+        name,
+        mesh,
+        frame,
+        displaced,
+        ..
+    } = stages.run("load", || load_all(&paths))?;
+    // A displaced micro-mesh arrives decoded: its micro-triangles are traced as they are.
+    let as_decoded;
+    let (args, options, lod) = match displaced {
+        Some(_) => {
+            as_decoded = args.as_decoded();
+            (&as_decoded, as_decoded.build_options(), 0)
+        }
+        None => (args, options, lod),
+    };
     let viewpoint = args.camera.viewpoint(&frame);
     // A view with no direction is refused before the build (bounds only matter for defaults).
     check_render_memory(&name, &mesh, args)?;
@@ -739,20 +776,28 @@ fn export(args: &ExportArgs, stages: &mut Stages) -> Result<()> {
     image_io::check_output(&args.output, "ply")?;
     let inputs: Vec<&Path> = args.mesh.iter().map(PathBuf::as_path).collect();
     image_io::check_not_input(&args.output, &inputs)?;
-    let Input { name, mesh, frame, .. } = stages.run("load", || load(args.mesh.as_deref()))?;
+    let Input {
+        name,
+        mesh,
+        frame,
+        displaced,
+        ..
+    } = stages.run("load", || load(args.mesh.as_deref()))?;
+    // A displaced micro-mesh is written as its decoded micro-triangles.
+    let levels = if displaced.is_some() { 0 } else { args.levels };
     limits::check_build(
         &format!("subdividing {name}"),
         mesh.triangles.len(),
-        args.levels,
+        levels,
         limits::Builds::Grids,
         0,
         "use fewer --levels",
     )?;
     let sub = stages.run("subdivide", || {
         let creases = subdiv::Creases::chosen(&mesh, args.crease_angle);
-        subdiv::subdivide_creased(&mesh, args.levels, args.subdivision.scheme(), &creases)
+        subdiv::subdivide_creased(&mesh, levels, args.subdivision.scheme(), &creases)
     });
-    let triangles = sub.micro_triangles(args.levels);
+    let triangles = sub.micro_triangles(levels);
     stages.run("write", || {
         let positions: Vec<_> = sub.positions.iter().map(|&p| frame.to_world(p).as_vec3()).collect();
         mesh::ply::write_ply(&args.output, &positions, &triangles)
@@ -761,7 +806,7 @@ fn export(args: &ExportArgs, stages: &mut Stages) -> Result<()> {
         "{name}: {} micro-triangles, {} vertices at --levels {} -> {}",
         triangles.len(),
         sub.positions.len(),
-        args.levels,
+        levels,
         args.output.display()
     ));
     stages.report();

@@ -160,11 +160,21 @@ pub fn spinner(quiet: bool) -> ProgressBar {
 pub fn run(args: &StatsArgs, quiet: bool) -> Result<()> {
     let bar = spinner(quiet);
     bar.set_message("loading");
-    let Input { name, mesh, .. } = super::load(args.mesh.as_deref())?;
-    check_work(&name, &mesh, &args.build, 0)?;
+    let Input {
+        name, mesh, displaced, ..
+    } = super::load(args.mesh.as_deref())?;
+    // A displaced micro-mesh arrives decoded: its micro-triangles are measured as they are.
+    let build = match displaced {
+        Some(_) => BuildArgs {
+            levels: 0,
+            ..args.build.clone()
+        },
+        None => args.build.clone(),
+    };
+    check_work(&name, &mesh, &build, 0)?;
     bar.set_message(format!("{name}: subdividing"));
-    let sub = super::subdivide(&mesh, &args.build);
-    let (s, _, _) = measure(&name, &mesh, &sub, &args.build, BUILD_REPEATS, &|step| {
+    let sub = super::subdivide(&mesh, &build);
+    let (s, _, _) = measure(&name, &mesh, &sub, &build, BUILD_REPEATS, &|step| {
         bar.set_message(format!("{name}: {step}"))
     })?;
     bar.finish_and_clear();

@@ -282,6 +282,17 @@ pub struct Input {
     /// What cleaning changed or found, summed over the files: vertices welded, degenerate
     /// triangles dropped, triangles without area.
     pub cleaning: Cleaning,
+    /// Set when the input is a displaced micro-mesh: `mesh` then holds its decoded
+    /// micro-triangles, to be traced as they are (no further subdivision).
+    pub displaced: Option<DisplacedSource>,
+}
+
+/// A displaced micro-mesh that was loaded as its decoded micro-triangles.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DisplacedSource {
+    pub base_triangles: usize,
+    pub min_level: u32,
+    pub max_level: u32,
 }
 
 /// Loads `path` (`.obj`, `.ply`, `.gltf` or `.glb`), or the built-in scene when `None`, and moves it into its
@@ -301,12 +312,26 @@ pub fn open_all(paths: &[&Path]) -> Result<Input> {
             mesh,
             frame,
             cleaning: Cleaning::default(),
+            displaced: None,
         });
     };
-    let (mut all, mut cleaning) = load_world(first)?;
+    let (mut all, mut cleaning, displaced) = load_file(first)?;
     let mut name = first.display().to_string();
     for path in &paths[1..] {
-        let (next, next_cleaning) = load_world(path)?;
+        let (next, next_cleaning, next_displaced) = load_file(path)?;
+        if displaced.is_some() != next_displaced.is_some() {
+            let (micro, plain) = if displaced.is_some() {
+                (first, path)
+            } else {
+                (path, first)
+            };
+            fail!(
+                Input,
+                "{} is a displaced micro-mesh and {} is not: render them apart",
+                micro.display(),
+                plain.display()
+            );
+        }
         let base = all.positions.len() as u32;
         all.positions.extend(next.positions);
         all.triangles.extend(next.triangles.iter().map(|t| t.map(|i| base + i)));
@@ -319,6 +344,7 @@ pub fn open_all(paths: &[&Path]) -> Result<Input> {
         mesh,
         frame,
         cleaning,
+        displaced,
     })
 }
 
@@ -328,8 +354,15 @@ pub fn load_mesh_quiet(path: &Path) -> Result<(Mesh, usize)> {
     Ok((mesh.to_f32(), cleaning.dropped))
 }
 
-/// Loads and validates one file, in its own units and in double precision.
+/// Loads and validates one file, in its own units and in double precision (a displaced
+/// micro-mesh as its decoded micro-triangles).
 pub fn load_world(path: &Path) -> Result<(WorldMesh, Cleaning)> {
+    let (mesh, cleaning, _) = load_file(path)?;
+    Ok((mesh, cleaning))
+}
+
+/// [`load_world`], saying whether the file was a displaced micro-mesh.
+fn load_file(path: &Path) -> Result<(WorldMesh, Cleaning, Option<DisplacedSource>)> {
     let name = path.display().to_string();
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     if !matches!(ext.as_deref(), Some("obj" | "ply" | "gltf" | "glb")) {
@@ -339,6 +372,14 @@ pub fn load_world(path: &Path) -> Result<(WorldMesh, Cleaning)> {
     if bytes.is_empty() {
         fail!(Input, "{name}: no triangles (empty file)");
     }
+    let is_gltf = matches!(ext.as_deref(), Some("gltf" | "glb"));
+    if is_gltf && bytes.windows(24).any(|w| w == b"NV_displacement_micromap") {
+        if let Some(displaced) = decode_displaced(&bytes, path)? {
+            let (world, source) = displaced;
+            let (mesh, cleaning) = world.validate(&name)?;
+            return Ok((mesh, cleaning, Some(source)));
+        }
+    }
     let parsed = match ext.as_deref() {
         Some("obj") => obj::parse_obj(&bytes),
         Some("ply") => ply::parse_ply(&bytes),
@@ -346,7 +387,32 @@ pub fn load_world(path: &Path) -> Result<(WorldMesh, Cleaning)> {
         _ => gltf::parse_gltf(&bytes, path.parent()),
     };
     let mesh = parsed.map_err(|e| error!(Input, "{name}: {}", one_line(&e.to_string())))?;
-    mesh.validate(&name)
+    let (mesh, cleaning) = mesh.validate(&name)?;
+    Ok((mesh, cleaning, None))
+}
+
+/// A displaced glTF's decoded micro-triangles in the file's units, or `None` when no
+/// primitive is displaced.
+fn decode_displaced(bytes: &[u8], path: &Path) -> Result<Option<(WorldMesh, DisplacedSource)>> {
+    let name = path.display();
+    let named = |e: crate::error::Error| error!(Input, "{name}: {}", one_line(&e.to_string()));
+    let Some(displaced) = gltf_micromap::parse_displaced(bytes, path.parent()).map_err(named)? else {
+        return Ok(None);
+    };
+    let (local, frame) = displaced.into_local();
+    local.check().map_err(named)?;
+    let levels = local.micromap.triangles.iter().map(|t| t.level);
+    let source = DisplacedSource {
+        base_triangles: local.triangles.len(),
+        min_level: levels.clone().min().unwrap_or(0),
+        max_level: levels.max().unwrap_or(0),
+    };
+    let decoded = local.decoded();
+    let world = WorldMesh {
+        positions: decoded.positions.iter().map(|&p| frame.to_world(p)).collect(),
+        triangles: decoded.triangles,
+    };
+    Ok(Some((world, source)))
 }
 
 pub use crate::image_io::io_reason;
