@@ -50,6 +50,20 @@ pub fn check_gltf(data: &[u8]) {
         dir
     });
     check_loaded(gridrt::mesh::gltf::parse_gltf(data, Some(folder)));
+    // The same bytes as a displaced micro-mesh: refused on one line, or decoded to finite
+    // micro-vertices whenever its counts and levels check out.
+    match gridrt::mesh::gltf_micromap::parse_displaced(data, Some(folder)) {
+        Err(e) => assert_one_line(&e),
+        Ok(None) => {}
+        Ok(Some(displaced)) => {
+            let (mesh, _) = displaced.into_local();
+            if mesh.check().is_ok() {
+                let decoded = mesh.decoded();
+                let n = decoded.positions.len();
+                assert!(decoded.triangles.iter().flatten().all(|&i| (i as usize) < n));
+            }
+        }
+    }
 }
 
 /// A `.bary` file's bytes through the reader: an error on one line, or a micromap whose

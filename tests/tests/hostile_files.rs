@@ -325,6 +325,7 @@ const GLTF_SEEDS: &[(&str, Option<&str>)] = &[
         Some("its POSITION accessor 0 does not exist (the file has 0)"),
     ),
     ("deep_1000.glb", None),
+    ("displaced_dome.glb", None),
     ("embedded.gltf", None),
     ("matrix_far.glb", None),
     ("scene.glb", None),
