@@ -99,6 +99,21 @@ fn document(mesh: &DisplacedMesh, frame: &LocalFrame, bin: &str, bary: &str) -> 
     (buffer, document)
 }
 
+/// Writes `mesh` 1e7 from the origin, in a scratch folder named for `test`: the file and
+/// the frame it was written in.
+#[cfg(test)]
+pub(crate) fn write_far_from_origin(mesh: &DisplacedMesh, test: &str) -> (PathBuf, LocalFrame) {
+    let dir = std::env::temp_dir().join(format!("gridrt-{test}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("baked.gltf");
+    let frame = LocalFrame {
+        centre: gridrt_shared::glam::DVec3::new(1.0e7 + 0.125, -3.0, 2.5e6),
+        scale: 0.25,
+    };
+    write(&path, mesh, &frame).unwrap();
+    (path, frame)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -125,17 +140,11 @@ mod tests {
     /// directions.
     #[test]
     fn written_files_read_back() {
-        let dir = std::env::temp_dir().join(format!("gridrt-micromesh-gltf-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join("baked.gltf");
-        let frame = LocalFrame {
-            centre: DVec3::new(1.0e7 + 0.125, -3.0, 2.5e6),
-            scale: 0.25,
-        };
         let mesh = sample();
-        write(&path, &mesh, &frame).unwrap();
+        let (path, frame) = write_far_from_origin(&mesh, "micromesh-gltf");
+        let dir = path.parent().unwrap();
         // The glTF alone, without its extensions: the base mesh (loading decodes it).
-        let base = crate::mesh::gltf::parse_gltf(&std::fs::read(&path).unwrap(), Some(&dir)).unwrap();
+        let base = crate::mesh::gltf::parse_gltf(&std::fs::read(&path).unwrap(), Some(dir)).unwrap();
         let expected: Vec<DVec3> = mesh.positions.iter().map(|&p| frame.to_world(p)).collect();
         assert_eq!(base.positions, expected);
         assert_eq!(base.triangles, mesh.triangles);

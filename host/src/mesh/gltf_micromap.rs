@@ -303,16 +303,10 @@ mod tests {
     /// gridrt's writer's files read back as the same mesh, in the input's units.
     #[test]
     fn written_files_read_back_as_written() {
-        let dir = std::env::temp_dir().join(format!("gridrt-gltf-micromap-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join("baked.gltf");
-        let frame = LocalFrame {
-            centre: DVec3::new(1.0e7 + 0.125, -3.0, 2.5e6),
-            scale: 0.25,
-        };
         let mesh = sample();
-        crate::micromesh_gltf::write(&path, &mesh, &frame).unwrap();
-        let read = parse_displaced(&std::fs::read(&path).unwrap(), Some(&dir))
+        let (path, frame) = crate::micromesh_gltf::write_far_from_origin(&mesh, "gltf-micromap");
+        let dir = path.parent().unwrap();
+        let read = parse_displaced(&std::fs::read(&path).unwrap(), Some(dir))
             .unwrap()
             .unwrap();
         assert_eq!(read.micromap, mesh.micromap);
