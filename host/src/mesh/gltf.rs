@@ -136,11 +136,9 @@ pub(super) fn open_document(json: &[u8], bin: Option<&[u8]>, folder: Option<&Pat
     check_position_accessors_exist(&raw)?;
     let document = gltf::Gltf::from_slice(json).map_err(|e| error!(Input, "{e}"))?.document;
     let transforms = node_transforms(&raw, document.nodes().len())?;
-    check_node_trees(&document)?;
+    let roots = node_roots(&document)?;
     let buffers = load_buffers(&document, bin, folder)?;
-    let drawn = (scene_nodes(&document, &transforms)?.into_iter())
-        .map(|(node, transform)| (node.index(), transform))
-        .collect();
+    let drawn = scene_nodes(&document, &transforms, roots)?;
     Ok(OpenedGltf {
         document,
         raw,
@@ -242,8 +240,9 @@ fn node_transforms(raw: &Value, count: usize) -> Result<Vec<DMat4>> {
 }
 
 /// Refuses a node hierarchy that is not a set of trees: a node that is the child of two
-/// nodes (or twice of one), and a cycle, which no walk from a root would ever leave.
-fn check_node_trees(document: &gltf::Document) -> Result<()> {
+/// nodes (or twice of one), and a cycle, which no walk from a root would ever leave. Returns
+/// the roots, the nodes no other names as a child.
+fn node_roots(document: &gltf::Document) -> Result<Vec<usize>> {
     let nodes: Vec<gltf::Node> = document.nodes().collect();
     let count = nodes.len();
     let mut parent = vec![None; count];
@@ -260,8 +259,9 @@ fn check_node_trees(document: &gltf::Document) -> Result<()> {
         }
     }
     // Each node has one parent at most: the nodes no walk from a root reaches are on cycles.
+    let roots: Vec<usize> = (0..count).filter(|&i| parent[i].is_none()).collect();
     let mut reached = vec![false; count];
-    let mut stack: Vec<usize> = (0..count).filter(|&i| parent[i].is_none()).collect();
+    let mut stack = roots.clone();
     while let Some(i) = stack.pop() {
         reached[i] = true;
         stack.extend(nodes[i].children().map(|c| c.index()));
@@ -272,23 +272,17 @@ fn check_node_trees(document: &gltf::Document) -> Result<()> {
             "node {i} is its own ancestor: the node hierarchy has a cycle (glTF nodes form trees)"
         );
     }
-    Ok(())
+    Ok(roots)
 }
 
 /// Every node of the default scene (or the first, or every root node when there is no
 /// scene) with its transform, parents first, walked with a stack of its own so that no depth
 /// of nesting can overflow the call stack.
-fn scene_nodes<'a>(document: &'a gltf::Document, local: &[DMat4]) -> Result<Vec<(gltf::Node<'a>, DMat4)>> {
+fn scene_nodes(document: &gltf::Document, local: &[DMat4], roots: Vec<usize>) -> Result<Vec<(usize, DMat4)>> {
     let nodes: Vec<gltf::Node> = document.nodes().collect();
     let roots: Vec<usize> = match document.default_scene().or_else(|| document.scenes().next()) {
         Some(scene) => scene.nodes().map(|n| n.index()).collect(),
-        None => {
-            let mut is_child = vec![false; nodes.len()];
-            for child in nodes.iter().flat_map(|n| n.children()) {
-                is_child[child.index()] = true;
-            }
-            (0..nodes.len()).filter(|&i| !is_child[i]).collect()
-        }
+        None => roots,
     };
     let mut visited = vec![false; nodes.len()];
     let mut out = Vec::new();
@@ -315,7 +309,7 @@ fn scene_nodes<'a>(document: &'a gltf::Document, local: &[DMat4]) -> Result<Vec<
                 .into_iter()
                 .rev(),
         );
-        out.push((nodes[i].clone(), transform));
+        out.push((i, transform));
     }
     Ok(out)
 }
@@ -327,7 +321,7 @@ fn load_buffers(document: &gltf::Document, bin: Option<&[u8]>, folder: Option<&P
         .buffers()
         .map(|buffer| {
             let i = buffer.index();
-            let (bytes, from) = match buffer.source() {
+            let (mut bytes, from) = match buffer.source() {
                 gltf::buffer::Source::Bin => match bin {
                     Some(bin) => (bin.to_vec(), "the GLB's binary chunk".to_string()),
                     None => fail!(Input, "buffer {i} has no uri and the file has no binary chunk"),
@@ -344,7 +338,8 @@ fn load_buffers(document: &gltf::Document, bin: Option<&[u8]>, folder: Option<&P
                     bytes.len()
                 );
             }
-            Ok(bytes[..declared].to_vec())
+            bytes.truncate(declared);
+            Ok(bytes)
         })
         .collect()
 }
@@ -435,8 +430,23 @@ fn percent_decode(uri: &str) -> Option<String> {
     String::from_utf8(out).ok().filter(|s| !s.contains('\0'))
 }
 
+/// A buffer view's bytes, checked to lie in its buffer.
+pub(super) fn view_bytes<'a>(view: &gltf::buffer::View, buffers: &'a [Vec<u8>]) -> Result<&'a [u8]> {
+    let (v, b) = (view.index(), view.buffer().index());
+    let buffer = &buffers[b];
+    let range = view.offset()..view.offset().saturating_add(view.length());
+    buffer.get(range).ok_or_else(|| {
+        error!(
+            Input,
+            "buffer view {v} ends at byte {} of buffer {b}, which has {} bytes",
+            view.offset() as u128 + view.length() as u128,
+            buffer.len()
+        )
+    })
+}
+
 /// The bytes of an accessor's elements: `count` elements of `size` bytes, `stride` apart,
-/// from `start` in `bytes`; every one of them checked to lie in its view and buffer.
+/// from `start` in its view's `bytes`; every one of them checked to lie in its view and buffer.
 struct Elements<'a> {
     bytes: &'a [u8],
     start: usize,
@@ -461,17 +471,8 @@ impl<'a> Elements<'a> {
         size: usize,
         buffers: &'a [Vec<u8>],
     ) -> Result<Elements<'a>> {
-        let (v, b) = (view.index(), view.buffer().index());
-        let buffer = &buffers[b];
-        let view_end = view.offset().checked_add(view.length());
-        if view_end.is_none_or(|end| end > buffer.len()) {
-            fail!(
-                Input,
-                "buffer view {v} ends at byte {} of buffer {b}, which has {} bytes",
-                view.offset() as u128 + view.length() as u128,
-                buffer.len()
-            );
-        }
+        let v = view.index();
+        let bytes = view_bytes(view, buffers)?;
         let stride = view.stride().unwrap_or(size);
         if stride < size {
             fail!(
@@ -491,8 +492,8 @@ impl<'a> Elements<'a> {
             );
         }
         Ok(Elements {
-            bytes: buffer,
-            start: view.offset() + offset,
+            bytes,
+            start: offset,
             stride,
             size,
             count,

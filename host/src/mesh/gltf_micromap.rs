@@ -17,7 +17,9 @@ use std::path::Path;
 use gridrt_shared::glam::{DMat4, DVec3};
 use serde_json::Value;
 
-use super::gltf::{add_primitive, describe, open_document, read_accessor, read_uri, split_file, OpenedGltf};
+use super::gltf::{
+    add_primitive, describe, open_document, read_accessor, read_uri, split_file, view_bytes, OpenedGltf,
+};
 use super::WorldMesh;
 use crate::bary::{self, Micromap, MicromapGroup, MicromapTriangle};
 use crate::displaced::DisplacedMesh;
@@ -40,18 +42,18 @@ impl DisplacedWorld {
     /// The mesh in its local frame (centred on its base positions' bounds, scaled by a power
     /// of two; the directions scaled alike), and that frame.
     pub fn into_local(self) -> (DisplacedMesh, LocalFrame) {
-        let base = WorldMesh {
+        let directions = self.directions;
+        let micromap = self.micromap;
+        let (base, frame) = WorldMesh {
             positions: self.positions,
             triangles: self.triangles,
-        };
-        let (lo, hi) = base.bounds();
-        let frame = LocalFrame::of_bounds(lo, hi);
-        let local = base.in_frame(&frame);
+        }
+        .into_local();
         let mesh = DisplacedMesh {
-            positions: local.positions,
-            directions: self.directions.iter().map(|d| (*d * frame.scale).as_vec3()).collect(),
-            triangles: local.triangles,
-            micromap: self.micromap,
+            positions: base.positions,
+            directions: directions.iter().map(|d| (*d * frame.scale).as_vec3()).collect(),
+            triangles: base.triangles,
+            micromap,
         };
         (mesh, frame)
     }
@@ -104,24 +106,16 @@ pub fn parse_displaced(bytes: &[u8], folder: Option<&Path>) -> Result<Option<Dis
 
 /// A micromap's `.bary` bytes, from its `uri` or its `bufferView`, read.
 fn read_micromap(entry: &Value, opened: &OpenedGltf, folder: Option<&Path>) -> Result<Micromap> {
-    let bytes = match (
-        entry.get("uri").and_then(Value::as_str),
-        entry.get("bufferView").and_then(Value::as_u64),
-    ) {
-        (Some(uri), _) => read_uri(uri, folder)?.0,
+    let uri = entry.get("uri").and_then(Value::as_str);
+    match (uri, entry.get("bufferView").and_then(Value::as_u64)) {
+        (Some(uri), _) => bary::read(&read_uri(uri, folder)?.0),
         (None, Some(v)) => {
             let view = (opened.document.views().nth(v as usize))
                 .ok_or_else(|| error!(Input, "its bufferView {v} does not exist"))?;
-            let buffer = &opened.buffers[view.buffer().index()];
-            let range = view.offset()..view.offset().saturating_add(view.length());
-            buffer
-                .get(range)
-                .ok_or_else(|| error!(Input, "its bufferView {v} reaches past its buffer"))?
-                .to_vec()
+            bary::read(view_bytes(&view, &opened.buffers)?)
         }
         _ => fail!(Input, "it has neither a uri nor a bufferView"),
-    };
-    bary::read(&bytes)
+    }
 }
 
 /// One displaced primitive and what it needs from its file.

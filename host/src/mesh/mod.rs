@@ -169,18 +169,13 @@ impl WorldMesh {
     }
 
     /// Refuses a mesh whose vertices all lie at one point (or so close together that no frame
-    /// can tell them apart): nothing of it could be seen.
+    /// can tell them apart): nothing of it could be seen. Called where every vertex counts:
+    /// once the unused ones are gone, or when no triangle is left.
     fn check_size(&self, source: &str) -> Result<()> {
-        let used: HashSet<u32> = self.triangles.iter().flatten().copied().collect();
-        let mut points = self
-            .positions
-            .iter()
-            .enumerate()
-            .filter(|(i, _)| self.triangles.is_empty() || used.contains(&(*i as u32)));
-        let Some((_, &first)) = points.next() else {
+        let Some((&first, rest)) = self.positions.split_first() else {
             return Ok(());
         };
-        let extent = points.fold(0.0f64, |e, (_, p)| e.max((*p - first).abs().max_element()));
+        let extent = rest.iter().fold(0.0f64, |e, p| e.max((*p - first).abs().max_element()));
         if extent < f64::MIN_POSITIVE {
             fail!(
                 Input,
@@ -241,23 +236,38 @@ impl WorldMesh {
         }
     }
 
+    /// The mesh's [`frame::LocalFrame`]: centred on its bounds, scaled to unit size (the
+    /// identity for an empty mesh).
+    pub fn local_frame(&self) -> frame::LocalFrame {
+        if self.positions.is_empty() {
+            return frame::LocalFrame::IDENTITY;
+        }
+        let (lo, hi) = self.bounds();
+        frame::LocalFrame::of_bounds(lo, hi)
+    }
+
     /// Moves the mesh into its [`frame::LocalFrame`] (in double precision, then rounded once
     /// to `f32`) and returns it with that frame.
     pub fn into_local(self) -> (Mesh, frame::LocalFrame) {
-        if self.positions.is_empty() {
-            return (Mesh::default(), frame::LocalFrame::IDENTITY);
-        }
-        let (lo, hi) = self.bounds();
-        let frame = frame::LocalFrame::of_bounds(lo, hi);
-        (self.in_frame(&frame), frame)
+        let frame = self.local_frame();
+        let positions = self.local_positions(&frame);
+        let mesh = Mesh {
+            positions,
+            triangles: self.triangles,
+        };
+        (mesh, frame)
     }
 
     /// The mesh moved into `frame` (another mesh's, to compare the two in one frame).
     pub fn in_frame(&self, frame: &frame::LocalFrame) -> Mesh {
         Mesh {
-            positions: self.positions.iter().map(|&p| frame.to_local(p)).collect(),
+            positions: self.local_positions(frame),
             triangles: self.triangles.clone(),
         }
+    }
+
+    fn local_positions(&self, frame: &frame::LocalFrame) -> Vec<Vec3> {
+        self.positions.iter().map(|&p| frame.to_local(p)).collect()
     }
 }
 
