@@ -20,10 +20,7 @@ pub fn check_writable(path: &Path) -> Result<()> {
             );
         }
     }
-    let parent = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
+    let parent = folder_of(path);
     if !parent.is_dir() {
         fail!(
             Output,
@@ -80,31 +77,29 @@ pub fn check_png_path(path: &Path) -> Result<()> {
 /// Refuses an output that is one of the `inputs` (the same file, through whatever links or
 /// other names): writing it would destroy what is being read.
 pub fn check_not_input(output: &Path, inputs: &[&Path]) -> Result<()> {
-    let Ok(out) = std::fs::metadata(output) else {
-        return Ok(()); // Nothing there yet: no input can be it.
-    };
-    for input in inputs {
-        if std::fs::metadata(input).is_ok_and(|inp| same_file(&out, &inp, output, input)) {
-            fail!(
-                Output,
-                "{}: is the input {}: writing it would destroy the input; name another file",
-                output.display(),
-                input.display()
-            );
-        }
+    if let Some(input) = inputs.iter().find(|input| same_file(output, input)) {
+        fail!(
+            Output,
+            "{}: is the input {}: writing it would destroy the input; name another file",
+            output.display(),
+            input.display()
+        );
     }
     Ok(())
 }
 
-/// Whether two paths name one file.
+/// Whether two paths name one existing file.
 #[cfg(unix)]
-fn same_file(a: &std::fs::Metadata, b: &std::fs::Metadata, _: &Path, _: &Path) -> bool {
+fn same_file(a: &Path, b: &Path) -> bool {
     use std::os::unix::fs::MetadataExt;
-    (a.dev(), a.ino()) == (b.dev(), b.ino())
+    match (std::fs::metadata(a), std::fs::metadata(b)) {
+        (Ok(a), Ok(b)) => (a.dev(), a.ino()) == (b.dev(), b.ino()),
+        _ => false,
+    }
 }
 
 #[cfg(not(unix))]
-fn same_file(_: &std::fs::Metadata, _: &std::fs::Metadata, a: &Path, b: &Path) -> bool {
+fn same_file(a: &Path, b: &Path) -> bool {
     matches!((a.canonicalize(), b.canonicalize()), (Ok(a), Ok(b)) if a == b)
 }
 
@@ -113,8 +108,7 @@ pub fn check_distinct(outputs: &[&Path]) -> Result<()> {
     for (k, a) in outputs.iter().enumerate() {
         for b in &outputs[k + 1..] {
             let same_name = a == b || matches!((absolute(a), absolute(b)), (Some(x), Some(y)) if x == y);
-            let same_file = check_not_input(a, &[b]).is_err();
-            if same_name || same_file {
+            if same_name || same_file(a, b) {
                 fail!(
                     Output,
                     "{} and {} are one file: each output needs a name of its own",
@@ -127,13 +121,17 @@ pub fn check_distinct(outputs: &[&Path]) -> Result<()> {
     Ok(())
 }
 
-/// `path` made absolute, its folder's links resolved (the file itself may not exist yet).
-fn absolute(path: &Path) -> Option<std::path::PathBuf> {
-    let folder = match path.parent() {
+/// The folder `path` is in (`.` for a bare file name).
+fn folder_of(path: &Path) -> &Path {
+    match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
-    };
-    Some(folder.canonicalize().ok()?.join(path.file_name()?))
+    }
+}
+
+/// `path` made absolute, its folder's links resolved (the file itself may not exist yet).
+fn absolute(path: &Path) -> Option<std::path::PathBuf> {
+    Some(folder_of(path).canonicalize().ok()?.join(path.file_name()?))
 }
 
 /// The suffix that marks a file being written, before the process id.
@@ -149,18 +147,13 @@ fn temporary_sibling(path: &Path) -> std::path::PathBuf {
 /// Removes the temporary files beside `path` that processes no longer running left behind
 /// (killed while writing it). Only where the system lists running processes (`/proc`).
 fn remove_stale_temporaries(path: &Path) {
-    let (Some(name), Some(folder)) = (path.file_name(), path.parent()) else {
+    let Some(name) = path.file_name() else {
         return;
     };
-    let processes = Path::new("/proc/self");
-    if !processes.exists() {
+    if !Path::new("/proc/self").exists() {
         return;
     }
-    let folder = if folder.as_os_str().is_empty() {
-        Path::new(".")
-    } else {
-        folder
-    };
+    let folder = folder_of(path);
     let prefix = format!("{}{TEMPORARY_MARK}", name.to_string_lossy());
     let Ok(entries) = std::fs::read_dir(folder) else {
         return;

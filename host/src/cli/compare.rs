@@ -7,8 +7,8 @@ use anyhow::Result;
 use serde::Serialize;
 
 use super::CompareArgs;
-use gridrt::mesh::{self, WorldMesh};
-use gridrt::surface_distance::{self, DistanceSummary, Sampling, SurfaceDistance};
+use gridrt::mesh;
+use gridrt::surface_distance::{self, DistanceSummary, Sampling};
 
 #[derive(Serialize)]
 struct Report {
@@ -25,15 +25,21 @@ struct Report {
 pub fn run(args: &CompareArgs) -> Result<()> {
     let (reference, _) = mesh::load_world(&args.reference)?;
     let (other, _) = mesh::load_world(&args.other)?;
-    let distance = measure_in_frame(&reference, &other, args.samples);
-    let diagonal = distance.a_diagonal;
+    // Both meshes in the reference's local frame (moved in `f64`, one rounding to `f32`):
+    // a ratio of lengths there is the ratio in the files' units.
+    let frame = reference.local_frame();
+    let sampling = Sampling {
+        samples: args.samples,
+        ..Sampling::default()
+    };
+    let d = surface_distance::measure(&reference.in_frame(&frame), &other.in_frame(&frame), &sampling);
     let report = Report {
         reference: args.reference.display().to_string(),
         other: args.other.display().to_string(),
-        diagonal,
-        reference_to_other: distance.a_to_b.relative_to(diagonal),
-        other_to_reference: distance.b_to_a.relative_to(diagonal),
-        symmetric: distance.symmetric.relative_to(diagonal),
+        diagonal: d.a_diagonal / frame.scale,
+        reference_to_other: d.a_to_b.relative_to(d.a_diagonal),
+        other_to_reference: d.b_to_a.relative_to(d.a_diagonal),
+        symmetric: d.symmetric.relative_to(d.a_diagonal),
     };
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
@@ -41,28 +47,6 @@ pub fn run(args: &CompareArgs) -> Result<()> {
         print!("{}", table(&report, &args.reference, &args.other));
     }
     Ok(())
-}
-
-/// Both meshes in the reference's local frame (moved in `f64`, one rounding to `f32`), measured
-/// there; lengths are given back in the files' units.
-fn measure_in_frame(reference: &WorldMesh, other: &WorldMesh, samples: usize) -> SurfaceDistance {
-    let (a, frame) = reference.clone().into_local();
-    let b = other.in_frame(&frame);
-    let d = surface_distance::measure(
-        &a,
-        &b,
-        &Sampling {
-            samples,
-            ..Sampling::default()
-        },
-    );
-    let world = |s: DistanceSummary| s.relative_to(frame.scale);
-    SurfaceDistance {
-        a_to_b: world(d.a_to_b),
-        b_to_a: world(d.b_to_a),
-        symmetric: world(d.symmetric),
-        a_diagonal: d.a_diagonal / frame.scale,
-    }
 }
 
 fn table(report: &Report, reference: &Path, other: &Path) -> String {

@@ -215,6 +215,16 @@ impl BuildArgs {
         grid::check_limits(mesh, &self.grid_build()).map_err(|e| e.prefixed(name).into())
     }
 
+    /// These arguments for a displaced micro-mesh's decoded micro-triangles: no further
+    /// subdivision.
+    pub fn as_decoded(&self) -> BuildArgs {
+        BuildArgs {
+            levels: 0,
+            subdivision: SubdivisionArg::Flat,
+            ..self.clone()
+        }
+    }
+
     /// The grid build these arguments ask for.
     pub fn grid_build(&self) -> grid::GridBuild {
         grid::GridBuild {
@@ -378,13 +388,13 @@ impl RenderArgs {
     }
 
     /// These arguments for a displaced micro-mesh's decoded micro-triangles: built as they
-    /// are (no further subdivision, one depth).
+    /// are, at one depth.
     fn as_decoded(&self) -> RenderArgs {
-        let mut args = self.clone();
-        args.build.levels = 0;
-        args.build.subdivision = SubdivisionArg::Flat;
-        args.lod = None;
-        args
+        RenderArgs {
+            build: self.build.as_decoded(),
+            lod: None,
+            ..self.clone()
+        }
     }
 
     /// The library's build options for these arguments.

@@ -165,10 +165,7 @@ pub fn run(args: &StatsArgs, quiet: bool) -> Result<()> {
     } = super::load(args.mesh.as_deref())?;
     // A displaced micro-mesh arrives decoded: its micro-triangles are measured as they are.
     let build = match displaced {
-        Some(_) => BuildArgs {
-            levels: 0,
-            ..args.build.clone()
-        },
+        Some(_) => args.build.as_decoded(),
         None => args.build.clone(),
     };
     check_work(&name, &mesh, &build, 0)?;
