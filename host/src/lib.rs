@@ -35,6 +35,7 @@
 //! measures how far apart two surfaces are (`gridrt compare`).
 
 pub mod backend;
+pub mod bake;
 pub mod bary;
 pub mod bvh;
 pub mod camera;

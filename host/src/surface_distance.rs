@@ -185,20 +185,29 @@ impl NearestTriangles {
     /// The distance from `p` to the closest point of the surface (infinite when it has no
     /// triangles).
     pub fn distance(&self, p: DVec3) -> f64 {
-        let mut best = f64::INFINITY;
+        self.closest_point(p).map_or(f64::INFINITY, |q| p.distance(q))
+    }
+
+    /// The point of the surface closest to `p` (`None` when it has no triangles).
+    pub fn closest_point(&self, p: DVec3) -> Option<DVec3> {
+        let mut best = (f64::INFINITY, None);
         if self.nodes.is_empty() {
-            return best;
+            return None;
         }
         let mut stack = vec![(0usize, box_distance_squared(&self.nodes[0], p))];
         while let Some((i, d2)) = stack.pop() {
-            if d2 >= best {
+            if d2 >= best.0 {
                 continue;
             }
             let node = &self.nodes[i];
             if node.is_leaf() {
                 let range = node.first as usize..(node.first + node.count) as usize;
                 for t in &self.triangles[range] {
-                    best = best.min(p.distance_squared(closest_point_on_triangle(p, t)));
+                    let q = closest_point_on_triangle(p, t);
+                    let d2 = p.distance_squared(q);
+                    if d2 < best.0 {
+                        best = (d2, Some(q));
+                    }
                 }
                 continue;
             }
@@ -209,7 +218,7 @@ impl NearestTriangles {
             stack.push(far);
             stack.push(near);
         }
-        best.sqrt()
+        best.1
     }
 }
 

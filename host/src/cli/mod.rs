@@ -20,6 +20,7 @@ use gridrt::{camera, grid, image_io, limits, triangles};
 use gridrt_shared::glam::DVec3;
 use progress::Stages;
 
+mod bake;
 mod bench;
 mod chart;
 mod compare;
@@ -60,6 +61,10 @@ pub enum Command {
     /// distances from points sampled on each to the other.
     #[command(allow_negative_numbers = true)]
     Compare(CompareArgs),
+    /// Bake a detailed mesh into a displaced micro-mesh (glTF + .bary): a decimated base
+    /// mesh with one 11-bit displacement per micro-vertex.
+    #[command(allow_negative_numbers = true)]
+    Bake(BakeArgs),
 }
 
 /// Where rays are traced.
@@ -479,6 +484,33 @@ pub struct CompareArgs {
 }
 
 #[derive(clap::Args, Debug)]
+pub struct BakeArgs {
+    /// The detailed mesh to bake (.obj, .ply, .gltf or .glb), as it is: duplicates, holes,
+    /// non-manifold edges and several parts are fine.
+    pub reference: PathBuf,
+    /// Triangles of the base mesh the reference is decimated to [default: 1/64 of the
+    /// reference's, so that level 3 has about as many micro-triangles as the reference].
+    #[arg(long, value_name = "N", value_parser = at_least_one(), conflicts_with = "base")]
+    pub base_triangles: Option<usize>,
+    /// Bake onto this base mesh (in the reference's units) instead of decimating.
+    #[arg(long, value_name = "BASE_MESH")]
+    pub base: Option<PathBuf>,
+    /// Subdivision level L: every base triangle gets 4^L micro-triangles.
+    #[arg(long, short = 'L', default_value_t = 3, value_parser = clap::value_parser!(u32).range(0..=6))]
+    pub levels: u32,
+    /// The glTF to write; its buffer (.bin) and micromap (.bary) go beside it.
+    #[arg(long, short, default_value = "baked.gltf")]
+    pub output: PathBuf,
+    /// Points sampled on each surface, by area, to measure the baked mesh's distance from
+    /// the reference.
+    #[arg(long, default_value_t = 1_000_000, value_parser = at_least_one())]
+    pub samples: usize,
+    /// Print one JSON object instead of the summary.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(clap::Args, Debug)]
 pub struct StatsArgs {
     /// Mesh to measure (.obj, .ply, .gltf or .glb); the built-in scene when absent.
     pub mesh: Option<PathBuf>,
@@ -550,6 +582,7 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Bench(args) => bench::run(&args, cli.quiet),
         Command::Export(args) => export(&args, &mut stages),
         Command::Compare(args) => compare::run(&args),
+        Command::Bake(args) => bake::run(&args, &mut stages),
     }
 }
 

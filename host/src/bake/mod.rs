@@ -1,0 +1,416 @@
+//! Baking a detailed mesh into a displaced micro-mesh: a coarse base mesh whose every triangle
+//! carries one 11-bit displacement per micro-vertex of its level-`L` lattice, so that
+//! `p = lerp(P) + lerp(D) * d` lies on the detailed (reference) surface.
+//!
+//! The steps, as in the "Micro-Mesh Construction" paper (Maggiordomo et al. 2023,
+//! <https://doi.org/10.1145/3592440>) and NVIDIA's displacement micro-map tools:
+//!
+//! 1. **Base mesh**: the reference decimated ([`decimate`]), or a base the caller made.
+//! 2. **Directions**: a unit vector per base vertex ([`directions`]).
+//! 3. **First pass**: each micro-vertex's line, `lerp(P) + t * lerp(D)`, meets the reference
+//!    where rays both ways from the base surface first hit it ([`cast`]), through gridrt's
+//!    own triangle BVH and traversal; lines that meet nothing within reach (or only another
+//!    sheet, far beyond the closest point of the surface) take the closest point's
+//!    projection, and are counted.
+//! 4. **Fit**: each base vertex's range of displacements is folded into its position and
+//!    direction ([`fit`]), so the stored values span `[0, 1]`.
+//! 5. **Second pass**: the lines of the folded mesh (which, where directions differ, are not
+//!    quite the first pass's) meet the reference again, from the first pass's crossing;
+//!    the result is quantized to 11 bits.
+//!
+//! Every micro-vertex on a shared base edge or corner is computed by the shared decoder's
+//! interpolation, which gives both triangles the same bits, so the same ray is cast for it
+//! from both sides and it gets one value: the baked surface is watertight wherever the base
+//! mesh is.
+//!
+//! ```no_run
+//! # fn main() -> gridrt::error::Result<()> {
+//! let input = gridrt::mesh::open(Some("scan.ply".as_ref()))?;
+//! let options = gridrt::bake::BakeOptions::for_reference(&input.mesh, 3);
+//! let baked = gridrt::bake::bake(&input.mesh, &options)?;
+//! gridrt::micromesh_gltf::write("scan.gltf".as_ref(), &baked.mesh, &input.frame)?;
+//! # Ok(()) }
+//! ```
+
+pub mod cast;
+pub mod decimate;
+pub mod directions;
+pub mod fit;
+
+use gridrt_shared::displacement::{interpolated, u_major_index, DisplacedTriangle};
+use gridrt_shared::glam::Vec3;
+use gridrt_shared::grid_index::{grid_size, lattice_points, triangle_count};
+use rayon::prelude::*;
+
+use crate::bary::{values_per_triangle, Micromap};
+use crate::displaced::{self, DisplacedMesh};
+use crate::error::{fail, Result};
+use crate::mesh::Mesh;
+use cast::{Crossing, Reference};
+
+/// Where the base mesh comes from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Base {
+    /// The reference decimated to about this many triangles.
+    Decimated { triangles: usize },
+    /// A mesh the caller made, in the reference's frame.
+    Given(Mesh),
+}
+
+/// What to bake.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BakeOptions {
+    pub base: Base,
+    /// Subdivision level `L`: each base triangle gets `4^L` micro-triangles.
+    pub levels: u32,
+    /// How far the first pass looks for the reference on each side of the base surface, in
+    /// mean base edge lengths.
+    pub reach: f32,
+}
+
+/// How many micro-triangles each base triangle stands for by default: with [`BakeOptions::for_reference`]
+/// at level 3, about as many micro-triangles as the reference has triangles.
+pub const REDUCTION: usize = 64;
+
+impl BakeOptions {
+    /// A base of 1/[`REDUCTION`] of `reference`'s triangles, at `levels`.
+    pub fn for_reference(reference: &Mesh, levels: u32) -> BakeOptions {
+        BakeOptions {
+            base: Base::Decimated {
+                triangles: (reference.triangles.len() / REDUCTION).max(1),
+            },
+            levels,
+            reach: 2.0,
+        }
+    }
+}
+
+/// A baked micro-mesh and what happened on the way.
+#[derive(Clone, Debug)]
+pub struct Baked {
+    pub mesh: DisplacedMesh,
+    pub report: BakeReport,
+}
+
+/// Counts a caller shows the user.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct BakeReport {
+    pub base_vertices: usize,
+    pub base_triangles: usize,
+    pub levels: u32,
+    pub micro_triangles: u64,
+    /// Values baked: micro-vertices per base triangle (those on shared edges once per side).
+    pub values: u64,
+    /// Values whose line met no reference surface within reach (or only another sheet far
+    /// beyond the closest point): they took the projection of the reference's closest point.
+    pub misses: u64,
+    /// Values whose second-pass crossing fell outside the fitted range by more than rounding
+    /// would hide, and were clamped.
+    pub clamped: u64,
+}
+
+/// Bakes `reference` (a mesh in its local frame) as `options` say.
+pub fn bake(reference: &Mesh, options: &BakeOptions) -> Result<Baked> {
+    if options.levels > displaced::MAX_LEVEL {
+        fail!(
+            Options,
+            "level {} is past the deepest gridrt decodes ({})",
+            options.levels,
+            displaced::MAX_LEVEL
+        );
+    }
+    let base = match &options.base {
+        Base::Decimated { triangles } => decimate::decimate(reference, *triangles),
+        Base::Given(mesh) => mesh.clone(),
+    };
+    if base.triangles.is_empty() {
+        fail!(Input, "the base mesh has no triangles");
+    }
+    let directions = directions::area_weighted_normals(&base);
+    let surface = Reference::new(reference);
+    let lines = Lines {
+        triangles: &base.triangles,
+        level: options.levels,
+    };
+
+    // First pass: along the unit directions, as far as `reach` edge lengths either way.
+    let reach = options.reach * mean_edge_length(&base);
+    let first = lines.cross(&base.positions, &directions, |origin, direction, _| {
+        surface.crossing_near_surface(origin, direction, reach)
+    });
+    let displacements: Vec<Vec<f32>> = first.iter().map(|c| c.iter().map(|x| x.t).collect()).collect();
+
+    // Fit, then the second pass along the folded lines, from the first pass's crossings.
+    let ranges = fit::vertex_ranges(&base.triangles, &displacements, base.positions.len());
+    let least_span = 1e-6 * diagonal(&base);
+    let (positions, folded) = fit::fold_ranges(&base.positions, &directions, &ranges, least_span);
+    let crossings = lines.points(&base.positions, &directions, &first);
+    let second = lines.cross(&positions, &folded, |origin, direction, k| {
+        let (t, k) = (k.0, k.1);
+        let found = crossings[t][k];
+        let u0 = projection(found.point, origin, direction).clamp(0.0, 1.0);
+        if !found.hit {
+            return Crossing { t: u0, hit: false };
+        }
+        let again = surface.crossing(origin + direction * u0, direction, 1.0);
+        Crossing {
+            t: if again.hit { u0 + again.t } else { u0 },
+            hit: true,
+        }
+    });
+
+    let report = BakeReport {
+        base_vertices: base.positions.len(),
+        base_triangles: base.triangles.len(),
+        levels: options.levels,
+        micro_triangles: base.triangles.len() as u64 * triangle_count(options.levels) as u64,
+        values: second.iter().map(|c| c.len() as u64).sum(),
+        misses: first.iter().flatten().filter(|c| !c.hit).count() as u64,
+        clamped: second.iter().flatten().filter(|c| fit::clipped(c.t)).count() as u64,
+    };
+    let values: Vec<(u32, Vec<u16>)> = second
+        .iter()
+        .map(|c| (options.levels, c.iter().map(|x| fit::quantize(x.t)).collect()))
+        .collect();
+    let mesh = DisplacedMesh {
+        positions,
+        directions: folded,
+        triangles: base.triangles,
+        micromap: Micromap::from_triangles(0.0, 1.0, &values),
+    };
+    mesh.check()?;
+    Ok(Baked { mesh, report })
+}
+
+/// The micro-vertex lines of every base triangle at one level, in u-major order.
+struct Lines<'a> {
+    triangles: &'a [[u32; 3]],
+    level: u32,
+}
+
+/// A first-pass crossing as a point.
+#[derive(Clone, Copy)]
+struct Found {
+    point: Vec3,
+    hit: bool,
+}
+
+impl Lines<'_> {
+    /// `find(origin, direction, (triangle, value))` for every micro-vertex's line of the
+    /// mesh `positions` + `directions`, per triangle in u-major order, on all cores.
+    fn cross(
+        &self,
+        positions: &[Vec3],
+        directions: &[Vec3],
+        find: impl Fn(Vec3, Vec3, (usize, usize)) -> Crossing + Sync,
+    ) -> Vec<Vec<Crossing>> {
+        let n = grid_size(self.level);
+        (0..self.triangles.len())
+            .into_par_iter()
+            .map(|t| {
+                let triangle = self.triangle(positions, directions, t);
+                let mut found = vec![Crossing { t: 0.0, hit: false }; values_per_triangle(self.level)];
+                for p in lattice_points(n) {
+                    let k = u_major_index(p, n) as usize;
+                    let (origin, direction) = interpolated(&triangle, p, n);
+                    found[k] = find(origin, direction, (t, k));
+                }
+                found
+            })
+            .collect()
+    }
+
+    /// The points the crossings stand for on the mesh they were found on.
+    fn points(&self, positions: &[Vec3], directions: &[Vec3], crossings: &[Vec<Crossing>]) -> Vec<Vec<Found>> {
+        let n = grid_size(self.level);
+        (0..self.triangles.len())
+            .into_par_iter()
+            .map(|t| {
+                let triangle = self.triangle(positions, directions, t);
+                let mut points = vec![
+                    Found {
+                        point: Vec3::ZERO,
+                        hit: false
+                    };
+                    crossings[t].len()
+                ];
+                for p in lattice_points(n) {
+                    let k = u_major_index(p, n) as usize;
+                    let (origin, direction) = interpolated(&triangle, p, n);
+                    let c = crossings[t][k];
+                    points[k] = Found {
+                        point: origin + direction * c.t,
+                        hit: c.hit,
+                    };
+                }
+                points
+            })
+            .collect()
+    }
+
+    fn triangle(&self, positions: &[Vec3], directions: &[Vec3], t: usize) -> DisplacedTriangle {
+        let ids = self.triangles[t];
+        DisplacedTriangle {
+            positions: ids.map(|i| positions[i as usize]),
+            directions: ids.map(|i| directions[i as usize]),
+            ids,
+        }
+    }
+}
+
+/// The `u` of the point of `origin + u * direction` nearest `point`.
+fn projection(point: Vec3, origin: Vec3, direction: Vec3) -> f32 {
+    let length2 = direction.length_squared();
+    if length2 > 0.0 {
+        (point - origin).dot(direction) / length2
+    } else {
+        0.0
+    }
+}
+
+fn mean_edge_length(mesh: &Mesh) -> f32 {
+    let total: f64 = (mesh.triangles.iter())
+        .map(|t| {
+            let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
+            (a.distance(b) + b.distance(c) + c.distance(a)) as f64
+        })
+        .sum();
+    (total / (3 * mesh.triangles.len()).max(1) as f64) as f32
+}
+
+fn diagonal(mesh: &Mesh) -> f32 {
+    let (lo, hi) = mesh.bounds();
+    lo.distance(hi)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::WorldMesh;
+    use crate::subdiv::{subdivide, Scheme};
+    use crate::surface_distance::{measure, Sampling};
+
+    /// A unit sphere of `8 * 4^levels` triangles: an octahedron subdivided flat, its
+    /// vertices pushed onto the sphere.
+    fn sphere(levels: u32) -> Mesh {
+        let octahedron = Mesh {
+            positions: vec![Vec3::X, Vec3::Y, Vec3::Z, -Vec3::X, -Vec3::Y, -Vec3::Z],
+            triangles: vec![
+                [0, 1, 2],
+                [1, 3, 2],
+                [3, 4, 2],
+                [4, 0, 2],
+                [1, 0, 5],
+                [3, 1, 5],
+                [4, 3, 5],
+                [0, 4, 5],
+            ],
+        };
+        let sub = subdivide(&octahedron, levels, Scheme::Flat);
+        let mesh = Mesh {
+            positions: sub.positions.iter().map(|p| p.normalize()).collect(),
+            triangles: sub.micro_triangles(levels),
+        };
+        // Welded: the flat subdivision shares its lattice points already.
+        let (world, _) = WorldMesh::from(mesh).validate("sphere").unwrap();
+        world.to_f32()
+    }
+
+    fn border_edges(triangles: &[[u32; 3]]) -> usize {
+        let mut edges = std::collections::HashMap::new();
+        for t in triangles {
+            for k in 0..3 {
+                let (a, b) = (t[k], t[(k + 1) % 3]);
+                *edges.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+            }
+        }
+        edges.values().filter(|&&c| c == 1).count()
+    }
+
+    fn symmetric_rms(reference: &Mesh, baked: &DisplacedMesh) -> f64 {
+        let sampling = Sampling {
+            samples: 20_000,
+            ..Sampling::default()
+        };
+        let d = measure(reference, &baked.decoded(), &sampling);
+        d.symmetric.relative_to(d.a_diagonal).rms
+    }
+
+    /// A closed sphere bakes closed (every shared edge decodes alike from both sides, so
+    /// welding leaves no border), every line meets it, and the micro-mesh lies far closer to
+    /// it than its base does.
+    #[test]
+    fn a_sphere_bakes_watertight_and_close() {
+        let reference = sphere(5);
+        let options = BakeOptions {
+            base: Base::Decimated { triangles: 128 },
+            ..BakeOptions::for_reference(&reference, 3)
+        };
+        let baked = bake(&reference, &options).unwrap();
+        let r = baked.report;
+        assert!(r.base_triangles <= 128 && r.base_triangles >= 100, "{r:?}");
+        assert_eq!(r.micro_triangles, 64 * r.base_triangles as u64);
+        assert_eq!((r.misses, r.clamped), (0, 0), "{r:?}");
+        let (welded, _) = WorldMesh::from(baked.mesh.decoded()).validate("baked").unwrap();
+        assert_eq!(border_edges(&welded.triangles), 0);
+        let base_only = BakeOptions { levels: 0, ..options };
+        let base_error = symmetric_rms(&reference, &bake(&reference, &base_only).unwrap().mesh);
+        let baked_error = symmetric_rms(&reference, &baked.mesh);
+        assert!(baked_error < base_error / 10.0, "{baked_error} vs {base_error}");
+        assert!(baked_error < 3e-4, "{baked_error}");
+    }
+
+    /// What raw scans bring: repeated and reversed triangles, a fin, a hole and a second
+    /// part. The bake still reaches its budget, keeps the second part, and stays close to
+    /// the surface.
+    #[test]
+    fn raw_scan_defects_do_not_stop_the_bake() {
+        let mut reference = sphere(5);
+        let count = reference.triangles.len();
+        for t in (0..count).step_by(7) {
+            reference.triangles[t].swap(1, 2);
+        }
+        for t in (3..count).step_by(11) {
+            let repeated = reference.triangles[t];
+            reference.triangles.push(repeated);
+        }
+        let [a, b, _] = reference.triangles[5];
+        reference.positions.push(Vec3::new(0.0, 0.0, 1.5));
+        reference.triangles.push([a, b, reference.positions.len() as u32 - 1]);
+        reference.triangles.drain(40..52);
+        let part = sphere(3);
+        let offset = reference.positions.len() as u32;
+        reference
+            .positions
+            .extend(part.positions.iter().map(|p| *p * 0.3 + Vec3::new(3.0, 0.0, 0.0)));
+        reference
+            .triangles
+            .extend(part.triangles.iter().map(|t| t.map(|i| i + offset)));
+
+        let options = BakeOptions::for_reference(&reference, 3);
+        let Base::Decimated { triangles: budget } = options.base else {
+            unreachable!()
+        };
+        let baked = bake(&reference, &options).unwrap();
+        let on_part = (baked.mesh.triangles.iter())
+            .filter(|t| t.iter().all(|&i| baked.mesh.positions[i as usize].x > 2.0))
+            .count();
+        assert!(on_part >= 8, "{on_part} base triangles on the second part");
+        assert!(
+            baked.report.base_triangles <= budget + budget / 10,
+            "{:?}",
+            baked.report
+        );
+        // The fin stands out of the surface: no displacement of the sphere can hold it.
+        let error = symmetric_rms(&reference, &baked.mesh);
+        assert!(error < 2e-3, "{error}");
+    }
+
+    #[test]
+    fn a_level_past_the_decoder_is_refused() {
+        let reference = sphere(1);
+        let options = BakeOptions::for_reference(&reference, 7);
+        let e = bake(&reference, &options).unwrap_err();
+        assert!(e.to_string().contains("level 7 is past the deepest"), "{e}");
+    }
+}

@@ -1,0 +1,150 @@
+//! `gridrt bake`: a detailed mesh baked into a displaced micro-mesh (see `gridrt::bake`),
+//! written as glTF + `.bary`, with its size and its distance from the reference.
+
+use std::path::Path;
+
+use anyhow::{bail, Result};
+use serde::Serialize;
+
+use super::progress::Stages;
+use super::BakeArgs;
+use gridrt::bake::{self, BakeOptions, BakeReport, Base};
+use gridrt::image_io;
+use gridrt::mesh;
+use gridrt::micromesh_gltf;
+use gridrt::surface_distance::{self, DistanceSummary, Sampling};
+
+#[derive(Serialize)]
+struct Report {
+    reference: String,
+    reference_triangles: usize,
+    output: String,
+    #[serde(flatten)]
+    bake: BakeReport,
+    /// Bytes of the three files written (glTF, its buffer, its micromap).
+    file_bytes: u64,
+    /// The micromap's bytes alone (values and their tables).
+    micromap_bytes: u64,
+    bake_seconds: f64,
+    /// Distances between the decoded micro-mesh and the reference, as fractions of the
+    /// reference's bounding-box diagonal.
+    reference_to_baked: DistanceSummary,
+    baked_to_reference: DistanceSummary,
+    symmetric: DistanceSummary,
+}
+
+pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
+    let outputs = check_outputs(args)?;
+    let (reference, cleaning) = stages.run("load", || mesh::load_world(&args.reference))?;
+    if cleaning.welded + cleaning.dropped > 0 {
+        stages.say(format!(
+            "note: {}: welded {} vertices, dropped {} degenerate or repeated triangles",
+            args.reference.display(),
+            cleaning.welded,
+            cleaning.dropped
+        ));
+    }
+    let frame = reference.local_frame();
+    let reference_mesh = reference.in_frame(&frame);
+    let base = match &args.base {
+        Some(path) => Base::Given(stages.run("load base", || mesh::load_world(path))?.0.in_frame(&frame)),
+        None => Base::Decimated {
+            triangles: args
+                .base_triangles
+                .unwrap_or((reference_mesh.triangles.len() / bake::REDUCTION).max(1)),
+        },
+    };
+    let options = BakeOptions {
+        base,
+        levels: args.levels,
+        ..BakeOptions::for_reference(&reference_mesh, args.levels)
+    };
+    let started = std::time::Instant::now();
+    let baked = stages.run("bake", || bake::bake(&reference_mesh, &options))?;
+    let bake_seconds = started.elapsed().as_secs_f64();
+    stages.run("write", || micromesh_gltf::write(&args.output, &baked.mesh, &frame))?;
+    let sampling = Sampling {
+        samples: args.samples,
+        ..Sampling::default()
+    };
+    let decoded = baked.mesh.decoded();
+    let d = stages.run("measure", || {
+        surface_distance::measure(&reference_mesh, &decoded, &sampling)
+    });
+    let bytes = |p: &Path| std::fs::metadata(p).map_or(0, |m| m.len());
+    let report = Report {
+        reference: args.reference.display().to_string(),
+        reference_triangles: reference_mesh.triangles.len(),
+        output: args.output.display().to_string(),
+        bake: baked.report,
+        file_bytes: outputs.iter().map(|p| bytes(p)).sum(),
+        micromap_bytes: bytes(&outputs[2]),
+        bake_seconds,
+        reference_to_baked: d.a_to_b.relative_to(d.a_diagonal),
+        baked_to_reference: d.b_to_a.relative_to(d.a_diagonal),
+        symmetric: d.symmetric.relative_to(d.a_diagonal),
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print!("{}", summary(&report));
+    }
+    stages.report();
+    Ok(())
+}
+
+/// The glTF, its buffer and its micromap, checked before any work: writable, none of them an
+/// input.
+fn check_outputs(args: &BakeArgs) -> Result<[std::path::PathBuf; 3]> {
+    image_io::check_output(&args.output, "gltf")?;
+    let (bin, bary) = micromesh_gltf::companion_paths(&args.output);
+    let outputs = [args.output.clone(), bin, bary];
+    let mut inputs = vec![args.reference.as_path()];
+    inputs.extend(args.base.as_deref());
+    for output in &outputs {
+        image_io::check_writable(output)?;
+        image_io::check_not_input(output, &inputs)?;
+    }
+    if args.base.as_deref().is_some_and(|b| b == args.reference) {
+        bail!(
+            "--base {}: is the reference itself; give a coarser mesh",
+            args.reference.display()
+        );
+    }
+    Ok(outputs)
+}
+
+fn summary(r: &Report) -> String {
+    let b = &r.bake;
+    let per_micro = |bytes: u64| bytes as f64 / b.micro_triangles.max(1) as f64;
+    let share = |count: u64| 100.0 * count as f64 / b.values.max(1) as f64;
+    let row = |what: &str, s: &DistanceSummary| format!("| {what} | {:.3e} | {:.3e} | {:.3e} |\n", s.rms, s.p99, s.max);
+    format!(
+        "{} ({} triangles) -> {}\n\
+         base: {} triangles, {} vertices; level {}: {} micro-triangles ({:.1} per reference triangle)\n\
+         files: {} bytes, {:.2} B per micro-triangle (micromap {:.2} B)\n\
+         bake: {:.2} s; {} of {} values ({:.3}%) met no surface within reach, {} ({:.3}%) were clamped\n\n\
+         Distance to the reference, as fractions of its bounding-box diagonal:\n\n\
+         | from | RMS | 99th percentile | max |\n|---|---:|---:|---:|\n{}{}{}",
+        r.reference,
+        r.reference_triangles,
+        r.output,
+        b.base_triangles,
+        b.base_vertices,
+        b.levels,
+        b.micro_triangles,
+        b.micro_triangles as f64 / r.reference_triangles.max(1) as f64,
+        r.file_bytes,
+        per_micro(r.file_bytes),
+        per_micro(r.micromap_bytes),
+        r.bake_seconds,
+        b.misses,
+        b.values,
+        share(b.misses),
+        b.clamped,
+        share(b.clamped),
+        row("reference to baked", &r.reference_to_baked),
+        row("baked to reference", &r.baked_to_reference),
+        row("both (symmetric)", &r.symmetric),
+    )
+}

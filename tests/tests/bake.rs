@@ -1,0 +1,118 @@
+//! `gridrt bake` end to end: a detailed mesh in, a displaced micro-mesh (glTF + .bin + .bary)
+//! out, its report, and the files read back by the other commands.
+
+use std::path::Path;
+
+use gridrt::mesh::Mesh;
+use gridrt_tests::{bumpy_ball, fails_with, gridrt, scratch, stderr};
+
+fn write_obj(path: &Path, mesh: &Mesh, offset: f64) {
+    let mut text = String::new();
+    for p in &mesh.positions {
+        let p = p.as_dvec3() + offset;
+        text += &format!("v {} {} {}\n", p.x, p.y, p.z);
+    }
+    for t in &mesh.triangles {
+        text += &format!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1);
+    }
+    std::fs::write(path, text).unwrap();
+}
+
+fn json(args: &[&str]) -> serde_json::Value {
+    let o = gridrt(args);
+    assert!(o.status.success(), "gridrt {args:?}: {}", stderr(&o));
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
+/// A ball 1e6 from the origin bakes to its budget, close to itself, into three files that
+/// `compare` and `render` read back.
+#[test]
+fn a_mesh_bakes_into_files_the_other_commands_read() {
+    let dir = scratch("bake");
+    let reference = dir.join("ball.obj");
+    write_obj(&reference, &bumpy_ball(5), 1e6);
+    let out = dir.join("ball.gltf");
+    let (r, o) = (reference.to_str().unwrap(), out.to_str().unwrap());
+    let report = json(&["bake", r, "-L", "3", "-o", o, "--samples", "20000", "--json"]);
+    let base = report["base_triangles"].as_u64().unwrap();
+    assert!((100..=128).contains(&base), "{report}");
+    assert_eq!(report["micro_triangles"].as_u64().unwrap(), 64 * base);
+    assert_eq!(report["reference_triangles"].as_u64().unwrap(), 8192);
+    let rms = report["symmetric"]["rms"].as_f64().unwrap();
+    assert!(rms < 1e-3, "{report}");
+    // The files as written: the distance `compare` measures is the one `bake` reported.
+    for file in ["ball.gltf", "ball.bin", "ball.bary"] {
+        assert!(dir.join(file).is_file(), "{file}");
+    }
+    let files: u64 = ["ball.gltf", "ball.bin", "ball.bary"]
+        .iter()
+        .map(|f| std::fs::metadata(dir.join(f)).unwrap().len())
+        .sum();
+    assert_eq!(report["file_bytes"].as_u64().unwrap(), files);
+    let compared = json(&["compare", r, o, "--samples", "20000", "--json"]);
+    assert!(
+        (compared["symmetric"]["rms"].as_f64().unwrap() - rms).abs() < 0.05 * rms,
+        "{compared} vs {report}"
+    );
+    let png = dir.join("ball.png");
+    let o = gridrt(&[
+        "render",
+        o,
+        "--backend",
+        "cpu",
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+
+    // Onto a base the user made: the same ball, coarse.
+    let base = dir.join("base.obj");
+    write_obj(&base, &bumpy_ball(2), 1e6);
+    let onto = dir.join("onto.gltf");
+    let report = json(&[
+        "bake",
+        r,
+        "--base",
+        base.to_str().unwrap(),
+        "-L",
+        "2",
+        "-o",
+        onto.to_str().unwrap(),
+        "--samples",
+        "20000",
+        "--json",
+    ]);
+    assert_eq!(report["base_triangles"].as_u64().unwrap(), 128, "{report}");
+    assert!(report["symmetric"]["rms"].as_f64().unwrap() < 2e-3, "{report}");
+}
+
+/// Outputs are checked before any work: not an input, a glTF name; a base and a budget
+/// together are refused.
+#[test]
+fn bake_refuses_bad_outputs_before_any_work() {
+    let dir = scratch("bake-refusals");
+    let reference = dir.join("ball.obj");
+    write_obj(&reference, &bumpy_ball(2), 0.0);
+    let r = reference.to_str().unwrap();
+    fails_with(
+        &["bake", r, "-o", dir.join("out.ply").to_str().unwrap()],
+        &[],
+        &["out.ply", "*.gltf"],
+    );
+    // A baked file as the reference of the next bake, written over itself.
+    let first = dir.join("first.gltf");
+    let o = gridrt(&["bake", r, "-L", "1", "-o", first.to_str().unwrap(), "--samples", "100"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let f = first.to_str().unwrap();
+    fails_with(&["bake", f, "-o", f], &[], &["first.gltf", "is the input"]);
+    let o = gridrt(&["bake", r, "--base", r, "--base-triangles", "4"]);
+    assert!(
+        !o.status.success() && stderr(&o).contains("cannot be used with"),
+        "{}",
+        stderr(&o)
+    );
+}
