@@ -91,6 +91,20 @@ impl Micromap {
         &self.values[first..first + values_per_triangle(triangle.level)]
     }
 
+    /// Appends `other`'s groups, triangles and values after this micromap's.
+    pub fn append(&mut self, other: &Micromap) {
+        let (triangles, values) = (self.triangles.len() as u32, self.values.len() as u32);
+        self.groups.extend(other.groups.iter().map(|g| MicromapGroup {
+            triangle_first: g.triangle_first + triangles,
+            ..*g
+        }));
+        self.triangles.extend(other.triangles.iter().map(|t| MicromapTriangle {
+            first_value: t.first_value + values,
+            ..*t
+        }));
+        self.values.extend_from_slice(&other.values);
+    }
+
     /// A micromap of one group: each triangle's level and values (u-major), in order.
     pub fn from_triangles(bias: f32, scale: f32, triangles: &[(u32, Vec<u16>)]) -> Micromap {
         let mut map = Micromap {

@@ -64,6 +64,14 @@ impl DisplacedMesh {
         Ok(())
     }
 
+    /// The base mesh alone: positions and triangles.
+    pub fn base_mesh(&self) -> Mesh {
+        Mesh {
+            positions: self.positions.clone(),
+            triangles: self.triangles.clone(),
+        }
+    }
+
     /// Base triangle `t` as the decoder reads it.
     pub fn base_triangle(&self, t: usize) -> DisplacedTriangle {
         let ids = self.triangles[t];
@@ -97,6 +105,71 @@ impl DisplacedMesh {
                 displaced_point(&base, p, n, unorm11_displacement(q as u32, scale, bias))
             })
             .collect()
+    }
+
+    /// The same surface with every group's bias and scale folded into the base mesh (each
+    /// position moved by `bias` directions, each direction scaled by `scale`) and one group of
+    /// bias 0 and scale 1: the form displaced grids decode, a value being its unorm alone. A
+    /// vertex shared by triangles of groups with different ranges gets a copy per range.
+    pub fn with_ranges_folded(&self) -> DisplacedMesh {
+        let mut folded = DisplacedMesh {
+            micromap: Micromap {
+                groups: vec![crate::bary::MicromapGroup {
+                    triangle_first: 0,
+                    triangle_count: self.triangles.len() as u32,
+                    bias: 0.0,
+                    scale: 1.0,
+                }],
+                ..self.micromap.clone()
+            },
+            ..Default::default()
+        };
+        // (vertex, bias bits, scale bits) -> folded vertex id
+        let mut copies = std::collections::HashMap::new();
+        for t in 0..self.triangles.len() {
+            let (bias, scale) = self.bias_scale(t);
+            let triangle = self.triangles[t].map(|v| {
+                *copies.entry((v, bias.to_bits(), scale.to_bits())).or_insert_with(|| {
+                    let (p, d) = (self.positions[v as usize], self.directions[v as usize]);
+                    folded.positions.push(p + d * bias);
+                    folded.directions.push(d * scale);
+                    folded.positions.len() as u32 - 1
+                })
+            });
+            folded.triangles.push(triangle);
+        }
+        folded
+    }
+
+    /// The level every triangle is subdivided to, or `None` when they differ (or there are
+    /// none).
+    pub fn uniform_level(&self) -> Option<u32> {
+        let first = self.micromap.triangles.first()?.level;
+        self.micromap
+            .triangles
+            .iter()
+            .all(|t| t.level == first)
+            .then_some(first)
+    }
+
+    /// [`Self::decoded`] with the points that decode to the same bits (shared edges and
+    /// corners, seen from each side) stored once; the triangles as they are, in order.
+    pub fn decoded_welded(&self) -> Mesh {
+        let decoded = self.decoded();
+        let mut ids = std::collections::HashMap::with_capacity(decoded.positions.len());
+        let mut welded = Mesh::default();
+        let remap: Vec<u32> = (decoded.positions.iter())
+            .map(|p| {
+                *ids.entry(p.to_array().map(f32::to_bits)).or_insert_with(|| {
+                    welded.positions.push(*p);
+                    welded.positions.len() as u32 - 1
+                })
+            })
+            .collect();
+        welded.triangles = (decoded.triangles.iter())
+            .map(|t| t.map(|i| remap[i as usize]))
+            .collect();
+        welded
     }
 
     /// The micro-triangles, each base triangle's at its own level, with the parent's winding.
@@ -175,6 +248,37 @@ mod tests {
                 2 * values_per_triangle(level) - (n as usize + 1),
                 "level {level}"
             );
+        }
+    }
+
+    /// Folding moves no micro-vertex by more than rounding, and leaves a bias-free micromap;
+    /// two groups of different ranges split their shared vertices.
+    #[test]
+    fn folded_ranges_decode_to_the_same_surface() {
+        let mut mesh = two_triangles(2);
+        let plain = mesh.with_ranges_folded();
+        assert_eq!(plain.positions.len(), 4);
+        mesh.micromap.groups = vec![
+            crate::bary::MicromapGroup {
+                triangle_first: 0,
+                triangle_count: 1,
+                bias: -0.05,
+                scale: 0.2,
+            },
+            crate::bary::MicromapGroup {
+                triangle_first: 1,
+                triangle_count: 1,
+                bias: 0.1,
+                scale: 0.5,
+            },
+        ];
+        let folded = mesh.with_ranges_folded();
+        assert_eq!(folded.positions.len(), 6);
+        assert_eq!(folded.micromap.groups.len(), 1);
+        for t in 0..2 {
+            for (a, b) in mesh.micro_vertices(t).iter().zip(folded.micro_vertices(t)) {
+                assert!((*a - b).length() < 1e-6, "{a} {b}");
+            }
         }
     }
 

@@ -12,6 +12,7 @@ use gridrt_shared::layout::{
     SHADE_PRIMITIVE,
 };
 
+use crate::displaced::DisplacedMesh;
 use crate::grid::{self, GridBuild};
 use crate::mesh::Mesh;
 use crate::rays::AO_RADIUS;
@@ -89,6 +90,45 @@ impl Scene {
                 }
                 let list = sub.micro_triangles(lod);
                 Ok(Scene::Triangles(triangles::build(&sub.positions, &list)))
+            }
+        }
+    }
+}
+
+impl Scene {
+    /// Builds a displaced micro-mesh (in its local frame) as `options` say: displaced grids,
+    /// or the baseline over its decoded micro-triangles. The mesh's own level is built, so
+    /// `options.grid`'s levels and subdivision are not used; `options.lod` may render the
+    /// grids shallower.
+    pub fn build_displaced(mesh: &DisplacedMesh, options: &BuildOptions) -> Result<Scene> {
+        let Some(levels) = mesh.uniform_level() else {
+            fail!(
+                Options,
+                "base triangles subdivided to different levels are traced as decoded triangles only"
+            );
+        };
+        let lod = options.lod.unwrap_or(levels);
+        if lod > levels {
+            fail!(
+                Options,
+                "level of detail {lod} is deeper than the micro-mesh's {levels} levels"
+            );
+        }
+        match options.representation {
+            Representation::Grids => {
+                let mut grids = grid::displaced::build(mesh, &options.grid.options)?;
+                grids.set_lod(lod)?;
+                Ok(Scene::Grids(grids))
+            }
+            Representation::Triangles => {
+                if lod != levels {
+                    fail!(Options, "the baseline has one depth, the micro-mesh's own ({levels})");
+                }
+                let decoded = mesh.with_ranges_folded().decoded_welded();
+                Ok(Scene::Triangles(triangles::build(
+                    &decoded.positions,
+                    &decoded.triangles,
+                )))
             }
         }
     }

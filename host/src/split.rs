@@ -110,6 +110,18 @@ pub fn split<'a>(scene: &'a Scene, chunk_words: u32, device: &str) -> Result<Spl
     );
     let buffers = scene_buffers(scene);
     let sizes: Vec<BufferSize> = buffers.iter().map(SceneBuffer::size).collect();
+    if matches!(scene, Scene::Grids(g) if g.params.displaced != 0) {
+        // The split kernels leave the displaced decoder out: with it they grow much larger,
+        // and so does the time their first compile takes.
+        let largest = sizes.iter().max_by_key(|b| b.bytes).expect("a scene has buffers");
+        fail!(
+            Limits,
+            "displaced grids are read from one binding per buffer, and this scene's {} buffer ({}) is larger \
+             than {device} binds at once",
+            largest.name,
+            crate::limits::human(largest.bytes)
+        );
+    }
     check_chunks(&sizes, chunk_words, device)?;
     let mut params = SplitParams {
         chunk_shift: chunk_words.trailing_zeros(),

@@ -15,6 +15,10 @@ use crate::layout::{BvhNode, GridHeader, SplitParams};
 
 /// Random read access to the elements of a buffer.
 pub trait Buffer<T>: Copy {
+    /// Whether the buffer is split into chunks: code that split scenes never run (displaced
+    /// grids) is left out of their kernels at compile time.
+    const SPLIT: bool = false;
+
     fn load(self, index: u32) -> T;
     fn is_empty(self) -> bool;
 
@@ -146,6 +150,8 @@ impl<'a, T> Split<'a, T> {
 }
 
 impl Buffer<u32> for Split<'_, u32> {
+    const SPLIT: bool = true;
+
     #[inline(always)]
     fn load(self, index: u32) -> u32 {
         self.word(index, 0)
@@ -158,6 +164,8 @@ impl Buffer<u32> for Split<'_, u32> {
 }
 
 impl Buffer<f32> for Split<'_, f32> {
+    const SPLIT: bool = true;
+
     #[inline(always)]
     fn load(self, index: u32) -> f32 {
         f32::from_bits(self.word(index, 0))
@@ -170,6 +178,8 @@ impl Buffer<f32> for Split<'_, f32> {
 }
 
 impl Buffer<BvhNode> for Split<'_, BvhNode> {
+    const SPLIT: bool = true;
+
     #[inline(always)]
     fn load(self, index: u32) -> BvhNode {
         let [x0, y0, z0, first] = self.word4(8 * index);
@@ -190,6 +200,8 @@ impl Buffer<BvhNode> for Split<'_, BvhNode> {
 }
 
 impl Buffer<GridHeader> for Split<'_, GridHeader> {
+    const SPLIT: bool = true;
+
     #[inline(always)]
     fn load(self, index: u32) -> GridHeader {
         let [e0, e1, c0, c1] = self.word4(4 * index);

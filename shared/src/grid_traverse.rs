@@ -4,6 +4,7 @@
 
 use crate::buffer::{Buffer, Chunks, Split};
 use crate::cost::Tally;
+use crate::displacement::{displaced_point, unorm11_displacement, DisplacedTriangle};
 use crate::footprint::FootprintFrame;
 use crate::glam::Vec3;
 use crate::grid_index::{
@@ -54,7 +55,12 @@ pub struct OpenGrid {
     pub origin: Vec3,
     /// Length of one code step (zero for `f32` inner vertices).
     unit: f32,
+    /// The base triangle a displaced grid decodes its lattice points from (unused otherwise).
+    base: DisplacedTriangle,
 }
+
+/// Bits of one stored displacement value.
+pub const DISPLACEMENT_BITS: u32 = 11;
 
 /// Flag bit of an address in 16-bit halves of the inner codes (buffers stay far below 2^31
 /// words).
@@ -137,6 +143,9 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     /// frame its inner vertices are decoded in.
     #[inline]
     pub fn open(&self, grid: u32) -> OpenGrid {
+        if !W::SPLIT && self.params.displaced != 0 {
+            return self.open_displaced(grid);
+        }
         let g = &self.params;
         let n = 1u32 << g.levels;
         let quantized = g.quantized_inner != 0;
@@ -166,13 +175,54 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             corners,
             origin,
             unit,
+            base: DisplacedTriangle {
+                positions: [Vec3::ZERO; 3],
+                directions: [Vec3::ZERO; 3],
+                ids: [0; 3],
+            },
         }
+    }
+
+    /// [`Self::open`] for a displaced grid: one 11-bit value per lattice point, addressed in
+    /// bits, and the base triangle's corners and directions to decode them with.
+    fn open_displaced(&self, grid: u32) -> OpenGrid {
+        let g = &self.params;
+        let n = 1u32 << g.levels;
+        let ids = self.ids(grid);
+        let edge_bit = 32 * g.edge_word;
+        let corner_bit = edge_bit + DISPLACEMENT_BITS * (g.corner_offset - g.edge_offset);
+        let inner_bit = 32 * grid * g.inner_words;
+        let slots = GridSlots::addressed(&ids, n, inner_bit, edge_bit, corner_bit, DISPLACEMENT_BITS);
+        let corner_ids = [ids.corner(0), ids.corner(1), ids.corner(2)];
+        let at = |c: usize, k: u32| load_vec3_bits(self.vertices, g.base_word + 6 * corner_ids[c] + k);
+        let base = DisplacedTriangle {
+            positions: [at(0, 0), at(1, 0), at(2, 0)],
+            directions: [at(0, 3), at(1, 3), at(2, 3)],
+            ids: corner_ids,
+        };
+        let mut open = OpenGrid {
+            slots,
+            corners: [Vec3::ZERO; 3],
+            origin: Vec3::ZERO,
+            unit: 0.0,
+            base,
+        };
+        open.corners = [
+            self.displaced_vertex(&open, [0, 0]),
+            self.displaced_vertex(&open, [n, 0]),
+            self.displaced_vertex(&open, [0, n]),
+        ];
+        open.origin = sphere_center(open.corners[0], open.corners[1], open.corners[2]);
+        open
     }
 
     /// Position of lattice point `p` of an opened grid. (Always inlined: a call per vertex
     /// costs the CPU backend about 8%.)
     #[inline(always)]
     pub fn vertex(&self, grid: &OpenGrid, p: Lattice) -> Vec3 {
+        if !W::SPLIT && self.params.displaced != 0 {
+            return self.displaced_vertex(grid, p);
+        }
         let at = grid.slots.slot(p);
         let codes = at & INNER_CODES != 0;
         let h = at & !INNER_CODES;
@@ -185,6 +235,27 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             return Vec3::new(f32::from_bits(x), f32::from_bits(y), f32::from_bits(z));
         }
         dequantize(grid.origin, halves_from_words(x, y, h & 1), grid.unit)
+    }
+
+    /// Lattice point `p` of a displaced grid: its 11-bit value (a unorm whose range the base
+    /// vertices' positions and directions hold) decoded along its interpolated direction, by
+    /// the one decoder the host's triangles are made with.
+    #[inline(always)]
+    fn displaced_vertex(&self, grid: &OpenGrid, p: Lattice) -> Vec3 {
+        let bit = grid.slots.slot(p);
+        let (word, shift) = (bit >> 5, bit & 31);
+        // The value may run on into the next word (always there: the base vertices follow
+        // the values). Shifted in two steps, so a value that starts a word shifts the next
+        // one out entirely rather than by 32, which shifts by nothing on some targets.
+        let low = self.vertices.load(word) >> shift;
+        let high = (self.vertices.load(word + 1) << 1) << (31 - shift);
+        let q = (low | high) & ((1 << DISPLACEMENT_BITS) - 1);
+        displaced_point(
+            &grid.base,
+            p,
+            1 << self.params.levels,
+            unorm11_displacement(q, 1.0, 0.0),
+        )
     }
 
     /// Radius of sphere `node` (breadth-first id) of `grid`.

@@ -231,6 +231,13 @@ pub struct GridParams {
     /// Pixels per unit of length one unit away from the eye, over the target micro-triangle
     /// size in pixels (`lod_auto`).
     pub lod_scale: f32,
+    /// Whether the vertex areas hold 11-bit displacement values (packed end to end, addressed
+    /// in bits) rather than positions: each lattice point is then decoded from its base
+    /// triangle's corners and directions (see [`crate::displacement`]).
+    pub displaced: u32,
+    /// Word of the vertex buffer where the base vertices of a displaced scene begin: a
+    /// position and a direction, six `f32`, per base vertex.
+    pub base_word: u32,
 }
 
 impl GridParams {

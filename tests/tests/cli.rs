@@ -952,8 +952,8 @@ fn compare_measures_the_distance_between_surfaces() {
 }
 
 /// A displaced micro-mesh (glTF + .bin + .bary as gridrt writes them) renders, measures and
-/// exports as its decoded micro-triangles, welded along the shared base edge, and says so;
-/// the benchmark, which needs displaced grids, refuses it by name.
+/// benchmarks as displaced grids, and exports as its decoded micro-triangles, welded along
+/// the shared base edge.
 #[test]
 fn displaced_micro_meshes_are_decoded_not_subdivided() {
     use gridrt::bary::{values_per_triangle, Micromap};
@@ -1007,7 +1007,12 @@ fn displaced_micro_meshes_are_decoded_not_subdivided() {
     let err = stderr(&o);
     assert!(o.status.success(), "{err}");
     assert!(
-        err.contains("a displaced micro-mesh of 2 base triangles at level 3: its 128 decoded micro-triangles"),
+        err.contains("a displaced micro-mesh of 2 base triangles at level 3, 128 micro-triangles"),
+        "{err}"
+    );
+    // Traced as displaced grids: 2 grids of 64 micro-triangles.
+    assert!(
+        err.contains("baked.gltf: 2 base triangles, 128 micro-triangles at depth 3"),
         "{err}"
     );
     check_png(&png, 64, 48);
@@ -1024,12 +1029,22 @@ fn displaced_micro_meshes_are_decoded_not_subdivided() {
     let stats: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(
         (stats["levels"].as_u64(), stats["micro_triangles"].as_u64()),
-        (Some(0), Some(128))
+        (Some(3), Some(128))
     );
+    assert!(stats["grid"]["parts"]["inner_values"].as_u64().is_some(), "{stats}");
 
-    fails_with(
-        &["bench", g],
-        &[],
-        &["baked.gltf", "displaced micro-mesh", "not built yet"],
-    );
+    let o = gridrt(&[
+        "bench",
+        g,
+        "--width",
+        "32",
+        "--height",
+        "24",
+        "--views",
+        "1",
+        "--repeats",
+        "1",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("| baked.gltf | 128 |"));
 }

@@ -106,6 +106,20 @@ fn agreement(a: &Scene, ha: &[HitRecord], b: &Scene, hb: &[HitRecord]) -> f64 {
     same as f64 / ha.len().max(1) as f64
 }
 
+/// The displaced micro-mesh an input brings, when it has one level (displaced grids).
+fn grids_of(input: &Input) -> Option<&gridrt::displaced::DisplacedMesh> {
+    input.micromesh.as_ref().filter(|m| m.uniform_level().is_some())
+}
+
+/// The build arguments an input's limits are checked under: a displaced micro-mesh's decoded
+/// triangles are not subdivided further (and its grids are smaller than their baseline).
+fn build_of(input: &Input, build: &BuildArgs) -> BuildArgs {
+    match input.displaced {
+        Some(_) => build.as_decoded(),
+        None => build.clone(),
+    }
+}
+
 /// Refuses, before building, a mesh whose representations the device cannot bind, or whose
 /// uploads it would keep copies of in host memory (lavapipe) beyond what is free.
 fn check_device(name: &str, mesh: &Mesh, device: &Backend, build: &BuildArgs, ray_bytes: u64) -> Result<()> {
@@ -147,24 +161,30 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
         .iter()
         .map(|path| super::load(Some(path)))
         .collect::<Result<Vec<_>>>()?;
-    if let Some(input) = meshes.iter().find(|m| m.displaced.is_some()) {
+    if let Some(input) = (meshes.iter()).find(|m| m.displaced.is_some() && grids_of(m).is_none()) {
         bail!(
-            "{}: a displaced micro-mesh: benchmarking it against its decoded triangles needs displaced grids, \
-             which are not built yet",
+            "{}: a displaced micro-mesh whose base triangles have different levels: displaced grids hold one \
+             level, and are not built for it yet",
             input.name
         );
     }
     let rays_per_view = args.width as u64 * args.height as u64 * (1 + args.ao_samples as u64);
     let ray_bytes = (args.views as u64 * rays_per_view).saturating_mul(RAY_BYTES);
-    for Input { name, mesh, .. } in &meshes {
-        stats::check_work(name, mesh, &args.build, ray_bytes)?;
+    for input in &meshes {
+        stats::check_work(&input.name, &input.mesh, &build_of(input, &args.build), ray_bytes)?;
     }
     let device = super::open_backend(args.backend, "benchmarking")?;
     if args.schedule.schedule() == Schedule::TwoPhase && device.kind() != "gpu" {
         bail!("--schedule two-phase runs on the GPU backend; use --backend gpu");
     }
-    for Input { name, mesh, .. } in &meshes {
-        check_device(name, mesh, &device, &args.build, ray_bytes)?;
+    for input in &meshes {
+        check_device(
+            &input.name,
+            &input.mesh,
+            &device,
+            &build_of(input, &args.build),
+            ray_bytes,
+        )?;
     }
     let (backend, device_name, timing) = (device.kind(), device.describe(), device.timing().to_string());
     // Per mesh: load+subdivide, stats, rays, then 4 timed runs.
@@ -175,16 +195,28 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
     };
     bar.set_style(ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}").unwrap());
     let mut results = Vec::new();
-    for Input { name, mesh, .. } in &meshes {
-        bar.set_message(format!("{name}: subdividing"));
-        let sub = super::subdivide(mesh, &args.build);
-        bar.inc(1);
-        let (stats, grids, tris) = stats::measure(name, mesh, &sub, &args.build, args.build_repeats, &|step| {
-            bar.set_message(format!("{name}: {step}"))
-        })?;
+    for input in &meshes {
+        let Input { name, mesh, .. } = input;
+        let step = |step: &str| bar.set_message(format!("{name}: {step}"));
+        // A displaced micro-mesh: displaced grids against its decoded micro-triangles.
+        let (stats, grids, tris, bounds) = match grids_of(input) {
+            Some(micromesh) => {
+                bar.inc(1);
+                let measured = stats::measure_displaced(name, micromesh, &args.build, args.build_repeats, &step)?;
+                let bounds = Aabb::from_points(mesh.positions.iter().copied());
+                (measured.0, measured.1, measured.2, bounds)
+            }
+            None => {
+                step("subdividing");
+                let sub = super::subdivide(mesh, &args.build);
+                bar.inc(1);
+                let measured = stats::measure(name, mesh, &sub, &args.build, args.build_repeats, &step)?;
+                let bounds = Aabb::from_points(sub.positions.iter().copied());
+                (measured.0, measured.1, measured.2, bounds)
+            }
+        };
         bar.inc(1);
         bar.set_message(format!("{name}: generating rays"));
-        let bounds = Aabb::from_points(sub.positions.iter().copied());
         let mut primary = primary_rays(&bounds, args.views, args.width, args.height);
         // AO rays start from the baseline's hits (the same as the grids' up to ties).
         let tris = Scene::Triangles(tris);

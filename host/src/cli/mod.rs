@@ -402,6 +402,24 @@ impl RenderArgs {
         }
     }
 
+    /// These arguments for a displaced micro-mesh of `level` as displaced grids: its own
+    /// level is built, and a depth to render must not be deeper.
+    fn as_displaced(&self, level: u32) -> Result<RenderArgs> {
+        if let Some(LodArg::Depth(depth)) = self.lod {
+            if depth > level {
+                bail!("--lod {depth} is deeper than the micro-mesh's level ({level})");
+            }
+        }
+        Ok(RenderArgs {
+            build: BuildArgs {
+                levels: level,
+                subdivision: SubdivisionArg::Flat,
+                ..self.build.clone()
+            },
+            ..self.clone()
+        })
+    }
+
     /// The library's build options for these arguments.
     pub fn build_options(&self) -> BuildOptions {
         BuildOptions {
@@ -602,8 +620,7 @@ pub fn load_all(paths: &[&Path]) -> Result<Input> {
             false => format!("levels {} to {}", d.min_level, d.max_level),
         };
         eprintln!(
-            "note: {}: a displaced micro-mesh of {} base triangles at {levels}: its {} decoded micro-triangles are \
-             traced as they are (displaced grids are not built yet)",
+            "note: {}: a displaced micro-mesh of {} base triangles at {levels}, {} micro-triangles",
             input.name,
             d.base_triangles,
             input.mesh.triangles.len()
@@ -685,25 +702,46 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
         mesh,
         frame,
         displaced,
+        micromesh,
         ..
     } = stages.run("load", || load_all(&paths))?;
-    // A displaced micro-mesh arrives decoded: its micro-triangles are traced as they are.
-    let as_decoded;
-    let (args, options, lod) = match displaced {
-        Some(_) => {
+    // A displaced micro-mesh of one level becomes displaced grids; otherwise, and for the
+    // baseline, its decoded micro-triangles are traced as they are.
+    let displaced_grids = micromesh.filter(|m| args.mode == Mode::Grid && m.uniform_level().is_some());
+    let (as_decoded, as_displaced);
+    let (args, options, lod) = match (&displaced_grids, displaced) {
+        (Some(m), _) => {
+            as_displaced = args.as_displaced(m.uniform_level().unwrap_or(0))?;
+            let options = as_displaced.build_options();
+            let lod = options.lod.unwrap_or(as_displaced.build.levels);
+            (&as_displaced, options, lod)
+        }
+        (None, Some(_)) => {
             as_decoded = args.as_decoded();
             (&as_decoded, as_decoded.build_options(), 0)
         }
-        None => (args, options, lod),
+        (None, None) => (args, options, lod),
     };
+    let base_triangles = displaced_grids
+        .as_ref()
+        .map_or(mesh.triangles.len(), |m| m.triangles.len());
+    if displaced.is_none() && paths.len() == 1 {
+        suggest_bake(&name, &mesh, &args.build, stages);
+    }
     let viewpoint = args.camera.viewpoint(&frame);
     // A view with no direction is refused before the build (bounds only matter for defaults).
-    check_render_memory(&name, &mesh, args)?;
+    match &displaced_grids {
+        Some(m) => check_render_memory(&name, &m.base_mesh(), args)?,
+        None => check_render_memory(&name, &mesh, args)?,
+    }
     let whole = Aabb::from_points(mesh.positions.iter().copied());
     camera::view(&whole, &viewpoint, args.width, args.height)?;
-    let sizes = match args.mode {
-        Mode::Grid => args.build.check_grid_limits(&name, &mesh)?,
-        Mode::Triangles => triangles::least_buffer_sizes(
+    let sizes = match (args.mode, &displaced_grids) {
+        (Mode::Grid, Some(m)) => {
+            grid::displaced::least_buffer_sizes(m, &args.build.grid_options()).map_err(|e| e.prefixed(&name))?
+        }
+        (Mode::Grid, None) => args.build.check_grid_limits(&name, &mesh)?,
+        (Mode::Triangles, _) => triangles::least_buffer_sizes(
             mesh.positions.len() as u64,
             limits::micro_triangles(mesh.triangles.len(), lod),
         ),
@@ -711,22 +749,23 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
     let backend = stages.run("device", || open_backend(args.backend, "rendering"))?;
     backend.check_fits(&sizes).map_err(|e| e.prefixed(&name))?;
     check_upload_memory(&name, &sizes, &backend, args)?;
-    let scene = match args.mode {
-        Mode::Grid => stages.run_counted("build", mesh.triangles.len() as u64, |bar| {
+    let scene = match (args.mode, &displaced_grids) {
+        (Mode::Grid, Some(m)) => stages.run("build", || Scene::build_displaced(m, &options))?,
+        (Mode::Grid, None) => stages.run_counted("build", mesh.triangles.len() as u64, |bar| {
             Scene::build_reporting(&mesh, &options, &|n| bar.inc(n as u64))
         })?,
-        Mode::Triangles => stages.run("build", || Scene::build(&mesh, &options))?,
+        (Mode::Triangles, _) => stages.run("build", || Scene::build(&mesh, &options))?,
     };
-    let micro = limits::micro_triangles(mesh.triangles.len(), lod);
+    let micro = limits::micro_triangles(base_triangles, lod);
     // Grids hold every level built, whatever depth renders.
     let stored = match scene {
-        Scene::Grids(_) => limits::micro_triangles(mesh.triangles.len(), args.build.levels),
+        Scene::Grids(_) => limits::micro_triangles(base_triangles, args.build.levels),
         Scene::Triangles(_) => micro,
     };
     let up_to = if args.lod == Some(LodArg::Auto) { "up to " } else { "" };
     stages.say(format!(
         "{name}: {} base triangles, {micro} micro-triangles at depth {up_to}{lod}, {} ({:.2} B per micro-triangle)",
-        mesh.triangles.len(),
+        base_triangles,
         limits::human(scene.memory() as u64),
         scene.memory() as f64 / stored as f64
     ));
@@ -769,6 +808,23 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
     }
     stages.report();
     Ok(())
+}
+
+/// Triangles from which a mesh is taken for a detailed one (a scan, a sculpt, a CAD
+/// tessellation) rather than a control mesh to subdivide.
+const DENSE_TRIANGLES: usize = 10_000;
+
+/// Points a user who subdivides a dense mesh to `bake`: Loop subdivision rounds such a mesh
+/// into another shape, and a displaced micro-mesh keeps its own in far less memory.
+fn suggest_bake(name: &str, mesh: &Mesh, build: &BuildArgs, stages: &Stages) {
+    if mesh.triangles.len() >= DENSE_TRIANGLES && build.levels > 0 && build.subdivision == SubdivisionArg::Loop {
+        stages.say(format!(
+            "note: {name}: {} triangles is a detailed mesh, not a control mesh: Loop subdivision rounds its edges and \
+             thin parts into another shape. To trace its own shape compactly, bake it: gridrt bake {name} -o \
+             baked.gltf (then render baked.gltf)",
+            mesh.triangles.len()
+        ));
+    }
 }
 
 /// How many grids render at each depth, and the cracks between them, in one line.

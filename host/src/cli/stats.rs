@@ -8,6 +8,7 @@ use serde::Serialize;
 use serde_json::{Map, Value};
 
 use super::{BuildArgs, StatsArgs};
+use gridrt::displaced::DisplacedMesh;
 use gridrt::grid::{self, GridScene};
 use gridrt::limits;
 use gridrt::mesh::{Input, Mesh};
@@ -131,6 +132,39 @@ pub fn measure(
     Ok((stats, grids, tris))
 }
 
+/// [`measure`] for a displaced micro-mesh of one level: displaced grids against its decoded
+/// micro-triangles (points decoded alike stored once). Timed as [`measure`] times: for
+/// grids, everything after laying out their values; for triangles, everything after
+/// decoding.
+pub fn measure_displaced(
+    name: &str,
+    micromesh: &DisplacedMesh,
+    build: &BuildArgs,
+    repeats: usize,
+    progress: &dyn Fn(&str),
+) -> Result<(Stats, GridScene, TriangleScene)> {
+    let layout = grid::displaced::layout(micromesh, &build.grid_options())?;
+    let decoded = micromesh.decoded_welded();
+    progress(&format!("building the displaced grids (up to {repeats} times)"));
+    let (grid_s, grids) = median_time_of(repeats, || layout.clone(), grid::build_from_layout);
+    progress(&format!("building the baseline (up to {repeats} times)"));
+    let (tri_s, tris) = median_time(repeats, || triangles::build(&decoded.positions, &decoded.triangles));
+    let micro = decoded.triangles.len();
+    let grid = representation(grids.memory(), micro, grid_s);
+    let triangles = representation(tris.memory(), micro, tri_s);
+    let stats = Stats {
+        mesh: name.to_string(),
+        levels: grids.params.levels,
+        base_triangles: micromesh.triangles.len(),
+        micro_triangles: micro,
+        compression_gain: triangles.bytes as f64 / grid.bytes.max(1) as f64,
+        construction_gain: triangles.build_seconds / grid.build_seconds.max(1e-12),
+        grid,
+        triangles,
+    };
+    Ok((stats, grids, tris))
+}
+
 /// Refuses to measure a mesh whose two representations would not fit in memory together
 /// (`extra`: bytes the caller needs besides), or whose grids could not be addressed.
 pub fn check_work(name: &str, mesh: &Mesh, build: &BuildArgs, extra: u64) -> Result<()> {
@@ -161,19 +195,31 @@ pub fn run(args: &StatsArgs, quiet: bool) -> Result<()> {
     let bar = spinner(quiet);
     bar.set_message("loading");
     let Input {
-        name, mesh, displaced, ..
+        name,
+        mesh,
+        displaced,
+        micromesh,
+        ..
     } = super::load(args.mesh.as_deref())?;
-    // A displaced micro-mesh arrives decoded: its micro-triangles are measured as they are.
-    let build = match displaced {
-        Some(_) => args.build.as_decoded(),
-        None => args.build.clone(),
+    let step = |step: &str| bar.set_message(format!("{name}: {step}"));
+    // A displaced micro-mesh of one level: displaced grids against its decoded triangles;
+    // of mixed levels, its decoded micro-triangles measured as they are.
+    let s = match (micromesh.filter(|m| m.uniform_level().is_some()), displaced) {
+        (Some(m), _) => {
+            check_work(&name, &mesh, &args.build.as_decoded(), 0)?;
+            measure_displaced(&name, &m, &args.build, BUILD_REPEATS, &step)?.0
+        }
+        (None, displaced) => {
+            let build = match displaced {
+                Some(_) => args.build.as_decoded(),
+                None => args.build.clone(),
+            };
+            check_work(&name, &mesh, &build, 0)?;
+            step("subdividing");
+            let sub = super::subdivide(&mesh, &build);
+            measure(&name, &mesh, &sub, &build, BUILD_REPEATS, &step)?.0
+        }
     };
-    check_work(&name, &mesh, &build, 0)?;
-    bar.set_message(format!("{name}: subdividing"));
-    let sub = super::subdivide(&mesh, &build);
-    let (s, _, _) = measure(&name, &mesh, &sub, &build, BUILD_REPEATS, &|step| {
-        bar.set_message(format!("{name}: {step}"))
-    })?;
     bar.finish_and_clear();
     if args.json {
         println!("{}", serde_json::to_string(&s)?);

@@ -17,6 +17,7 @@ use rayon::prelude::*;
 use crate::bvh::{self, Aabb, BuildParams};
 use crate::limits::BufferSize;
 
+pub mod displaced;
 mod lean;
 mod spheres;
 #[cfg(test)]
@@ -124,20 +125,36 @@ impl GridScene {
 
     /// Bytes of each uploaded part.
     pub fn memory(&self) -> Vec<(&'static str, usize)> {
-        let inner = self.params.edge_word as usize;
-        let edge = ((self.params.corner_offset - self.params.edge_offset) * 3) as usize;
-        let corner = self.vertices.len() - inner - edge;
-        vec![
-            ("top_bvh", std::mem::size_of_val(self.nodes.as_slice())),
-            ("headers", std::mem::size_of_val(self.headers.as_slice())),
-            ("inner_vertices", inner * 4),
-            ("edge_vertices", edge * 4),
-            ("corner_vertices", corner * 4),
+        let mut parts = self.vertex_memory();
+        parts.insert(0, ("headers", std::mem::size_of_val(self.headers.as_slice())));
+        parts.insert(0, ("top_bvh", std::mem::size_of_val(self.nodes.as_slice())));
+        parts.extend([
             ("sphere_radii", self.params.thickness_word as usize * 4),
             (
                 "leaf_thickness",
                 (self.radii.len() - self.params.thickness_word as usize) * 4,
             ),
+        ]);
+        parts
+    }
+
+    /// Bytes of the vertex buffer's areas.
+    fn vertex_memory(&self) -> Vec<(&'static str, usize)> {
+        let inner = self.params.edge_word as usize;
+        if self.params.displaced != 0 {
+            let base = self.params.base_word as usize;
+            return vec![
+                ("inner_values", inner * 4),
+                ("edge_and_corner_values", (base - inner) * 4),
+                ("base_vertices", (self.vertices.len() - base) * 4),
+            ];
+        }
+        let edge = ((self.params.corner_offset - self.params.edge_offset) * 3) as usize;
+        let corner = self.vertices.len() - inner - edge;
+        vec![
+            ("inner_vertices", inner * 4),
+            ("edge_vertices", edge * 4),
+            ("corner_vertices", corner * 4),
         ]
     }
 }
@@ -170,6 +187,8 @@ pub struct GridShape {
     /// Ids stored as plain words, two headers per grid (more than `2^21` base edges or
     /// vertices), rather than packed in one.
     pub wide_headers: bool,
+    /// Word of the base vertex records of displaced grids (see [`displaced`]); 0 otherwise.
+    pub base_word: u32,
 }
 
 impl GridShape {
@@ -190,6 +209,7 @@ impl GridShape {
                 false => 3 * inner_count,
             },
             wide_headers: needs_wide_headers(edges as u64, base.positions.len() as u64),
+            base_word: 0,
         }
     }
 
@@ -643,6 +663,8 @@ fn assemble(shape: &GridShape, ids: &[GridIds], per_grid: &PerGrid, mut vertices
             radius_scale,
             thickness_word,
             wide_headers: shape.wide_headers as u32,
+            displaced: (shape.base_word != 0) as u32,
+            base_word: shape.base_word,
             ..Default::default()
         },
         base_triangle: top.order,

@@ -39,6 +39,16 @@ pub struct DisplacedWorld {
 }
 
 impl DisplacedWorld {
+    /// Appends `other` after this mesh: its vertices, triangles and micromap.
+    pub fn append(&mut self, other: &DisplacedWorld) {
+        let first = self.positions.len() as u32;
+        self.positions.extend_from_slice(&other.positions);
+        self.directions.extend_from_slice(&other.directions);
+        self.triangles
+            .extend(other.triangles.iter().map(|t| t.map(|i| i + first)));
+        self.micromap.append(&other.micromap);
+    }
+
     /// The mesh in its local frame (centred on its base positions' bounds, scaled by a power
     /// of two; the directions scaled alike), and that frame.
     pub fn into_local(self) -> (DisplacedMesh, LocalFrame) {

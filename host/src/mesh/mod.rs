@@ -295,6 +295,9 @@ pub struct Input {
     /// Set when the input is a displaced micro-mesh: `mesh` then holds its decoded
     /// micro-triangles, to be traced as they are (no further subdivision).
     pub displaced: Option<DisplacedSource>,
+    /// The displaced micro-mesh itself, in the same frame as `mesh` (whose triangles are its
+    /// decoded micro-triangles, point for point).
+    pub micromesh: Option<crate::displaced::DisplacedMesh>,
 }
 
 /// A displaced micro-mesh that was loaded as its decoded micro-triangles.
@@ -323,6 +326,7 @@ pub fn open_all(paths: &[&Path]) -> Result<Input> {
             frame,
             cleaning: Cleaning::default(),
             displaced: None,
+            micromesh: None,
         });
     };
     let (mut all, mut cleaning, displaced) = load_file(first)?;
@@ -348,13 +352,52 @@ pub fn open_all(paths: &[&Path]) -> Result<Input> {
         name = format!("{name} + {}", path.display());
         cleaning.add(next_cleaning);
     }
+    if let Some(source) = displaced {
+        return open_displaced(paths, name, source);
+    }
     let (mesh, frame) = all.into_local();
     Ok(Input {
         name,
         mesh,
         frame,
         cleaning,
-        displaced,
+        displaced: None,
+        micromesh: None,
+    })
+}
+
+/// Displaced micro-meshes side by side, in the local frame of their base meshes: the
+/// micro-mesh itself, and its decoded micro-triangles (points decoded alike stored once) as
+/// the mesh, so that both decode the same points.
+fn open_displaced(paths: &[&Path], name: String, mut source: DisplacedSource) -> Result<Input> {
+    let mut all: Option<gltf_micromap::DisplacedWorld> = None;
+    for path in paths {
+        let bytes =
+            std::fs::read(path).map_err(|e| error!(Input, "{}: cannot open: {}", path.display(), io_reason(&e)))?;
+        let named = |e: crate::error::Error| error!(Input, "{}: {}", path.display(), one_line(&e.to_string()));
+        let world = gltf_micromap::parse_displaced(&bytes, path.parent())
+            .map_err(named)?
+            .ok_or_else(|| error!(Input, "{}: no displaced primitive", path.display()))?;
+        match &mut all {
+            Some(all) => all.append(&world),
+            None => all = Some(world),
+        }
+    }
+    let (micromesh, frame) = all.expect("at least one file").into_local();
+    micromesh.check().map_err(|e| e.prefixed(&name))?;
+    let micromesh = micromesh.with_ranges_folded();
+    let mesh = micromesh.decoded_welded();
+    source.base_triangles = micromesh.triangles.len();
+    let levels = micromesh.micromap.triangles.iter().map(|t| t.level);
+    source.min_level = levels.clone().min().unwrap_or(0);
+    source.max_level = levels.max().unwrap_or(0);
+    Ok(Input {
+        name,
+        mesh,
+        frame,
+        cleaning: Cleaning::default(),
+        displaced: Some(source),
+        micromesh: Some(micromesh),
     })
 }
 

@@ -1,0 +1,136 @@
+//! Displaced grids (a baked micro-mesh traced from its 16-bit values) against the same
+//! micro-triangles decoded into a list under the baseline's BVH: the same closest hits, no
+//! leaks at shared edges and corners, and the same pictures on the GPU and the CPU.
+
+use gridrt::bake::{bake, BakeOptions, Base};
+use gridrt::bvh::Aabb;
+use gridrt::camera;
+use gridrt::displaced::DisplacedMesh;
+use gridrt::image_io::fraction_within;
+use gridrt::pipeline::{BuildOptions, Representation};
+use gridrt::scene::{render_cpu, Scene};
+use gridrt_shared::glam::Vec3;
+use gridrt_shared::layout::SHADE_EYE_LIGHT;
+use gridrt_shared::ray::{Ray, T_FAR};
+use gridrt_tests::{bumpy_ball, gpu_or_skip, Rng};
+
+/// A bumpy ball baked at `levels` on a base of 64 triangles.
+fn baked_ball(levels: u32) -> DisplacedMesh {
+    let reference = bumpy_ball(4);
+    let options = BakeOptions {
+        base: Base::Decimated { triangles: 64 },
+        ..BakeOptions::for_reference(&reference, levels)
+    };
+    bake(&reference, &options).unwrap().mesh
+}
+
+fn build(mesh: &DisplacedMesh, representation: Representation, lod: Option<u32>) -> Scene {
+    let options = BuildOptions {
+        representation,
+        lod,
+        ..BuildOptions::default()
+    };
+    Scene::build_displaced(mesh, &options).unwrap()
+}
+
+fn both(mesh: &DisplacedMesh) -> (Scene, Scene) {
+    (
+        build(mesh, Representation::Grids, None),
+        build(mesh, Representation::Triangles, None),
+    )
+}
+
+/// Random rays: the same micro-triangle at the same distance, or a tie at a shared edge.
+#[test]
+fn displaced_grids_hit_as_their_decoded_triangles() {
+    for levels in [0, 1, 2, 3, 4] {
+        let mesh = baked_ball(levels);
+        let (grids, triangles) = both(&mesh);
+        let b = triangles.bounds();
+        let outer = Aabb {
+            min: b.min - (b.max - b.min) * 0.25,
+            max: b.max + (b.max - b.min) * 0.25,
+        };
+        let mut rng = Rng::new(levels as u64 + 1);
+        let (mut hits, mut same, mut ties) = (0, 0, 0);
+        let rays = 20_000;
+        for k in 0..rays {
+            let origin = rng.point_in(&outer);
+            let dir = match k % 2 {
+                0 => (rng.point_in(&b) - origin).normalize(),
+                _ => rng.direction(),
+            };
+            let ray = Ray::new(origin, dir);
+            let (g, t) = (grids.trace(&ray, T_FAR), triangles.trace(&ray, T_FAR));
+            assert_eq!(g.is_hit(), t.is_hit(), "L{levels} ray {k}: one hits, the other not");
+            if !g.is_hit() {
+                continue;
+            }
+            hits += 1;
+            assert!(
+                (g.t - t.t).abs() <= 1e-4 * t.t,
+                "L{levels} ray {k}: t {} vs {}",
+                g.t,
+                t.t
+            );
+            match grids.original_triangle(g.prim) == triangles.original_triangle(t.prim) {
+                true => same += 1,
+                false => ties += 1,
+            }
+        }
+        eprintln!("L{levels}: {rays} rays, {hits} hits, {same} on the same micro-triangle, {ties} ties");
+        assert!(
+            hits > rays / 5 && ties * 1000 < hits,
+            "L{levels}: {hits} hits, {ties} ties"
+        );
+    }
+}
+
+/// Rays through the micro-vertices on base edges and corners, where two or more grids meet,
+/// cross the closed surface: none passes through.
+#[test]
+fn shared_edges_of_displaced_grids_do_not_leak() {
+    let mesh = baked_ball(3).with_ranges_folded();
+    let grids = build(&mesh, Representation::Grids, None);
+    let n = 8;
+    let mut rng = Rng::new(5);
+    let mut rays = 0;
+    for t in 0..mesh.triangles.len() {
+        let points = mesh.micro_vertices(t);
+        let lattice = gridrt_shared::grid_index::lattice_points(n);
+        for (p, [i, j]) in points.iter().zip(lattice) {
+            if i != 0 && j != 0 && i + j != n {
+                continue;
+            }
+            // From outside, aimed at the point through the ball's centre region.
+            let dir = (Vec3::ZERO - *p).normalize() + rng.direction() * 0.2;
+            let origin = *p - dir * 3.0;
+            let hit = grids.trace(&Ray::new(origin, dir), T_FAR);
+            assert!(hit.is_hit() && hit.t <= 3.0 * 1.0001, "a ray through {p} leaked");
+            rays += 1;
+        }
+    }
+    assert!(rays > 1000, "{rays}");
+}
+
+/// The GPU decodes what the CPU does: the pictures agree (see gpu_vs_cpu.rs for the
+/// tolerance), at the full depth and a coarser level of detail.
+#[test]
+fn displaced_grids_gpu_equals_cpu() {
+    let Some(gpu) = gpu_or_skip("displaced_grids_gpu_equals_cpu") else {
+        return;
+    };
+    let mesh = baked_ball(3);
+    for lod in [3, 1] {
+        let grids = build(&mesh, Representation::Grids, Some(lod));
+        let frame = grids.frame(camera::frame(&grids.bounds(), 256, 192), SHADE_EYE_LIGHT);
+        let cpu = render_cpu(&grids, &frame);
+        let on_gpu = gpu.render(&grids, &frame).expect("GPU render");
+        let within = fraction_within(&cpu, &on_gpu, 2);
+        eprintln!(
+            "displaced grids lod {lod}: {:.3}% of pixels within 2/255",
+            100.0 * within
+        );
+        assert!(within >= 0.995, "lod {lod}: {within}");
+    }
+}
