@@ -221,19 +221,7 @@ pub fn fails_with(args: &[&str], env: &[(&str, &str)], needles: &[&str]) -> Stri
 /// A bumpy ball of `8 * 4^levels` triangles around the origin: a detailed closed surface to
 /// bake.
 pub fn bumpy_ball(levels: u32) -> Mesh {
-    let octahedron = Mesh {
-        positions: vec![Vec3::X, Vec3::Y, Vec3::Z, -Vec3::X, -Vec3::Y, -Vec3::Z],
-        triangles: vec![
-            [0, 1, 2],
-            [1, 3, 2],
-            [3, 4, 2],
-            [4, 0, 2],
-            [1, 0, 5],
-            [3, 1, 5],
-            [4, 3, 5],
-            [0, 4, 5],
-        ],
-    };
+    let octahedron = gridrt::mesh::scene::octahedron();
     let sub = subdivide(&octahedron, levels, Scheme::Flat);
     let bump = |p: Vec3| p * (1.0 + 0.05 * (5.0 * p.x).sin() * (4.0 * p.y).cos());
     let mesh = Mesh {

@@ -290,22 +290,10 @@ mod tests {
     use crate::subdiv::{subdivide, Scheme};
     use crate::surface_distance::{measure, Sampling};
 
-    /// A unit sphere of `8 * 4^levels` triangles: an octahedron subdivided flat, its
+    /// A unit sphere of `8 * 4^levels` triangles: the octahedron subdivided flat, its
     /// vertices pushed onto the sphere.
     fn sphere(levels: u32) -> Mesh {
-        let octahedron = Mesh {
-            positions: vec![Vec3::X, Vec3::Y, Vec3::Z, -Vec3::X, -Vec3::Y, -Vec3::Z],
-            triangles: vec![
-                [0, 1, 2],
-                [1, 3, 2],
-                [3, 4, 2],
-                [4, 0, 2],
-                [1, 0, 5],
-                [3, 1, 5],
-                [4, 3, 5],
-                [0, 4, 5],
-            ],
-        };
+        let octahedron = crate::mesh::scene::octahedron();
         let sub = subdivide(&octahedron, levels, Scheme::Flat);
         let mesh = Mesh {
             positions: sub.positions.iter().map(|p| p.normalize()).collect(),

@@ -96,6 +96,30 @@ fn representation(parts: Vec<(&'static str, usize)>, micro: usize, seconds: f64)
     }
 }
 
+/// Both representations as built, with their median build times, over `micro` micro-triangles.
+struct Built<'a> {
+    grids: (&'a GridScene, f64),
+    triangles: (&'a TriangleScene, f64),
+    micro: usize,
+}
+
+impl Built<'_> {
+    fn stats(&self, name: &str, levels: u32, base_triangles: usize) -> Stats {
+        let grid = representation(self.grids.0.memory(), self.micro, self.grids.1);
+        let triangles = representation(self.triangles.0.memory(), self.micro, self.triangles.1);
+        Stats {
+            mesh: name.to_string(),
+            levels,
+            base_triangles,
+            micro_triangles: self.micro,
+            compression_gain: triangles.bytes as f64 / grid.bytes.max(1) as f64,
+            construction_gain: triangles.build_seconds / grid.build_seconds.max(1e-12),
+            grid,
+            triangles,
+        }
+    }
+}
+
 /// Measures both representations of `mesh` subdivided as `sub`. Timed: for grids, their
 /// bounds, the top-level BVH, the reordering into its leaf order and the sphere radii; for
 /// triangles, their bounds, the SAH BVH and the reordering of the index list. Not timed: the
@@ -116,19 +140,12 @@ pub fn measure(
     let (grid_s, grids) = median_time_of(repeats, || layout.clone(), grid::build_from_layout);
     progress(&format!("building the baseline (up to {repeats} times)"));
     let (tri_s, tris) = median_time(repeats, || triangles::build(&sub.positions, &micro_list));
-    let micro = micro_list.len();
-    let grid = representation(grids.memory(), micro, grid_s);
-    let triangles = representation(tris.memory(), micro, tri_s);
-    let stats = Stats {
-        mesh: name.to_string(),
-        levels: sub.levels,
-        base_triangles: mesh.triangles.len(),
-        micro_triangles: micro,
-        compression_gain: triangles.bytes as f64 / grid.bytes.max(1) as f64,
-        construction_gain: triangles.build_seconds / grid.build_seconds.max(1e-12),
-        grid,
-        triangles,
+    let built = Built {
+        grids: (&grids, grid_s),
+        triangles: (&tris, tri_s),
+        micro: micro_list.len(),
     };
+    let stats = built.stats(name, sub.levels, mesh.triangles.len());
     Ok((stats, grids, tris))
 }
 
@@ -149,19 +166,12 @@ pub fn measure_displaced(
     let (grid_s, grids) = median_time_of(repeats, || layout.clone(), grid::build_from_layout);
     progress(&format!("building the baseline (up to {repeats} times)"));
     let (tri_s, tris) = median_time(repeats, || triangles::build(&decoded.positions, &decoded.triangles));
-    let micro = decoded.triangles.len();
-    let grid = representation(grids.memory(), micro, grid_s);
-    let triangles = representation(tris.memory(), micro, tri_s);
-    let stats = Stats {
-        mesh: name.to_string(),
-        levels: grids.params.levels,
-        base_triangles: micromesh.triangles.len(),
-        micro_triangles: micro,
-        compression_gain: triangles.bytes as f64 / grid.bytes.max(1) as f64,
-        construction_gain: triangles.build_seconds / grid.build_seconds.max(1e-12),
-        grid,
-        triangles,
+    let built = Built {
+        grids: (&grids, grid_s),
+        triangles: (&tris, tri_s),
+        micro: decoded.triangles.len(),
     };
+    let stats = built.stats(name, grids.params.levels, micromesh.triangles.len());
     Ok((stats, grids, tris))
 }
 
