@@ -69,6 +69,35 @@ fn a_mesh_bakes_into_files_the_other_commands_read() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
 
+    // The benchmark against the reference: the same distance, the reference's bytes.
+    let json_path = dir.join("bench.json");
+    let o = gridrt(&[
+        "bench",
+        out.to_str().unwrap(),
+        "--reference",
+        r,
+        "--width",
+        "32",
+        "--height",
+        "24",
+        "--views",
+        "1",
+        "--repeats",
+        "1",
+        "--json",
+        json_path.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let bench: serde_json::Value = serde_json::from_slice(&std::fs::read(&json_path).unwrap()).unwrap();
+    let against = &bench[0]["reference"];
+    assert_eq!(against["triangles"].as_u64(), Some(8192), "{bench}");
+    assert!(against["bytes"].as_u64().unwrap() > 10 * bench[0]["grid"]["bytes"].as_u64().unwrap());
+    assert!(
+        (against["distance"]["rms"].as_f64().unwrap() - rms).abs() < 0.05 * rms,
+        "{bench}"
+    );
+    assert!(String::from_utf8_lossy(&o.stdout).contains("Against the mesh it was baked from, ball.obj"));
+
     // Onto a base the user made: the same ball, coarse.
     let base = dir.join("base.obj");
     write_obj(&base, &bumpy_ball(2), 1e6);

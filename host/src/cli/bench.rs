@@ -50,6 +50,23 @@ pub struct BenchResult {
     pub rt_impact_percent: PerKind,
     /// Fraction of rays whose closest hit (micro-triangle) is the same in both.
     pub hit_agreement: PerKind,
+    /// With `--reference`: the mesh the micro-mesh was baked from, as the baseline builds it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reference: Option<ReferenceResult>,
+}
+
+/// The reference mesh under the baseline's SAH BVH, on the same rays, and how far the
+/// micro-mesh lies from it.
+#[derive(Serialize, Debug, Clone)]
+pub struct ReferenceResult {
+    pub mesh: String,
+    pub triangles: usize,
+    pub bytes: usize,
+    pub build_seconds: f64,
+    pub mrays_per_s: PerKind,
+    /// Symmetric distance between the reference and the micro-mesh's decoded triangles, as
+    /// fractions of the reference's bounding-box diagonal.
+    pub distance: gridrt::surface_distance::DistanceSummary,
 }
 
 /// Host bytes per traced ray: its record, its hit, and the copies the ray lists and
@@ -168,6 +185,13 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
             input.name
         );
     }
+    if args.reference.is_some() && meshes.len() != 1 {
+        bail!("--reference compares one micro-mesh with the mesh it was baked from: name one mesh");
+    }
+    let reference = match &args.reference {
+        Some(path) => Some(gridrt::mesh::load_world(path)?.0),
+        None => None,
+    };
     let rays_per_view = args.width as u64 * args.height as u64 * (1 + args.ao_samples as u64);
     let ray_bytes = (args.views as u64 * rays_per_view).saturating_mul(RAY_BYTES);
     for input in &meshes {
@@ -233,6 +257,15 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
             &bounds,
         );
         bar.inc(1);
+        // The reference in this mesh's frame, under the baseline's BVH.
+        let reference_scene = reference.as_ref().map(|world| {
+            let mesh = world.in_frame(&input.frame);
+            let (seconds, scene) = stats::median_time(args.build_repeats, || {
+                triangles::build(&mesh.positions, &mesh.triangles)
+            });
+            (Scene::Triangles(scene), (mesh, seconds))
+        });
+        let mut reference_rates = reference_scene.as_ref().map(|_| PerKind::default());
         let mut mrays = PerRepresentation::default();
         let mut spread = PerRepresentation::default();
         let mut agree = PerKind::default();
@@ -243,11 +276,21 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
                 rays.len()
             ));
             // The baseline by its one-pass kernel; the two take turns at every repetition.
-            let contenders = [(&grids, args.schedule.schedule()), (&tris, Schedule::OnePass)];
-            let [grid, triangles]: [TimedTrace; 2] = device
-                .time_traces(&contenders, rays, args.warmup, args.repeats)?
-                .try_into()
-                .map_err(|_| anyhow::anyhow!("one timing per scene"))?;
+            let mut contenders = vec![(&grids, args.schedule.schedule()), (&tris, Schedule::OnePass)];
+            if let Some((scene, _)) = &reference_scene {
+                contenders.push((scene, Schedule::OnePass));
+            }
+            let mut timed = device.time_traces(&contenders, rays, args.warmup, args.repeats)?;
+            if let (Some(t), Some(r)) = (timed.get(2), reference_rates.as_mut()) {
+                let rate = rays.len() as f64 / summarize(t.seconds.clone()).0 / 1e6;
+                match kind {
+                    "primary" => r.primary = rate,
+                    _ => r.ao = rate,
+                }
+            }
+            timed.truncate(2);
+            let [grid, triangles]: [TimedTrace; 2] =
+                timed.try_into().map_err(|_| anyhow::anyhow!("one timing per scene"))?;
             let rate = |t: &TimedTrace| {
                 let (median, rel) = summarize(t.seconds.clone());
                 (rays.len() as f64 / median / 1e6, rel)
@@ -290,6 +333,21 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
             mrays_per_s: mrays,
             spread,
             hit_agreement: agree,
+            reference: reference_scene.map(|(scene, (reference, seconds))| {
+                bar.set_message(format!("{name}: measuring the distance to the reference"));
+                let d = gridrt::surface_distance::measure(&reference, mesh, &Default::default());
+                ReferenceResult {
+                    mesh: args
+                        .reference
+                        .as_ref()
+                        .map_or(String::new(), |p| p.display().to_string()),
+                    triangles: reference.triangles.len(),
+                    bytes: scene.memory(),
+                    build_seconds: seconds,
+                    mrays_per_s: reference_rates.unwrap_or_default(),
+                    distance: d.symmetric.relative_to(d.a_diagonal),
+                }
+            }),
         });
     }
     bar.finish_and_clear();
@@ -349,6 +407,26 @@ pub fn markdown(results: &[BenchResult]) -> String {
             r.mrays_per_s.grid.ao,
             r.mrays_per_s.triangles.primary,
             r.mrays_per_s.triangles.ao,
+        );
+    }
+    for r in results {
+        let Some(reference) = &r.reference else { continue };
+        let grid_bytes = r.stats.grid.bytes as f64;
+        let _ = writeln!(
+            s,
+            "\nAgainst the mesh it was baked from, {} ({} triangles) under the same BVH as the baseline: {} bytes \
+             ({:.1}x the grids'), built in {:.4} s, {:.2} / {:.2} Mrays/s (primary / AO); the micro-mesh lies at \
+             RMS {:.3e}, 99th percentile {:.3e}, max {:.3e} of its bounding-box diagonal from it.",
+            file_name(&reference.mesh),
+            reference.triangles,
+            reference.bytes,
+            reference.bytes as f64 / grid_bytes.max(1.0),
+            reference.build_seconds,
+            reference.mrays_per_s.primary,
+            reference.mrays_per_s.ao,
+            reference.distance.rms,
+            reference.distance.p99,
+            reference.distance.max,
         );
     }
     s

@@ -586,6 +586,10 @@ pub struct BenchArgs {
     /// TrueType font for the chart's labels.
     #[arg(long, default_value = chart::DEFAULT_FONT)]
     pub font: PathBuf,
+    /// The mesh a micro-mesh was baked from: traced on the same rays under the baseline's
+    /// BVH, with its bytes and build time, and its distance from the micro-mesh.
+    #[arg(long, value_name = "REFERENCE")]
+    pub reference: Option<PathBuf>,
 }
 
 fn at_least_one() -> clap::builder::RangedU64ValueParser<usize> {
