@@ -1015,6 +1015,35 @@ fn displaced_micro_meshes_are_decoded_not_subdivided() {
         err.contains("baked.gltf: 2 base triangles, 128 micro-triangles at depth 3"),
         "{err}"
     );
+    // Its own level bounds the depth rendered, whatever --levels says.
+    let shallow = dir.join("shallow.png");
+    let o = gridrt(&[
+        "render",
+        g,
+        "--backend",
+        "cpu",
+        "--lod",
+        "2",
+        "--levels",
+        "1",
+        "-o",
+        shallow.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    fails_with(
+        &[
+            "render",
+            g,
+            "--backend",
+            "cpu",
+            "--lod",
+            "4",
+            "-o",
+            shallow.to_str().unwrap(),
+        ],
+        &[],
+        &["--lod 4 is deeper than the micro-mesh's level (3)"],
+    );
     check_png(&png, 64, 48);
 
     let ply = dir.join("decoded.ply");

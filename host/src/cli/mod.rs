@@ -689,7 +689,9 @@ pub fn subdivide(mesh: &Mesh, build: &BuildArgs) -> Subdivided {
 fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
     let options = args.build_options();
     let lod = options.lod.unwrap_or(args.build.levels);
-    if lod > args.build.levels {
+    // A displaced micro-mesh has a level of its own, checked once it is loaded.
+    let displaced_file = args.meshes.iter().any(|m| is_gltf(m));
+    if lod > args.build.levels && !displaced_file {
         bail!("--lod {lod} is deeper than --levels {}", args.build.levels);
     }
     args.check_mode()?;
@@ -723,6 +725,9 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
         (None, Some(_)) => {
             as_decoded = args.as_decoded();
             (&as_decoded, as_decoded.build_options(), 0)
+        }
+        (None, None) if lod > args.build.levels => {
+            bail!("--lod {lod} is deeper than --levels {}", args.build.levels)
         }
         (None, None) => (args, options, lod),
     };
@@ -812,6 +817,12 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
     }
     stages.report();
     Ok(())
+}
+
+/// Whether `path` names a glTF file (which may hold a displaced micro-mesh).
+fn is_gltf(path: &Path) -> bool {
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    matches!(ext.as_deref(), Some("gltf" | "glb"))
 }
 
 /// Triangles from which a mesh is taken for a detailed one (a scan, a sculpt, a CAD
