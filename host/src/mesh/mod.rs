@@ -329,32 +329,37 @@ pub fn open_all(paths: &[&Path]) -> Result<Input> {
             micromesh: None,
         });
     };
-    let (mut all, mut cleaning, displaced) = load_file(first)?;
     let mut name = first.display().to_string();
+    let mut loaded = read_file(first)?;
     for path in &paths[1..] {
-        let (next, next_cleaning, next_displaced) = load_file(path)?;
-        if displaced.is_some() != next_displaced.is_some() {
-            let (micro, plain) = if displaced.is_some() {
-                (first, path)
-            } else {
-                (path, first)
-            };
-            fail!(
-                Input,
-                "{} is a displaced micro-mesh and {} is not: render them apart",
-                micro.display(),
-                plain.display()
-            );
-        }
-        let base = all.positions.len() as u32;
-        all.positions.extend(next.positions);
-        all.triangles.extend(next.triangles.iter().map(|t| t.map(|i| base + i)));
+        let next = read_file(path)?;
         name = format!("{name} + {}", path.display());
-        cleaning.add(next_cleaning);
+        match (&mut loaded, next) {
+            (Loaded::Plain(all, cleaning), Loaded::Plain(next, next_cleaning)) => {
+                let base = all.positions.len() as u32;
+                all.positions.extend(next.positions);
+                all.triangles.extend(next.triangles.iter().map(|t| t.map(|i| base + i)));
+                cleaning.add(next_cleaning);
+            }
+            (Loaded::Displaced(all), Loaded::Displaced(next)) => all.append(&next),
+            (first_loaded, _) => {
+                let (micro, plain) = match first_loaded {
+                    Loaded::Displaced(_) => (first, path),
+                    Loaded::Plain(..) => (path, first),
+                };
+                fail!(
+                    Input,
+                    "{} is a displaced micro-mesh and {} is not: render them apart",
+                    micro.display(),
+                    plain.display()
+                );
+            }
+        }
     }
-    if let Some(source) = displaced {
-        return open_displaced(paths, name, source);
-    }
+    let (all, cleaning) = match loaded {
+        Loaded::Displaced(all) => return open_displaced(all, name),
+        Loaded::Plain(all, cleaning) => (all, cleaning),
+    };
     let (mesh, frame) = all.into_local();
     Ok(Input {
         name,
@@ -369,28 +374,17 @@ pub fn open_all(paths: &[&Path]) -> Result<Input> {
 /// Displaced micro-meshes side by side, in the local frame of their base meshes: the
 /// micro-mesh itself, and its decoded micro-triangles (points decoded alike stored once) as
 /// the mesh, so that both decode the same points.
-fn open_displaced(paths: &[&Path], name: String, mut source: DisplacedSource) -> Result<Input> {
-    let mut all: Option<gltf_micromap::DisplacedWorld> = None;
-    for path in paths {
-        let bytes =
-            std::fs::read(path).map_err(|e| error!(Input, "{}: cannot open: {}", path.display(), io_reason(&e)))?;
-        let named = |e: crate::error::Error| error!(Input, "{}: {}", path.display(), one_line(&e.to_string()));
-        let world = gltf_micromap::parse_displaced(&bytes, path.parent())
-            .map_err(named)?
-            .ok_or_else(|| error!(Input, "{}: no displaced primitive", path.display()))?;
-        match &mut all {
-            Some(all) => all.append(&world),
-            None => all = Some(world),
-        }
-    }
-    let (micromesh, frame) = all.expect("at least one file").into_local();
+fn open_displaced(all: gltf_micromap::DisplacedWorld, name: String) -> Result<Input> {
+    let (micromesh, frame) = all.into_local();
     micromesh.check().map_err(|e| e.prefixed(&name))?;
     let micromesh = micromesh.with_ranges_folded();
     let mesh = micromesh.decoded_welded();
-    source.base_triangles = micromesh.triangles.len();
     let levels = micromesh.micromap.triangles.iter().map(|t| t.level);
-    source.min_level = levels.clone().min().unwrap_or(0);
-    source.max_level = levels.max().unwrap_or(0);
+    let source = DisplacedSource {
+        base_triangles: micromesh.triangles.len(),
+        min_level: levels.clone().min().unwrap_or(0),
+        max_level: levels.max().unwrap_or(0),
+    };
     Ok(Input {
         name,
         mesh,
@@ -410,12 +404,28 @@ pub fn load_mesh_quiet(path: &Path) -> Result<(Mesh, usize)> {
 /// Loads and validates one file, in its own units and in double precision (a displaced
 /// micro-mesh as its decoded micro-triangles).
 pub fn load_world(path: &Path) -> Result<(WorldMesh, Cleaning)> {
-    let (mesh, cleaning, _) = load_file(path)?;
-    Ok((mesh, cleaning))
+    match read_file(path)? {
+        Loaded::Plain(mesh, cleaning) => Ok((mesh, cleaning)),
+        Loaded::Displaced(displaced) => {
+            let (local, frame) = displaced.into_local();
+            let decoded = local.decoded();
+            let world = WorldMesh {
+                positions: decoded.positions.iter().map(|&p| frame.to_world(p)).collect(),
+                triangles: decoded.triangles,
+            };
+            world.validate(&path.display().to_string())
+        }
+    }
 }
 
-/// [`load_world`], saying whether the file was a displaced micro-mesh.
-fn load_file(path: &Path) -> Result<(WorldMesh, Cleaning, Option<DisplacedSource>)> {
+/// One file as read: a triangle mesh (validated), or a displaced micro-mesh (checked).
+enum Loaded {
+    Plain(WorldMesh, Cleaning),
+    Displaced(gltf_micromap::DisplacedWorld),
+}
+
+/// Reads, parses and checks one file, once.
+fn read_file(path: &Path) -> Result<Loaded> {
     let name = path.display().to_string();
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     if !matches!(ext.as_deref(), Some("obj" | "ply" | "gltf" | "glb")) {
@@ -427,10 +437,11 @@ fn load_file(path: &Path) -> Result<(WorldMesh, Cleaning, Option<DisplacedSource
     }
     let is_gltf = matches!(ext.as_deref(), Some("gltf" | "glb"));
     if is_gltf && bytes.windows(24).any(|w| w == b"NV_displacement_micromap") {
-        if let Some(displaced) = decode_displaced(&bytes, path)? {
-            let (world, source) = displaced;
-            let (mesh, cleaning) = world.validate(&name)?;
-            return Ok((mesh, cleaning, Some(source)));
+        let named = |e: crate::error::Error| error!(Input, "{name}: {}", one_line(&e.to_string()));
+        if let Some(displaced) = gltf_micromap::parse_displaced(&bytes, path.parent()).map_err(named)? {
+            // Checked in the frame it is decoded in, so the error names this file.
+            displaced.clone().into_local().0.check().map_err(named)?;
+            return Ok(Loaded::Displaced(displaced));
         }
     }
     let parsed = match ext.as_deref() {
@@ -441,31 +452,7 @@ fn load_file(path: &Path) -> Result<(WorldMesh, Cleaning, Option<DisplacedSource
     };
     let mesh = parsed.map_err(|e| error!(Input, "{name}: {}", one_line(&e.to_string())))?;
     let (mesh, cleaning) = mesh.validate(&name)?;
-    Ok((mesh, cleaning, None))
-}
-
-/// A displaced glTF's decoded micro-triangles in the file's units, or `None` when no
-/// primitive is displaced.
-fn decode_displaced(bytes: &[u8], path: &Path) -> Result<Option<(WorldMesh, DisplacedSource)>> {
-    let name = path.display();
-    let named = |e: crate::error::Error| error!(Input, "{name}: {}", one_line(&e.to_string()));
-    let Some(displaced) = gltf_micromap::parse_displaced(bytes, path.parent()).map_err(named)? else {
-        return Ok(None);
-    };
-    let (local, frame) = displaced.into_local();
-    local.check().map_err(named)?;
-    let levels = local.micromap.triangles.iter().map(|t| t.level);
-    let source = DisplacedSource {
-        base_triangles: local.triangles.len(),
-        min_level: levels.clone().min().unwrap_or(0),
-        max_level: levels.max().unwrap_or(0),
-    };
-    let decoded = local.decoded();
-    let world = WorldMesh {
-        positions: decoded.positions.iter().map(|&p| frame.to_world(p)).collect(),
-        triangles: decoded.triangles,
-    };
-    Ok(Some((world, source)))
+    Ok(Loaded::Plain(mesh, cleaning))
 }
 
 pub use crate::image_io::io_reason;
