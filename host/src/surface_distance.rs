@@ -164,6 +164,16 @@ pub struct NearestTriangles {
     nodes: Vec<BvhNode>,
     /// The triangles' corners, in the hierarchy's leaf order.
     triangles: Vec<[DVec3; 3]>,
+    /// Each leaf-order triangle's index in the mesh.
+    order: Vec<u32>,
+}
+
+/// The point of a surface closest to a query point, and the triangle it lies on.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ClosestPoint {
+    pub point: DVec3,
+    /// The triangle's index in the mesh the query was built from.
+    pub triangle: usize,
 }
 
 impl NearestTriangles {
@@ -179,6 +189,7 @@ impl NearestTriangles {
         NearestTriangles {
             nodes: bvh.nodes,
             triangles,
+            order: bvh.order,
         }
     }
 
@@ -190,6 +201,12 @@ impl NearestTriangles {
 
     /// The point of the surface closest to `p` (`None` when it has no triangles).
     pub fn closest_point(&self, p: DVec3) -> Option<DVec3> {
+        self.closest(p).map(|c| c.point)
+    }
+
+    /// The point of the surface closest to `p` and its triangle (`None` when it has no
+    /// triangles).
+    pub fn closest(&self, p: DVec3) -> Option<ClosestPoint> {
         let mut best = (f64::INFINITY, None);
         if self.nodes.is_empty() {
             return None;
@@ -202,11 +219,12 @@ impl NearestTriangles {
             let node = &self.nodes[i];
             if node.is_leaf() {
                 let range = node.first as usize..(node.first + node.count) as usize;
-                for t in &self.triangles[range] {
-                    let q = closest_point_on_triangle(p, t);
+                for k in range {
+                    let q = closest_point_on_triangle(p, &self.triangles[k]);
                     let d2 = p.distance_squared(q);
                     if d2 < best.0 {
-                        best = (d2, Some(q));
+                        let triangle = self.order[k] as usize;
+                        best = (d2, Some(ClosestPoint { point: q, triangle }));
                     }
                 }
                 continue;

@@ -15,8 +15,10 @@
 //! 4. **Fit**: each base vertex's range of displacements is folded into its position and
 //!    direction ([`fit`]), so the stored values span `[0, 1]`.
 //! 5. **Second pass**: the lines of the folded mesh (which, where directions differ, are not
-//!    quite the first pass's) meet the reference again, from the first pass's crossing;
-//!    the result is quantized to 11 bits.
+//!    quite the first pass's) meet the reference again, from the first pass's crossing.
+//! 6. **Least-squares fit**: the values move along their lines so the micro-mesh fits points
+//!    sampled on the reference rather than passing through the crossings ([`refine`]); the
+//!    result is quantized to 11 bits.
 //!
 //! Every micro-vertex on a shared base edge or corner is computed by the shared decoder's
 //! interpolation, which gives both triangles the same bits, so the same ray is cast for it
@@ -36,6 +38,7 @@ pub mod cast;
 pub mod decimate;
 pub mod directions;
 pub mod fit;
+pub mod refine;
 
 use gridrt_shared::displacement::{interpolated, u_major_index, DisplacedTriangle};
 use gridrt_shared::glam::Vec3;
@@ -47,6 +50,7 @@ use crate::displaced::{self, DisplacedMesh};
 use crate::error::{fail, Result};
 use crate::mesh::Mesh;
 use cast::{Crossing, Reference};
+use refine::{MicroLines, Refinement};
 
 /// Where the base mesh comes from.
 #[derive(Clone, Debug, PartialEq)]
@@ -66,6 +70,8 @@ pub struct BakeOptions {
     /// How far the first pass looks for the reference on each side of the base surface, in
     /// mean base edge lengths.
     pub reach: f32,
+    /// How the values are fitted to the reference after the rays have found it.
+    pub refinement: Refinement,
 }
 
 /// How many micro-triangles each base triangle stands for by default: with [`BakeOptions::for_reference`]
@@ -81,6 +87,7 @@ impl BakeOptions {
             },
             levels,
             reach: 2.0,
+            refinement: Refinement::default(),
         }
     }
 }
@@ -168,9 +175,10 @@ pub fn bake(reference: &Mesh, options: &BakeOptions) -> Result<Baked> {
         misses: first.iter().flatten().filter(|c| !c.hit).count() as u64,
         clamped: second.iter().flatten().filter(|c| fit::clipped(c.t)).count() as u64,
     };
-    let values: Vec<(u32, Vec<u16>)> = second
+    let fitted = refined(reference, (&positions, &folded, &base.triangles), &second, options);
+    let values: Vec<(u32, Vec<u16>)> = fitted
         .iter()
-        .map(|c| (options.levels, c.iter().map(|x| fit::quantize(x.t)).collect()))
+        .map(|c| (options.levels, c.iter().map(|&u| fit::quantize(u)).collect()))
         .collect();
     let mesh = DisplacedMesh {
         positions,
@@ -180,6 +188,29 @@ pub fn bake(reference: &Mesh, options: &BakeOptions) -> Result<Baked> {
     };
     mesh.check()?;
     Ok(Baked { mesh, report })
+}
+
+/// The second pass's values, per triangle in u-major order, refined as `options` say.
+fn refined(
+    reference: &Mesh,
+    (positions, directions, triangles): (&[Vec3], &[Vec3], &[[u32; 3]]),
+    crossings: &[Vec<Crossing>],
+    options: &BakeOptions,
+) -> Vec<Vec<f32>> {
+    if options.refinement.rounds == 0 {
+        return crossings.iter().map(|c| c.iter().map(|x| x.t).collect()).collect();
+    }
+    let lines = MicroLines::new(positions, directions, triangles, options.levels);
+    let mut values = vec![0.0f32; lines.origins.len()];
+    for (of_triangle, c) in lines.of_triangle.iter().zip(crossings) {
+        for (&line, x) in of_triangle.iter().zip(c) {
+            values[line as usize] = x.t.clamp(0.0, 1.0);
+        }
+    }
+    refine::refine(reference, &lines, &mut values, &options.refinement);
+    (lines.of_triangle.iter())
+        .map(|of_triangle| of_triangle.iter().map(|&line| values[line as usize]).collect())
+        .collect()
 }
 
 /// The micro-vertex lines of every base triangle at one level, in u-major order.
@@ -346,6 +377,27 @@ mod tests {
         let baked_error = symmetric_rms(&reference, &baked.mesh);
         assert!(baked_error < base_error / 10.0, "{baked_error} vs {base_error}");
         assert!(baked_error < 3e-4, "{baked_error}");
+    }
+
+    /// Fitting the values in the least-squares sense brings the micro-mesh closer to a curved
+    /// surface than micro-vertices on it (whose flat micro-triangles all cut inside).
+    #[test]
+    fn the_least_squares_fit_is_closer_than_the_crossings() {
+        let reference = sphere(5);
+        let fitted = BakeOptions {
+            base: Base::Decimated { triangles: 32 },
+            ..BakeOptions::for_reference(&reference, 2)
+        };
+        let crossings = BakeOptions {
+            refinement: Refinement {
+                rounds: 0,
+                ..fitted.refinement
+            },
+            ..fitted.clone()
+        };
+        let error = |options: &BakeOptions| symmetric_rms(&reference, &bake(&reference, options).unwrap().mesh);
+        let (fitted, crossings) = (error(&fitted), error(&crossings));
+        assert!(fitted < 0.5 * crossings, "{fitted} vs {crossings}");
     }
 
     /// What raw scans bring: repeated and reversed triangles, a fin, a hole and a second

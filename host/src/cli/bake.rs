@@ -8,6 +8,7 @@ use serde::Serialize;
 
 use super::progress::Stages;
 use super::BakeArgs;
+use gridrt::bake::refine::Refinement;
 use gridrt::bake::{self, BakeOptions, BakeReport, Base};
 use gridrt::image_io;
 use gridrt::mesh;
@@ -54,10 +55,14 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
                 .unwrap_or((reference_mesh.triangles.len() / bake::REDUCTION).max(1)),
         },
     };
+    let defaults = BakeOptions::for_reference(&reference_mesh, args.levels);
     let options = BakeOptions {
         base,
-        levels: args.levels,
-        ..BakeOptions::for_reference(&reference_mesh, args.levels)
+        refinement: Refinement {
+            rounds: args.fit_rounds,
+            ..defaults.refinement
+        },
+        ..defaults
     };
     let started = std::time::Instant::now();
     let baked = stages.run("bake", || bake::bake(&reference_mesh, &options))?;

@@ -516,6 +516,10 @@ pub struct BakeArgs {
     /// Subdivision level L: every base triangle gets 4^L micro-triangles.
     #[arg(long, short = 'L', default_value_t = 3, value_parser = clap::value_parser!(u32).range(0..=6))]
     pub levels: u32,
+    /// Rounds of fitting the values to the reference in the least-squares sense after the
+    /// rays have found it (0: every micro-vertex stays on the reference).
+    #[arg(long, value_name = "N", default_value_t = gridrt::bake::refine::Refinement::default().rounds)]
+    pub fit_rounds: u32,
     /// The glTF to write; its buffer (.bin) and micromap (.bary) go beside it.
     #[arg(long, short, default_value = "baked.gltf")]
     pub output: PathBuf,
