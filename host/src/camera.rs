@@ -98,12 +98,8 @@ impl Default for Viewpoint {
     }
 }
 
-/// The camera `viewpoint` describes for a scene within `bounds`: without an eye or a
-/// distance, as close as the box's corners all stay inside nine tenths of the frame.
-/// Refuses a view with no direction (the eye on the target) or no up (up
-/// along the view, or zero).
-pub fn view(bounds: &Aabb, viewpoint: &Viewpoint, width: u32, height: u32) -> Result<Camera> {
-    let v = viewpoint;
+/// Refuses fields of view and numbers no camera can be made of.
+fn check(v: &Viewpoint, height: u32) -> Result<()> {
     if !(v.fov_degrees > 0.0 && v.fov_degrees < 180.0) {
         fail!(
             Options,
@@ -136,20 +132,74 @@ pub fn view(bounds: &Aabb, viewpoint: &Viewpoint, width: u32, height: u32) -> Re
             v.distance
         );
     }
+    Ok(())
+}
+
+/// The camera `viewpoint` describes for a scene within `bounds`: [`view_of`] the box's
+/// corners.
+pub fn view(bounds: &Aabb, viewpoint: &Viewpoint, width: u32, height: u32) -> Result<Camera> {
+    view_of(&bounds.corners(), viewpoint, width, height)
+}
+
+/// The camera `viewpoint` describes for a scene drawn within the convex hull of `points` (a
+/// mesh's vertices hold its flat, Loop-subdivided and displaced micro-triangles alike). Without
+/// an eye or a distance, the closest view along the viewpoint's direction in which every point
+/// falls inside [`FILL`] of the frame; without a target either, that view is also centred
+/// on the points' picture rather than on their box. Refuses a view with no direction (the eye
+/// on the target) or no up (up along the view, or zero).
+pub fn view_of(points: &[Vec3], viewpoint: &Viewpoint, width: u32, height: u32) -> Result<Camera> {
+    let placed = placement(points, viewpoint, width, height)?;
+    Ok(look_at_up(
+        placed.eye,
+        placed.forward,
+        placed.up,
+        viewpoint.fov_degrees,
+        width,
+        height,
+    ))
+}
+
+/// Where [`view_of`] puts the eye, and what it looks at.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Placement {
+    pub eye: Vec3,
+    pub target: Vec3,
+    /// Unit direction from the eye to the target.
+    pub forward: Vec3,
+    /// Unit up, as asked.
+    pub up: Vec3,
+}
+
+/// The eye and target of [`view_of`], checked as it checks them.
+pub fn placement(points: &[Vec3], viewpoint: &Viewpoint, width: u32, height: u32) -> Result<Placement> {
+    let v = viewpoint;
+    check(v, height)?;
+    let points = if points.is_empty() { &[Vec3::ZERO][..] } else { points };
     let up = v.up.normalize_or_zero();
     if up == Vec3::ZERO {
         fail!(Options, "the up direction {} has no length", v.up);
     }
-    let target = v.target.unwrap_or_else(|| bounds.center());
-    let eye = match v.eye {
-        Some(eye) => eye,
-        None => {
-            let back = orbit_direction(up, v.azimuth_degrees, v.elevation_degrees);
-            let distance = v.distance.unwrap_or_else(|| {
-                fitting_distance(bounds, target, back, up, v.fov_degrees, width as f32 / height as f32)
-            });
-            target + back * distance
+    let bounds = Aabb::from_points(points.iter().copied());
+    let back = orbit_direction(up, v.azimuth_degrees, v.elevation_degrees);
+    let lens = Lens::new(back, up, v.fov_degrees, width as f32 / height as f32);
+    let centre = bounds.center();
+    let (eye, target) = match (v.eye, v.target, v.distance) {
+        (Some(eye), target, _) => (eye, target.unwrap_or(centre)),
+        (None, target, Some(distance)) => {
+            let target = target.unwrap_or(centre);
+            (target + back * distance, target)
         }
+        (None, Some(target), None) => (target + back * lens.fitting_distance(points, target), target),
+        (None, None, None) => lens.tightest(points, centre),
+    };
+    // A flat, tiny or empty subject still leaves the eye off the target.
+    let least = (bounds.max - bounds.min).length() * 0.5;
+    let fitted = v.eye.is_none() && v.distance.is_none();
+    let away = (eye - target).length();
+    let eye = if fitted && (away.is_nan() || away < least) {
+        target + back * least.max(f32::MIN_POSITIVE)
+    } else {
+        eye
     };
     let size = (bounds.max - bounds.min).length().max(f32::MIN_POSITIVE) as f64;
     let far = (target.as_dvec3() - eye.as_dvec3()).length() / size;
@@ -171,7 +221,12 @@ pub fn view(bounds: &Aabb, viewpoint: &Viewpoint, width: u32, height: u32) -> Re
             v.up
         );
     }
-    Ok(look_at_up(eye, forward, up, v.fov_degrees, width, height))
+    Ok(Placement {
+        eye,
+        target,
+        forward,
+        up,
+    })
 }
 
 /// The farthest an eye may stand from its target, in sizes of the scene (its bounding box's
@@ -189,26 +244,71 @@ pub fn narrowest_fov_degrees(height: u32) -> f32 {
 }
 
 /// Share of the frame the auto-framed box's picture may fill, each way.
-const FILL: f32 = 0.9;
+const FILL: f32 = 0.95;
 
-/// How far back along unit `back` from `target` the eye must stand for every corner of
-/// `bounds` to fall inside [`FILL`] of the frame: each corner's offset across the view, over
-/// the tangent of the half field of view, plus its depth towards the eye.
-fn fitting_distance(bounds: &Aabb, target: Vec3, back: Vec3, up: Vec3, fov_degrees: f32, aspect: f32) -> f32 {
-    let right = up.cross(back).normalize();
-    let up = back.cross(right);
-    let tan_v = (fov_degrees.to_radians() * 0.5).tan() * FILL;
-    let tan_h = tan_v * aspect;
-    let mut distance = 0f32;
-    for corner in bounds.corners() {
-        let r = corner - target;
-        let need = r.dot(back) + (r.dot(right).abs() / tan_h).max(r.dot(up).abs() / tan_v);
-        distance = distance.max(need);
+/// The view's frame as auto-framing sees it: its axes, and the tangents of the half angles
+/// that [`FILL`] of it spans.
+struct Lens {
+    back: Vec3,
+    right: Vec3,
+    up: Vec3,
+    tan_v: f32,
+    tan_h: f32,
+}
+
+impl Lens {
+    /// The frame looking along `-back` (unit) with `up` (unit, not along it) up.
+    fn new(back: Vec3, up: Vec3, fov_degrees: f32, aspect: f32) -> Lens {
+        let right = up.cross(back).normalize();
+        let tan_v = (fov_degrees.to_radians() * 0.5).tan() * FILL;
+        Lens {
+            back,
+            right,
+            up: back.cross(right),
+            tan_v,
+            tan_h: tan_v * aspect,
+        }
     }
-    // A flat or empty box still leaves the eye off the target.
-    distance
-        .max((bounds.max - bounds.min).length() * 0.5)
-        .max(f32::MIN_POSITIVE)
+
+    /// How far back from `target` the eye must stand for every point to fall inside the
+    /// frame: each point's offset across the view, over the tangent of the half field of
+    /// view, plus its depth towards the eye.
+    fn fitting_distance(&self, points: &[Vec3], target: Vec3) -> f32 {
+        (points.iter())
+            .map(|&p| {
+                let r = p - target;
+                r.dot(self.back) + (r.dot(self.right).abs() / self.tan_h).max(r.dot(self.up).abs() / self.tan_v)
+            })
+            .fold(0.0, f32::max)
+    }
+
+    /// The closest eye from which every point falls inside the frame, and the target it looks
+    /// at (on its view axis, as deep as `centre`).
+    ///
+    /// In the view's axes, a point `(x, y, z)` (`z` along the view) is inside when
+    /// `|x - ex| <= tan_h (z - ez)` and `|y - ey| <= tan_v (z - ez)`. The right and left
+    /// sides are tightest through the points of greatest `x - tan_h z` and `-x - tan_h z`;
+    /// both through the eye fixes `ex` and the depth the width needs. The top and bottom fix
+    /// `ey` and the depth the height needs, and the eye takes the farther of the two depths
+    /// (moving back along the view keeps every point inside).
+    fn tightest(&self, points: &[Vec3], centre: Vec3) -> (Vec3, Vec3) {
+        let forward = -self.back;
+        let reach = |axis: Vec3, tan: f32| {
+            let (mut plus, mut minus) = (f32::NEG_INFINITY, f32::NEG_INFINITY);
+            for &p in points {
+                let (a, z) = (p.dot(axis), p.dot(forward));
+                plus = plus.max(a - tan * z);
+                minus = minus.max(-a - tan * z);
+            }
+            // The eye's offset along the axis, and its depth.
+            (0.5 * (plus - minus), -0.5 * (plus + minus) / tan)
+        };
+        let (ex, depth_x) = reach(self.right, self.tan_h);
+        let (ey, depth_y) = reach(self.up, self.tan_v);
+        let eye = self.right * ex + self.up * ey + forward * depth_x.min(depth_y);
+        let target = eye + forward * (centre - eye).dot(forward);
+        (eye, target)
+    }
 }
 
 /// Unit direction from a target to an eye at `azimuth` and `elevation` (degrees) about `up`
@@ -262,6 +362,83 @@ mod tests {
                 widest = widest.max((u - 0.5).abs()).max((w - 0.5).abs());
             }
             assert!(widest > 0.4, "the box fills too little: {widest}");
+        }
+    }
+
+    /// Where `p` falls in the picture of camera `c`: `(0, 0)` the top left corner, `(1, 1)`
+    /// the bottom right.
+    fn in_picture(c: &Camera, p: Vec3) -> (f32, f32) {
+        let (eye, h, v) = (Vec3::from(c.origin), Vec3::from(c.horizontal), Vec3::from(c.vertical));
+        let corner = Vec3::from(c.to_top_left);
+        let normal = h.cross(v).normalize();
+        let d = p - eye;
+        let rel = d * (corner.dot(normal) / d.dot(normal)) - corner;
+        (rel.dot(h) / h.length_squared(), rel.dot(v) / v.length_squared())
+    }
+
+    /// An uneven cloud: a long arm off a ball, most points on one side of the box.
+    fn arm_and_ball() -> Vec<Vec3> {
+        let mut points = Vec::new();
+        for k in 0..400 {
+            let (a, b) = (k as f32 * 0.7, k as f32 * 1.3);
+            points.push(Vec3::new(a.cos() * b.sin(), a.sin() * b.sin(), b.cos()) * 0.5);
+        }
+        points.extend((0..50).map(|k| Vec3::new(0.5 + k as f32 * 0.05, 0.1 * (k as f32 * 0.4).sin(), 0.2)));
+        points
+    }
+
+    /// The tight view keeps every point inside the frame's margin, touches it on two opposite
+    /// sides, and comes closer than the box's view.
+    #[test]
+    fn every_point_falls_inside_the_tight_frame() {
+        let points = arm_and_ball();
+        let bounds = Aabb::from_points(points.iter().copied());
+        for (azimuth, elevation) in [(35.0, 25.0), (0.0, 0.0), (90.0, 80.0), (200.0, -30.0), (300.0, 10.0)] {
+            let v = Viewpoint {
+                azimuth_degrees: azimuth,
+                elevation_degrees: elevation,
+                ..Viewpoint::default()
+            };
+            let tight = view_of(&points, &v, 64, 48).unwrap();
+            let placed: Vec<(f32, f32)> = points.iter().map(|&p| in_picture(&tight, p)).collect();
+            let margin = 0.5 * (1.0 - FILL) - 1e-4;
+            for (k, &(x, y)) in placed.iter().enumerate() {
+                let inside = |t: f32| (margin..=1.0 - margin).contains(&t);
+                assert!(
+                    inside(x) && inside(y),
+                    "point {k} at {x}, {y} from {azimuth}, {elevation}"
+                );
+            }
+            let extent = |pick: fn(&(f32, f32)) -> f32| {
+                let lo = placed.iter().map(pick).fold(f32::INFINITY, f32::min);
+                let hi = placed.iter().map(pick).fold(f32::NEG_INFINITY, f32::max);
+                (lo, hi)
+            };
+            let ((x0, x1), (y0, y1)) = (extent(|p| p.0), extent(|p| p.1));
+            let touches = |lo: f32, hi: f32| lo < margin + 1e-3 && hi > 1.0 - margin - 1e-3;
+            assert!(touches(x0, x1) || touches(y0, y1), "{x0}..{x1}, {y0}..{y1}");
+            let boxed = view(&bounds, &v, 64, 48).unwrap();
+            let centre = bounds.center();
+            let distance = |c: &Camera| Vec3::from(c.origin).distance(centre);
+            assert!(distance(&tight) < distance(&boxed), "{azimuth}, {elevation}");
+        }
+    }
+
+    /// A given target stays in the middle of the picture; the eye still keeps every point
+    /// inside.
+    #[test]
+    fn a_given_target_is_looked_at() {
+        let points = arm_and_ball();
+        let v = Viewpoint {
+            target: Some(Vec3::ZERO),
+            ..Viewpoint::default()
+        };
+        let c = view_of(&points, &v, 64, 48).unwrap();
+        let (x, y) = in_picture(&c, Vec3::ZERO);
+        assert!((x - 0.5).abs() < 1e-5 && (y - 0.5).abs() < 1e-5, "{x}, {y}");
+        for p in points {
+            let (x, y) = in_picture(&c, p);
+            assert!((0.0..=1.0).contains(&x) && (0.0..=1.0).contains(&y), "{p} at {x}, {y}");
         }
     }
 

@@ -42,6 +42,40 @@ fn render_ok(args: &[&str], out: &Path, width: u32, height: u32) {
     check_png(out, width, height);
 }
 
+/// Share of the picture's pixels that are not background (the background is a vertical
+/// gradient, so each row's leftmost pixel, inside the framing margin, is its colour).
+fn covered(path: &Path) -> f64 {
+    let img = image::open(path).unwrap().to_rgb8();
+    let (width, height) = img.dimensions();
+    let mut covered = 0usize;
+    for y in 0..height {
+        let background = img.get_pixel(0, y);
+        let apart = |x: u32| -> i32 {
+            let p = img.get_pixel(x, y);
+            (0..3).map(|c| (p[c] as i32 - background[c] as i32).abs()).sum()
+        };
+        covered += (0..width).filter(|&x| apart(x) > 6).count();
+    }
+    covered as f64 / (width * height) as f64
+}
+
+/// The default view frames the mesh by its vertices, not by its box: each of the meshes
+/// covers at least 30% of a 320x240 picture (framed by the box, the bunny covered 15%).
+#[test]
+fn auto_framing_fills_the_picture() {
+    let Some(meshes) = meshes_dir_or_skip("auto_framing_fills_the_picture") else {
+        return;
+    };
+    let dir = scratch("framing");
+    for name in ["bunny.obj", "teapot.obj", "dragon_res3.ply", "dragon_res4.ply"] {
+        let out = dir.join(format!("{name}.png"));
+        let mesh = meshes.join(name);
+        render_ok(&[mesh.to_str().unwrap(), "--backend", "cpu"], &out, 320, 240);
+        let share = covered(&out);
+        assert!(share >= 0.30, "{name} covers {:.1}% of the picture", 100.0 * share);
+    }
+}
+
 #[test]
 fn renders_the_default_scene() {
     let dir = scratch("default");

@@ -6,7 +6,6 @@ use anyhow::{bail, Result};
 use clap::{Parser, Subcommand, ValueEnum};
 
 use gridrt::backend::{Backend, BackendChoice};
-use gridrt::bvh::Aabb;
 use gridrt::camera::Viewpoint;
 use gridrt::heat_map::CostSummary;
 use gridrt::lod::LodReport;
@@ -747,8 +746,7 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
         Some(m) => check_render_memory(&name, &m.base_mesh(), args)?,
         None => check_render_memory(&name, &mesh, args)?,
     }
-    let whole = Aabb::from_points(mesh.positions.iter().copied());
-    camera::view(&whole, &viewpoint, args.width, args.height)?;
+    let placed = camera::placement(&mesh.positions, &viewpoint, args.width, args.height)?;
     let sizes = match (args.mode, &displaced_grids) {
         (Mode::Grid, Some(m)) => {
             grid::displaced::least_buffer_sizes(m, &args.build.grid_options()).map_err(|e| e.prefixed(&name))?
@@ -785,11 +783,13 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
     let render = args.render_options(&frame);
     for (k, output) in (0..frames).zip(&outputs) {
         // A turntable turns the orbit's azimuth by equal steps, the first frame the plain view.
+        // The later frames turn about the first one's target, so the mesh does not wander.
         let turned = Viewpoint {
             azimuth_degrees: viewpoint.azimuth_degrees + 360.0 * k as f32 / frames as f32,
+            target: viewpoint.target.or((k > 0).then_some(placed.target)),
             ..viewpoint
         };
-        let view = camera::view(&scene.bounds(), &turned, args.width, args.height)?;
+        let view = camera::view_of(&mesh.positions, &turned, args.width, args.height)?;
         if let (Scene::Grids(grids), Some(_)) = (&scene, render.lod_pixels) {
             let report = LodReport::measure(grids, &render.frame(&scene, &view));
             stages.say(describe_lod(&report, args.lod_pixels));
