@@ -5,8 +5,8 @@
 use std::time::Instant;
 
 use crate::error::Result;
-use gridrt_shared::layout::{Camera, FrameParams, HitRecord, RayRecord, AO_MISS};
-use gridrt_shared::shade::ao_pixel;
+use gridrt_shared::layout::{Camera, FrameParams, HitRecord, RayRecord};
+use gridrt_shared::shade::{ao_accumulate, ao_pixel};
 use rayon::prelude::*;
 
 #[cfg(feature = "gpu")]
@@ -197,7 +197,7 @@ impl Backend {
             return Ok(costs.heat_map(white));
         }
         let frame = options.frame(scene, camera);
-        let pixels = if options.shading == Shading::AmbientOcclusion {
+        let pixels = if matches!(options.shading, Shading::AmbientOcclusion | Shading::Lit) {
             self.render_ambient_occlusion(scene, &frame, progress)?
         } else {
             self.render_frame(scene, &frame)?
@@ -226,8 +226,8 @@ impl Backend {
         let mut open = vec![0u32; (frame.camera.width * frame.camera.height) as usize];
         self.render_frames(scene, &passes, &mut |pass, counts| {
             // A primary ray misses in every pass or in none.
-            for (sum, count) in open.iter_mut().zip(counts) {
-                *sum = if count == AO_MISS { AO_MISS } else { *sum + count };
+            for (sum, pixel) in open.iter_mut().zip(counts) {
+                *sum = ao_accumulate(*sum, pixel);
             }
             progress(passes[pass].ao_first_sample + passes[pass].ao_samples);
         })?;

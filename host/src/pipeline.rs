@@ -8,8 +8,8 @@ use std::path::Path;
 use crate::error::{fail, Result};
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::layout::{
-    Camera, FrameParams, SHADE_AMBIENT_OCCLUSION, SHADE_COST, SHADE_DEPTH, SHADE_EYE_LIGHT, SHADE_LEVEL, SHADE_NORMAL,
-    SHADE_PRIMITIVE,
+    Camera, FrameParams, MAX_AO_SAMPLES, SHADE_AMBIENT_OCCLUSION, SHADE_COST, SHADE_DEPTH, SHADE_EYE_LIGHT,
+    SHADE_LEVEL, SHADE_LIT, SHADE_NORMAL, SHADE_PRIMITIVE,
 };
 
 use crate::displaced::DisplacedMesh;
@@ -146,6 +146,9 @@ pub enum Shading {
     Primitive,
     /// The plain material darkened by ambient occlusion (see [`RenderOptions::ao_samples`]).
     AmbientOcclusion,
+    /// Clay under a key light and a sky, both dimmed by ambient occlusion (the same rays as
+    /// [`Shading::AmbientOcclusion`]; see `gridrt_shared::shade::ao_pixel`).
+    Lit,
     /// Distance from the eye: white at the scene's nearest point, black at its farthest.
     Depth,
     /// The cost heat map: the tests each pixel's ray makes (see [`crate::heat_map`] and
@@ -164,6 +167,7 @@ impl Shading {
             Shading::Normal => SHADE_NORMAL,
             Shading::Primitive => SHADE_PRIMITIVE,
             Shading::AmbientOcclusion => SHADE_AMBIENT_OCCLUSION,
+            Shading::Lit => SHADE_LIT,
             Shading::Depth => SHADE_DEPTH,
             Shading::Cost => SHADE_COST,
             Shading::Level => SHADE_LEVEL,
@@ -189,7 +193,7 @@ pub struct RenderOptions {
     pub lod_pixels: Option<f32>,
     /// Light grids with smooth normals, interpolated across micro-triangles from the lattice
     /// around each hit (see [`gridrt_shared::smooth_normal`]), instead of each micro-triangle's
-    /// own. Grids only; ambient occlusion and depth do not use normals to colour.
+    /// own. Grids only; plain ambient occlusion and depth do not use normals to colour.
     pub smooth_normals: bool,
 }
 
@@ -225,6 +229,14 @@ impl RenderOptions {
             if self.smooth_normals {
                 fail!(Options, "smooth normals come from the grids' lattice; the baseline's triangle list has no neighbours to take them from");
             }
+        }
+        let occlusion = matches!(self.shading, Shading::AmbientOcclusion | Shading::Lit);
+        if occlusion && !(1..=MAX_AO_SAMPLES).contains(&self.ao_samples) {
+            fail!(
+                Options,
+                "{} ambient-occlusion rays per pixel: between 1 and {MAX_AO_SAMPLES}",
+                self.ao_samples
+            );
         }
         if let Some(pixels) = self.lod_pixels {
             if !(pixels.is_finite() && pixels > 0.0) {

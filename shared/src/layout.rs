@@ -182,6 +182,8 @@ pub const SHADE_DEPTH: u32 = 4;
 pub const SHADE_COST: u32 = 5;
 /// Each grid coloured by the depth it was rendered at (level of detail).
 pub const SHADE_LEVEL: u32 = 6;
+/// A key light and a sky, both dimmed by ambient occlusion (see [`crate::shade::ao_pixel`]).
+pub const SHADE_LIT: u32 = 7;
 
 /// How the grid buffers are to be read; all zero for a triangle scene.
 #[repr(C)]
@@ -307,6 +309,13 @@ pub struct FrameParams {
 
 /// The pixel of a progressive ambient-occlusion pass whose primary ray hit nothing.
 pub const AO_MISS: u32 = u32::MAX;
+
+/// The most ambient-occlusion rays per pixel: their open count fits in [`AO_OPEN_MASK`].
+pub const MAX_AO_SAMPLES: u32 = 4096;
+
+/// The bits of an ambient-occlusion pixel that count its open rays; under [`SHADE_LIT`] the
+/// bits above hold the lights' cosines at the hit (see [`crate::shade::render_pixel`]).
+pub const AO_OPEN_MASK: u32 = (1 << 13) - 1;
 
 /// Primitive id of a miss.
 pub const NO_HIT: u32 = u32::MAX;

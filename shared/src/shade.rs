@@ -3,8 +3,8 @@ use crate::camera::primary_ray;
 use crate::cost::Costs;
 use crate::glam::Vec3;
 use crate::layout::{
-    BvhNode, FrameParams, Hit, AO_MISS, SHADE_AMBIENT_OCCLUSION, SHADE_DEPTH, SHADE_LEVEL, SHADE_NORMAL,
-    SHADE_PRIMITIVE,
+    BvhNode, Camera, FrameParams, Hit, AO_MISS, AO_OPEN_MASK, SHADE_AMBIENT_OCCLUSION, SHADE_DEPTH, SHADE_LEVEL,
+    SHADE_LIT, SHADE_NORMAL, SHADE_PRIMITIVE,
 };
 use crate::ray::{Ray, T_FAR};
 use crate::sample::{cosine_direction, hash, orthonormal_basis, unit_float};
@@ -15,6 +15,25 @@ use spirv_std::num_traits::Float;
 
 /// The plain material ambient occlusion darkens.
 const AO_MATERIAL: Vec3 = Vec3::new(0.85, 0.78, 0.62);
+
+/// The clay [`SHADE_LIT`] lights: darker and warmer than [`AO_MATERIAL`], so that light and
+/// occlusion both show on it.
+const LIT_MATERIAL: Vec3 = Vec3::new(0.62, 0.52, 0.40);
+
+/// The key light's strength and the sky's (linear).
+const KEY_LIGHT: f32 = 0.95;
+const SKY_LIGHT: f32 = 0.55;
+
+/// How much of the key light ambient occlusion dims: occlusion stands in for the key light's
+/// shadows, which would take one more ray per pixel.
+const KEY_OCCLUDED: f32 = 0.6;
+
+/// Bits of a [`SHADE_LIT`] pixel above [`AO_OPEN_MASK`]: the key light's cosine, then the
+/// sky's (`0.5 + 0.5 n.up`), each in fixed point.
+const KEY_SHIFT: u32 = 13;
+const KEY_BITS: u32 = 10;
+const SKY_SHIFT: u32 = KEY_SHIFT + KEY_BITS;
+const SKY_BITS: u32 = 32 - SKY_SHIFT;
 
 /// Colour of a pixel from its closest hit.
 ///
@@ -127,6 +146,7 @@ pub fn render_pixel<N: Buffer<BvhNode>, P: LeafPrimitives>(
     let mut t_max = T_FAR;
     let (mut origin, mut n, mut t1, mut t2) = (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, Vec3::ZERO);
     let mut open = 0u32;
+    let mut lights = 0u32;
     // Ray 0 is the primary; under ambient occlusion ray `k > 0` is sample
     // `ao_first_sample + k - 1`, cosine-distributed from the primary hit (on the side the
     // primary came from) and looking `ao_distance` far; the directions come from a hash of
@@ -136,21 +156,25 @@ pub fn render_pixel<N: Buffer<BvhNode>, P: LeafPrimitives>(
     loop {
         let hit = trace(nodes, prims, &ray, t_max);
         if k == 0 {
-            if frame.shading != SHADE_AMBIENT_OCCLUSION {
-                let mut lit = hit;
-                if frame.smooth_normals != 0 && hit.is_hit() {
-                    lit.normal = prims.smooth_normal(&hit).to_array();
-                }
+            // One call site of the smooth normal, whatever the mode: a shader inlines each.
+            let mut lit = hit;
+            if frame.smooth_normals != 0 && hit.is_hit() {
+                lit.normal = prims.smooth_normal(&hit).to_array();
+            }
+            if frame.shading != SHADE_AMBIENT_OCCLUSION && frame.shading != SHADE_LIT {
                 return pack_rgba8(shade(&lit, &primary, frame));
             }
             if !hit.is_hit() {
                 return AO_MISS;
             }
+            if frame.shading == SHADE_LIT {
+                lights = light_bits(Vec3::from(lit.normal), primary.dir, &frame.camera);
+            }
             let normal = Vec3::from(hit.normal);
             let len2 = normal.dot(normal);
             if len2 == 0.0 {
                 // No side to cast from: counted open.
-                return frame.ao_samples;
+                return lights | frame.ao_samples;
             }
             n = normal / len2.sqrt();
             if n.dot(primary.dir) > 0.0 {
@@ -163,7 +187,7 @@ pub fn render_pixel<N: Buffer<BvhNode>, P: LeafPrimitives>(
             open += 1;
         }
         if k == frame.ao_samples {
-            return open;
+            return lights | open;
         }
         let sample = frame.ao_first_sample + k;
         let h = hash(hash(pixel) ^ sample.wrapping_mul(0x9e37_79b9));
@@ -172,15 +196,75 @@ pub fn render_pixel<N: Buffer<BvhNode>, P: LeafPrimitives>(
     }
 }
 
-/// The packed colour of pixel `(x, y)` under ambient occlusion from the passes' counts:
-/// `open` of its `samples` rays met nothing, or `open` is [`AO_MISS`] (the background).
-pub fn ao_pixel(frame: &FrameParams, x: u32, y: u32, open: u32, samples: u32) -> u32 {
+/// Pixel `sum` of the passes so far with pixel `pass` of one more pass added: their open rays
+/// added up, the lights (the same in every pass) kept, a miss kept a miss.
+pub fn ao_accumulate(sum: u32, pass: u32) -> u32 {
+    if pass == AO_MISS {
+        return AO_MISS;
+    }
+    (pass & !AO_OPEN_MASK) | ((sum & AO_OPEN_MASK) + (pass & AO_OPEN_MASK))
+}
+
+/// The packed colour of pixel `(x, y)` under ambient occlusion from the passes' pixels added
+/// up by [`ao_accumulate`]: `pixel` counts which of its `samples` rays met nothing (and under
+/// [`SHADE_LIT`] holds the lights' cosines), or is [`AO_MISS`] (the background).
+///
+/// Plain occlusion darkens the plain material. Lit, the clay takes a key light from the
+/// upper left of the view, partly dimmed by occlusion, plus a sky brighter above than
+/// below, dimmed by occlusion in full; both in linear light, gamma applied once at the end.
+pub fn ao_pixel(frame: &FrameParams, x: u32, y: u32, pixel: u32, samples: u32) -> u32 {
     let ray = primary_ray(&frame.camera, x, y);
-    if open == AO_MISS {
+    if pixel == AO_MISS {
         return pack_rgba8(shade(&Hit::miss(T_FAR), &ray, frame));
     }
+    let open = pixel & AO_OPEN_MASK;
     let visible = if samples > 0 { open as f32 / samples as f32 } else { 1.0 };
-    pack_rgba8(AO_MATERIAL * (0.1 + 0.9 * visible))
+    if frame.shading != SHADE_LIT {
+        return pack_rgba8(AO_MATERIAL * (0.1 + 0.9 * visible));
+    }
+    let key = unpack_unorm(pixel >> KEY_SHIFT, KEY_BITS);
+    let sky = unpack_unorm(pixel >> SKY_SHIFT, SKY_BITS);
+    let key_light = KEY_LIGHT * key * (1.0 - KEY_OCCLUDED + KEY_OCCLUDED * visible);
+    pack_rgba8(LIT_MATERIAL * (key_light + SKY_LIGHT * sky * visible))
+}
+
+/// The key light's and the sky's cosines at a hit with normal `normal` (any length; turned
+/// to face the eye) seen along `view`, packed above [`AO_OPEN_MASK`]. The lights follow the
+/// camera (the key from its upper left and a little behind it, the sky from its up), so every
+/// view of any mesh, whatever its up axis, is lit alike.
+fn light_bits(normal: Vec3, view: Vec3, camera: &Camera) -> u32 {
+    let len2 = normal.dot(normal);
+    if len2 == 0.0 {
+        return 0;
+    }
+    let mut n = normal / len2.sqrt();
+    if n.dot(view) > 0.0 {
+        n = -n;
+    }
+    let (right, up, forward) = camera_axes(camera);
+    let key = (up * 0.65 - right * 0.45 - forward * 0.6).normalize();
+    let key_cos = n.dot(key).max(0.0);
+    let sky_cos = 0.5 + 0.5 * n.dot(up);
+    (pack_unorm(key_cos, KEY_BITS) << KEY_SHIFT) | (pack_unorm(sky_cos, SKY_BITS) << SKY_SHIFT)
+}
+
+/// The picture's right, up and forward directions (unit).
+fn camera_axes(camera: &Camera) -> (Vec3, Vec3, Vec3) {
+    let (h, v) = (Vec3::from(camera.horizontal), Vec3::from(camera.vertical));
+    let forward = Vec3::from(camera.to_top_left) + h * 0.5 + v * 0.5;
+    (h.normalize(), -v.normalize(), forward.normalize())
+}
+
+/// `x` in `[0, 1]` as a `bits`-bit unsigned fixed-point number, rounded.
+fn pack_unorm(x: f32, bits: u32) -> u32 {
+    let top = ((1u32 << bits) - 1) as f32;
+    (x.clamp(0.0, 1.0) * top + 0.5) as u32
+}
+
+/// The low `bits` of `packed` as a fraction of their largest value.
+fn unpack_unorm(packed: u32, bits: u32) -> f32 {
+    let top = (1u32 << bits) - 1;
+    (packed & top) as f32 / top as f32
 }
 
 /// The tests pixel `(x, y)`'s primary ray makes, packed (see [`Costs::pack`]): what the cost

@@ -6,7 +6,7 @@ use gridrt::image_io::fraction_within;
 use gridrt::mesh;
 use gridrt::pipeline::{BuildOptions, RenderOptions, Representation, Shading};
 use gridrt::scene::{render_cpu, Scene};
-use gridrt_shared::layout::{AO_MISS, NO_HIT};
+use gridrt_shared::layout::{AO_MISS, AO_OPEN_MASK, NO_HIT};
 use gridrt_shared::shade::ao_pixel;
 use gridrt_tests::gpu_or_skip;
 
@@ -74,30 +74,38 @@ fn the_pipeline_refuses_what_it_cannot_build() {
     assert!(e.contains("no/such/mesh.ply") && !e.contains('\n'), "{e}");
 }
 
-/// Ambient occlusion: the same rays from the same pixels on both backends, darker where the
-/// scene closes in, and no darker than the plain material where the rays look nowhere.
+/// Ambient occlusion, plain and lit: the same rays from the same pixels on both backends
+/// (at least 99.5% of pixels within 2/255), darker where the scene closes in, and no darker
+/// than unoccluded where the rays look nowhere.
 #[test]
 fn ambient_occlusion_agrees_across_backends_and_darkens() {
     let gpu = gpu_backend("ambient_occlusion_agrees_across_backends_and_darkens");
-    for (representation, scene) in both_scenes() {
+    let scenes = both_scenes();
+    let modes = [Shading::AmbientOcclusion, Shading::Lit];
+    for ((representation, scene), shading) in scenes.iter().flat_map(|s| modes.map(|m| (s, m))) {
         let view = camera::frame(&scene.bounds(), 96, 72);
         let ao = RenderOptions {
-            shading: Shading::AmbientOcclusion,
+            shading,
             ao_samples: 8,
+            smooth_normals: *representation == Representation::Grids,
             ..RenderOptions::default()
         };
-        let image = Backend::CPU.render(&scene, &view, &ao).unwrap();
+        let image = Backend::CPU.render(scene, &view, &ao).unwrap();
         if let Some(gpu) = &gpu {
-            let on_gpu = gpu.render(&scene, &view, &ao).unwrap();
+            let on_gpu = gpu.render(scene, &view, &ao).unwrap();
             let within = fraction_within(&on_gpu.pixels, &image.pixels, 2);
-            assert!(within >= 0.99, "{representation:?}: {:.3}% agree", 100.0 * within);
+            assert!(
+                within >= 0.995,
+                "{representation:?} {shading:?}: {:.3}% agree",
+                100.0 * within
+            );
         }
         // Rays that look (almost) nowhere see nothing: the plain material everywhere.
         let blind = RenderOptions {
             ao_distance: Some(1e-6),
             ..ao
         };
-        let open = Backend::CPU.render(&scene, &view, &blind).unwrap();
+        let open = Backend::CPU.render(scene, &view, &blind).unwrap();
         let red = |p: u32| p & 0xff;
         let darker = image
             .pixels
@@ -114,14 +122,21 @@ fn ambient_occlusion_agrees_across_backends_and_darkens() {
 }
 
 /// Ambient occlusion renders progressively: passes of samples whose open rays add up to
-/// exactly those of one pass casting them all, the progress reported after each.
+/// exactly those of one pass casting them all (the lights of lit shading kept once), the
+/// progress reported after each.
 #[test]
 fn ambient_occlusion_passes_add_up_to_one() {
+    for shading in [Shading::AmbientOcclusion, Shading::Lit] {
+        occlusion_passes_add_up_to_one(shading);
+    }
+}
+
+fn occlusion_passes_add_up_to_one(shading: Shading) {
     let (_, scene) = both_scenes().remove(0);
     let view = camera::frame(&scene.bounds(), 64, 48);
     let samples = 2 * AO_SAMPLES_PER_PASS + 3;
     let options = RenderOptions {
-        shading: Shading::AmbientOcclusion,
+        shading,
         ao_samples: samples,
         ..RenderOptions::default()
     };
@@ -136,7 +151,8 @@ fn ambient_occlusion_passes_add_up_to_one() {
     // One pass of every sample, coloured the same way.
     let frame = options.frame(&scene, &view);
     let counts = Backend::CPU.render_frame(&scene, &frame).unwrap();
-    assert!(counts.contains(&AO_MISS) && counts.iter().any(|&c| c > 0 && c < samples));
+    let open = |c: u32| c & AO_OPEN_MASK;
+    assert!(counts.contains(&AO_MISS) && counts.iter().any(|&c| open(c) > 0 && open(c) < samples));
     let whole: Vec<u32> = counts
         .iter()
         .enumerate()
@@ -156,6 +172,7 @@ fn every_shading_mode_agrees_across_backends() {
         Shading::Normal,
         Shading::Primitive,
         Shading::AmbientOcclusion,
+        Shading::Lit,
         Shading::Depth,
         Shading::Cost,
     ];

@@ -153,8 +153,12 @@ pub enum ShadingArg {
     Normal,
     /// One colour per micro-triangle.
     Primitive,
-    /// Ambient occlusion (--ao-samples rays per pixel, looking --ao-distance far).
+    /// Ambient occlusion alone on a plain material (--ao-samples rays per pixel, looking
+    /// --ao-distance far).
     Ao,
+    /// A key light and a sky on clay, both dimmed by ambient occlusion (the same rays as
+    /// --shading ao).
+    Lit,
     /// Distance from the eye, white near to black far.
     Depth,
     /// Cost heat map: BVH nodes, spheres and micro-triangles tested per pixel (scale printed).
@@ -170,6 +174,7 @@ impl ShadingArg {
             ShadingArg::Normal => Shading::Normal,
             ShadingArg::Primitive => Shading::Primitive,
             ShadingArg::Ao => Shading::AmbientOcclusion,
+            ShadingArg::Lit => Shading::Lit,
             ShadingArg::Depth => Shading::Depth,
             ShadingArg::Cost => Shading::Cost,
             ShadingArg::Level => Shading::Level,
@@ -270,10 +275,11 @@ pub struct RenderArgs {
     pub width: u32,
     #[arg(long, default_value_t = 720, value_parser = clap::value_parser!(u32).range(1..))]
     pub height: u32,
-    #[arg(long, value_enum, default_value_t = ShadingArg::Eye)]
-    pub shading: ShadingArg,
+    /// How to colour pixels [default: lit for the built-in scene, eye for meshes].
+    #[arg(long, value_enum)]
+    pub shading: Option<ShadingArg>,
     /// Light grids with smooth normals, interpolated across micro-triangles from the lattice
-    /// around each hit (eye, normal, primitive and level shading).
+    /// around each hit (eye, normal, primitive, level and lit shading).
     #[arg(long)]
     pub smooth: bool,
     /// Ambient-occlusion rays per pixel (`--shading ao`).
@@ -434,11 +440,22 @@ impl RenderArgs {
         }
     }
 
+    /// The shading asked for, or the default: lit for the built-in scene (a picture worth
+    /// showing, cheap at its size), the headlight for meshes (one ray per pixel, whatever
+    /// their size).
+    fn shading_arg(&self) -> ShadingArg {
+        match (self.shading, self.meshes.is_empty()) {
+            (Some(shading), _) => shading,
+            (None, true) => ShadingArg::Lit,
+            (None, false) => ShadingArg::Eye,
+        }
+    }
+
     /// The library's render options for these arguments; lengths are in the file's units,
     /// `frame` takes them to the mesh's local frame.
     pub fn render_options(&self, frame: &LocalFrame) -> RenderOptions {
         RenderOptions {
-            shading: self.shading.shading(),
+            shading: self.shading_arg().shading(),
             ao_samples: self.ao_samples,
             ao_distance: self.ao_distance.map(|d| (d * frame.scale) as f32),
             heat_white: self.heat_white,
@@ -453,7 +470,7 @@ impl RenderArgs {
             let one_depth = "the baseline has one depth, fixed when it is built";
             let needs_grids = [
                 (self.lod == Some(LodArg::Auto), "--lod auto", one_depth),
-                (self.shading == ShadingArg::Level, "--shading level", one_depth),
+                (self.shading == Some(ShadingArg::Level), "--shading level", one_depth),
                 (
                     self.smooth,
                     "--smooth",
@@ -803,7 +820,7 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
         } else {
             // Ambient occlusion renders in passes: a bar over its samples.
             let samples = match render.shading {
-                Shading::AmbientOcclusion => render.ao_samples as u64,
+                Shading::AmbientOcclusion | Shading::Lit => render.ao_samples as u64,
                 _ => 0,
             };
             stages.run_counted("render", samples, |bar| {
