@@ -68,13 +68,7 @@ impl Scene {
     /// [`Scene::build`], calling `progress(grids)` as runs of grids are built (grids only).
     pub fn build_reporting(mesh: &Mesh, options: &BuildOptions, progress: &(dyn Fn(usize) + Sync)) -> Result<Scene> {
         let levels = options.grid.levels;
-        let lod = options.lod.unwrap_or(levels);
-        if lod > levels {
-            fail!(
-                Options,
-                "level of detail {lod} is deeper than the {levels} levels built"
-            );
-        }
+        let lod = rendered_depth(options, levels, "the")?;
         match options.representation {
             Representation::Grids => {
                 // The build checks the mesh against the grid layout's limits first.
@@ -107,13 +101,7 @@ impl Scene {
                 "base triangles subdivided to different levels are traced as decoded triangles only"
             );
         };
-        let lod = options.lod.unwrap_or(levels);
-        if lod > levels {
-            fail!(
-                Options,
-                "level of detail {lod} is deeper than the micro-mesh's {levels} levels"
-            );
-        }
+        let lod = rendered_depth(options, levels, "the micro-mesh's")?;
         match options.representation {
             Representation::Grids => {
                 let mut grids = grid::displaced::build(mesh, &options.grid.options)?;
@@ -132,6 +120,19 @@ impl Scene {
             }
         }
     }
+}
+
+/// The depth `options` render at: their level of detail, or all `levels` built (`whose`
+/// names whose levels they are in the refusal of a deeper one).
+fn rendered_depth(options: &BuildOptions, levels: u32, whose: &str) -> Result<u32> {
+    let lod = options.lod.unwrap_or(levels);
+    if lod > levels {
+        fail!(
+            Options,
+            "level of detail {lod} is deeper than {whose} {levels} levels built"
+        );
+    }
+    Ok(lod)
 }
 
 /// How pixels are coloured.

@@ -226,7 +226,8 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
         let (stats, grids, tris, bounds) = match grids_of(input) {
             Some(micromesh) => {
                 bar.inc(1);
-                let measured = stats::measure_displaced(name, micromesh, &args.build, args.build_repeats, &step)?;
+                let measured =
+                    stats::measure_displaced(name, (micromesh, mesh), &args.build, args.build_repeats, &step)?;
                 let bounds = Aabb::from_points(mesh.positions.iter().copied());
                 (measured.0, measured.1, measured.2, bounds)
             }

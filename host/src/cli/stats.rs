@@ -149,19 +149,18 @@ pub fn measure(
     Ok((stats, grids, tris))
 }
 
-/// [`measure`] for a displaced micro-mesh of one level: displaced grids against its decoded
-/// micro-triangles (points decoded alike stored once). Timed as [`measure`] times: for
+/// [`measure`] for a displaced micro-mesh of one level: displaced grids against `decoded`, its
+/// micro-triangles as the loader decoded them (points decoded alike stored once). Timed as [`measure`] times: for
 /// grids, everything after laying out their values; for triangles, everything after
 /// decoding.
 pub fn measure_displaced(
     name: &str,
-    micromesh: &DisplacedMesh,
+    (micromesh, decoded): (&DisplacedMesh, &Mesh),
     build: &BuildArgs,
     repeats: usize,
     progress: &dyn Fn(&str),
 ) -> Result<(Stats, GridScene, TriangleScene)> {
     let layout = grid::displaced::layout(micromesh, &build.grid_options())?;
-    let decoded = micromesh.decoded_welded();
     progress(&format!("building the displaced grids (up to {repeats} times)"));
     let (grid_s, grids) = median_time_of(repeats, || layout.clone(), grid::build_from_layout);
     progress(&format!("building the baseline (up to {repeats} times)"));
@@ -217,7 +216,7 @@ pub fn run(args: &StatsArgs, quiet: bool) -> Result<()> {
     let s = match (micromesh.filter(|m| m.uniform_level().is_some()), displaced) {
         (Some(m), _) => {
             check_work(&name, &mesh, &args.build.as_decoded(), 0)?;
-            measure_displaced(&name, &m, &args.build, BUILD_REPEATS, &step)?.0
+            measure_displaced(&name, (&m, &mesh), &args.build, BUILD_REPEATS, &step)?.0
         }
         (None, displaced) => {
             let build = match displaced {

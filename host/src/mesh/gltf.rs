@@ -653,11 +653,39 @@ fn triangle_list(mode: Mode, indices: &[u32]) -> Vec<[u32; 3]> {
     }
 }
 
+/// A GLB container as tests lay one out by hand: header, JSON chunk, binary chunk, each
+/// padded to four bytes.
+#[cfg(test)]
+pub(crate) fn glb_container(json: &[u8], bin: &[u8]) -> Vec<u8> {
+    let pad = |mut v: Vec<u8>, with: u8| {
+        while !v.len().is_multiple_of(4) {
+            v.push(with);
+        }
+        v
+    };
+    let (json, bin) = (pad(json.to_vec(), b' '), pad(bin.to_vec(), 0));
+    let mut out = Vec::new();
+    out.extend(b"glTF");
+    out.extend(2u32.to_le_bytes());
+    out.extend((12 + 8 + json.len() as u32 + 8 + bin.len() as u32).to_le_bytes());
+    out.extend((json.len() as u32).to_le_bytes());
+    out.extend(b"JSON");
+    out.extend(&json);
+    out.extend((bin.len() as u32).to_le_bytes());
+    out.extend(b"BIN\0");
+    out.extend(&bin);
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::super::load_mesh_quiet;
     use super::super::test_util::{expect_err, load_ok, load_scrambled, write_temp};
     use super::*;
+
+    fn glb(json: &str, bin: &[u8]) -> Vec<u8> {
+        glb_container(json.as_bytes(), bin)
+    }
     use gridrt_shared::glam::Vec3;
 
     /// Little-endian bytes of the scene's one buffer: a unit right triangle (three positions)
@@ -781,28 +809,6 @@ mod tests {
         std::fs::write(&gltf, document(Some("my%20scene.bin"))).unwrap();
         parse_and_check(&gltf);
         parse_and_check(&write_temp("scene.glb", &glb(&document(None), &buffer())));
-    }
-
-    /// A GLB container: header, JSON chunk, binary chunk, each padded to four bytes.
-    fn glb(json: &str, bin: &[u8]) -> Vec<u8> {
-        let pad = |mut v: Vec<u8>, with: u8| {
-            while !v.len().is_multiple_of(4) {
-                v.push(with);
-            }
-            v
-        };
-        let (json, bin) = (pad(json.as_bytes().to_vec(), b' '), pad(bin.to_vec(), 0));
-        let mut out = Vec::new();
-        out.extend(b"glTF");
-        out.extend(2u32.to_le_bytes());
-        out.extend((12 + 8 + json.len() as u32 + 8 + bin.len() as u32).to_le_bytes());
-        out.extend((json.len() as u32).to_le_bytes());
-        out.extend(b"JSON");
-        out.extend(&json);
-        out.extend((bin.len() as u32).to_le_bytes());
-        out.extend(b"BIN\0");
-        out.extend(&bin);
-        out
     }
 
     #[test]

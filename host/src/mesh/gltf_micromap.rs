@@ -353,9 +353,6 @@ mod tests {
         bin.extend([0u32, 1, 2, 1, 3, 2, 1, 0].iter().flat_map(|i| i.to_le_bytes())); // 24 + 8: indices, map
         let bary_at = bin.len();
         bin.extend(&bary);
-        while !bin.len().is_multiple_of(4) {
-            bin.push(0);
-        }
         let json = serde_json::json!({
             "asset": {"version": "2.0"},
             "extensionsUsed": ["NV_micromaps", "NV_displacement_micromap"],
@@ -381,19 +378,7 @@ mod tests {
                 {"bufferView": 4, "componentType": 5125, "count": 2, "type": "SCALAR"},
             ],
         });
-        let mut text = serde_json::to_vec(&json).unwrap();
-        while !text.len().is_multiple_of(4) {
-            text.push(b' ');
-        }
-        let mut glb = b"glTF".to_vec();
-        glb.extend(2u32.to_le_bytes());
-        glb.extend(((12 + 8 + text.len() + 8 + bin.len()) as u32).to_le_bytes());
-        glb.extend((text.len() as u32).to_le_bytes());
-        glb.extend(b"JSON");
-        glb.extend(&text);
-        glb.extend((bin.len() as u32).to_le_bytes());
-        glb.extend(b"BIN\0");
-        glb.extend(&bin);
+        let glb = crate::mesh::gltf::glb_container(&serde_json::to_vec(&json).unwrap(), &bin);
         let read = parse_displaced(&glb, None).unwrap().unwrap();
         // Bounds: bias 0.5 along +z, scale 2; then the node's translation.
         assert_eq!(read.positions[3], DVec3::new(11.0, 1.0, 0.5));
