@@ -92,6 +92,8 @@ fn a_mesh_bakes_into_files_the_other_commands_read() {
     let against = &bench[0]["reference"];
     assert_eq!(against["triangles"].as_u64(), Some(8192), "{bench}");
     assert!(against["bytes"].as_u64().unwrap() > 10 * bench[0]["grid"]["bytes"].as_u64().unwrap());
+    // What the GPU gets, as bake reported it, is what bench built from the file.
+    assert_eq!(bench[0]["grid"]["bytes"], report["grid_bytes"], "{bench} vs {report}");
     assert!(
         (against["distance"]["rms"].as_f64().unwrap() - rms).abs() < 0.05 * rms,
         "{bench}"

@@ -10,6 +10,7 @@ use super::progress::Stages;
 use super::BakeArgs;
 use gridrt::bake::refine::Refinement;
 use gridrt::bake::{self, BakeOptions, BakeReport, Base};
+use gridrt::grid::{self, GridOptions};
 use gridrt::image_io;
 use gridrt::mesh;
 use gridrt::micromesh_gltf;
@@ -26,6 +27,10 @@ struct Report {
     file_bytes: u64,
     /// The micromap's bytes alone (values and their tables).
     micromap_bytes: u64,
+    /// Everything the GPU gets to trace the result as displaced grids at their defaults:
+    /// values, base mesh, headers, radii, leaf thicknesses, top-level BVH.
+    /// `None` where the micro-mesh is too large for displaced grids (rendered as triangles).
+    grid_bytes: Option<u64>,
     bake_seconds: f64,
     /// Distances between the decoded micro-mesh and the reference, as fractions of the
     /// reference's bounding-box diagonal.
@@ -68,6 +73,10 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
     let baked = stages.run("bake", || bake::bake(&reference_mesh, &options))?;
     let bake_seconds = started.elapsed().as_secs_f64();
     stages.run("write", || micromesh_gltf::write(&args.output, &baked.mesh, &frame))?;
+    let grids = grid::displaced::build(&baked.mesh, &GridOptions::for_displaced());
+    let grid_bytes = grids
+        .ok()
+        .map(|g| g.memory().iter().map(|&(_, bytes)| bytes as u64).sum());
     let sampling = Sampling {
         samples: args.samples,
         ..Sampling::default()
@@ -84,6 +93,7 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
         bake: baked.report,
         file_bytes: outputs.iter().map(|p| bytes(p)).sum(),
         micromap_bytes: bytes(&outputs[2]),
+        grid_bytes,
         bake_seconds,
         reference_to_baked: d.a_to_b.relative_to(d.a_diagonal),
         baked_to_reference: d.b_to_a.relative_to(d.a_diagonal),
@@ -128,6 +138,7 @@ fn summary(r: &Report) -> String {
         "{} ({} triangles) -> {}\n\
          base: {} triangles, {} vertices; level {}: {} micro-triangles ({:.1} per reference triangle)\n\
          files: {} bytes, {:.2} B per micro-triangle (micromap {:.2} B)\n\
+         displaced grids, all the GPU gets: {}\n\
          bake: {:.2} s; {} of {} values ({:.3}%) met no surface within reach, {} ({:.3}%) were clamped\n\n\
          Distance to the reference, as fractions of its bounding-box diagonal:\n\n\
          | from | RMS | 99th percentile | max |\n|---|---:|---:|---:|\n{}{}{}",
@@ -142,6 +153,10 @@ fn summary(r: &Report) -> String {
         r.file_bytes,
         per_micro(r.file_bytes),
         per_micro(r.micromap_bytes),
+        match r.grid_bytes {
+            Some(bytes) => format!("{bytes} bytes, {:.2} B per micro-triangle", per_micro(bytes)),
+            None => "too large to trace as displaced grids (rendered as triangles)".into(),
+        },
         r.bake_seconds,
         b.misses,
         b.values,

@@ -197,9 +197,13 @@ pub struct BuildArgs {
     /// Levels at the bottom of each grid's sphere hierarchy that get no spheres.
     #[arg(long, default_value_t = grid::DEFAULT_EXCLUDED_LEVELS, value_parser = clap::value_parser!(u32).range(1..=3))]
     pub excluded_levels: u32,
-    /// Store sphere radii as half floats (rounded up) instead of 32-bit floats.
+    /// Store sphere radii as half floats (rounded up) instead of 32-bit floats (always so for
+    /// displaced micro-meshes, unless --f32-radii).
     #[arg(long)]
     pub half_radii: bool,
+    /// Store a displaced micro-mesh's sphere radii as 32-bit floats.
+    #[arg(long, conflicts_with = "half_radii")]
+    pub f32_radii: bool,
     /// Store no leaf thicknesses and cull leaves by their spheres alone (smaller, faster to
     /// build, slower to trace; see README).
     #[arg(long)]
@@ -250,6 +254,17 @@ impl BuildArgs {
             excluded_levels: self.excluded_levels,
             half_radii: self.half_radii,
             leaf_footprint: !self.no_leaf_footprint,
+        }
+    }
+
+    /// These arguments for a displaced micro-mesh of `level` built as displaced grids: its own
+    /// level, no subdivision, half-float radii unless `--f32-radii`.
+    pub fn as_displaced(&self, level: u32) -> BuildArgs {
+        BuildArgs {
+            levels: level,
+            subdivision: SubdivisionArg::Flat,
+            half_radii: !self.f32_radii,
+            ..self.clone()
         }
     }
 }
@@ -416,11 +431,7 @@ impl RenderArgs {
             }
         }
         Ok(RenderArgs {
-            build: BuildArgs {
-                levels: level,
-                subdivision: SubdivisionArg::Flat,
-                ..self.build.clone()
-            },
+            build: self.build.as_displaced(level),
             ..self.clone()
         })
     }

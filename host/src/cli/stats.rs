@@ -160,6 +160,7 @@ pub fn measure_displaced(
     repeats: usize,
     progress: &dyn Fn(&str),
 ) -> Result<(Stats, GridScene, TriangleScene)> {
+    let build = build.as_displaced(micromesh.uniform_level().unwrap_or(0));
     let layout = grid::displaced::layout(micromesh, &build.grid_options())?;
     progress(&format!("building the displaced grids (up to {repeats} times)"));
     let (grid_s, grids) = median_time_of(repeats, || layout.clone(), grid::build_from_layout);

@@ -53,6 +53,18 @@ impl Default for GridOptions {
     }
 }
 
+impl GridOptions {
+    /// The defaults for displaced grids: radii as half floats. Their values already hold 11
+    /// bits, so `f32` radii bought no speed (the same Mrays/s within run-to-run noise on the
+    /// CPU and lavapipe) for 0.16 B per micro-triangle.
+    pub fn for_displaced() -> GridOptions {
+        GridOptions {
+            half_radii: true,
+            ..GridOptions::default()
+        }
+    }
+}
+
 /// Everything the grid traversal reads, as uploaded.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GridScene {
