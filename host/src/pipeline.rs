@@ -50,6 +50,14 @@ impl BuildOptions {
             lod: None,
         }
     }
+
+    /// For [`Scene::build_displaced`]: displaced grids at their defaults
+    /// ([`crate::grid::GridOptions::for_displaced`]), the micro-mesh's own level.
+    pub fn for_displaced() -> Self {
+        let mut options = BuildOptions::default();
+        options.grid.options = crate::grid::GridOptions::for_displaced();
+        options
+    }
 }
 
 impl Default for BuildOptions {
@@ -93,7 +101,7 @@ impl Scene {
     /// Builds a displaced micro-mesh (in its local frame) as `options` say: displaced grids,
     /// or the baseline over its decoded micro-triangles. The mesh's own level is built, so
     /// `options.grid`'s levels and subdivision are not used; `options.lod` may render the
-    /// grids shallower.
+    /// grids shallower. [`BuildOptions::for_displaced`] gives the defaults the CLI uses.
     pub fn build_displaced(mesh: &DisplacedMesh, options: &BuildOptions) -> Result<Scene> {
         let Some(levels) = mesh.uniform_level() else {
             fail!(

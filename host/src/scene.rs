@@ -25,7 +25,7 @@ impl Scene {
     pub fn trace(&self, ray: &Ray, t_max: f32) -> Hit {
         match self {
             Scene::Triangles(s) => trace_triangles(s.nodes.as_slice(), &s.view(), ray, t_max),
-            Scene::Grids(s) => trace_grids(s.nodes.as_slice(), &s.view(), ray, t_max),
+            Scene::Grids(s) => trace_grids(s.top(), &s.view(), ray, t_max),
         }
     }
 
@@ -57,7 +57,7 @@ impl Scene {
     pub fn bounds(&self) -> Aabb {
         let root = match self {
             Scene::Triangles(s) => s.nodes[0],
-            Scene::Grids(s) => s.nodes[0],
+            Scene::Grids(s) => s.top().load(0),
         };
         Aabb {
             min: root.min.into(),
@@ -156,7 +156,7 @@ pub fn render_cpu(scene: &Scene, frame: &FrameParams) -> Vec<u32> {
     match scene {
         Scene::Triangles(s) => render_pixels(frame, s.nodes.as_slice(), &s.view()),
         // Read as the frame says (its level of detail), as the kernels do.
-        Scene::Grids(s) => render_grid_pixels(frame, s.nodes.as_slice(), s.view_as(frame.grid)),
+        Scene::Grids(s) => render_grid_pixels(frame, s.top(), s.view_as(frame.grid)),
     }
 }
 

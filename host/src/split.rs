@@ -9,6 +9,7 @@ use gridrt_shared::buffer::{Chunks, Split, SPLIT_CHUNKS};
 use gridrt_shared::grid_index::MICRO_TRIANGLES;
 use gridrt_shared::grid_traverse;
 use gridrt_shared::layout::{BvhNode, FrameParams, SplitParams, GRID_NODES, TRIANGLE_NODES};
+use gridrt_shared::top_nodes::TopNodes;
 use gridrt_shared::traverse::TriangleMesh;
 
 use crate::limits::BufferSize;
@@ -161,7 +162,7 @@ pub fn render_cpu_split(scene: &Scene, split: &SplitScene, frame: &FrameParams) 
         }
         Scene::Grids(_) => {
             let grids = grid_traverse::GridScene::split(&chunks, &split.params, &MICRO_TRIANGLES, frame.grid);
-            render_grid_pixels(frame, nodes(GRID_NODES), grids)
+            render_grid_pixels(frame, TopNodes::new(nodes(GRID_NODES)), grids)
         }
     }
 }

@@ -17,6 +17,7 @@ use gridrt_shared::layout::{
 };
 use gridrt_shared::ray::Ray;
 use gridrt_shared::shade::{cost_pixel, render_pixel};
+use gridrt_shared::top_nodes::TopNodes;
 use gridrt_shared::traverse::{closest_hit, walk_first_round, walk_round, BufferStack, LeafPrimitives, TriangleMesh};
 use spirv_std::spirv;
 
@@ -174,7 +175,7 @@ macro_rules! grid_image_kernels {
                 };
                 image[i] = $pixel(
                     frame,
-                    nodes,
+                    TopNodes::new(nodes),
                     &$walk(scene),
                     frame.tile_x + id.x,
                     frame.tile_y + id.y,
@@ -192,7 +193,7 @@ macro_rules! grid_image_kernels {
                 #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] micro_triangles: &[u32],
             ) |chunks| {
                 if let Some(i) = tile_index(id, frame) {
-                    let nodes = Split::<BvhNode>::new(&chunks, &frame.split, GRID_NODES);
+                    let nodes = TopNodes::new(Split::<BvhNode>::new(&chunks, &frame.split, GRID_NODES));
                     let scene = GridScene::split(&chunks, &frame.split, micro_triangles, frame.grid);
                     image[i] = $pixel(frame, nodes, &$walk(scene), frame.tile_x + id.x, frame.tile_y + id.y);
                 }
@@ -275,7 +276,7 @@ macro_rules! grid_ray_kernels {
                     micro_triangles,
                     params: params.grid,
                 };
-                hits[i] = trace_record(nodes, &$walk(scene), &rays[i]);
+                hits[i] = trace_record(TopNodes::new(nodes), &$walk(scene), &rays[i]);
             }
         }
 
@@ -290,7 +291,7 @@ macro_rules! grid_ray_kernels {
                 #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] micro_triangles: &[u32],
             ) |chunks| {
                 if let Some(i) = ray_index(id, params) {
-                    let nodes = Split::<BvhNode>::new(&chunks, &params.split, GRID_NODES);
+                    let nodes = TopNodes::new(Split::<BvhNode>::new(&chunks, &params.split, GRID_NODES));
                     let scene = GridScene::split(&chunks, &params.split, micro_triangles, params.grid);
                     hits[i] = trace_record(nodes, &$walk(scene), &rays[i]);
                 }
@@ -433,7 +434,13 @@ pub fn walk_first_rounds(
         ray: r as usize,
         rays: rays.len(),
     };
-    let leaf = walk_first_round(nodes, &ray_of(record), record.t_max, &mut state, &mut stack);
+    let leaf = walk_first_round(
+        TopNodes::new(nodes),
+        &ray_of(record),
+        record.t_max,
+        &mut state,
+        &mut stack,
+    );
     let mut out = WalkOutput {
         hits,
         states,
@@ -475,7 +482,13 @@ pub fn walk_rounds(
         ray: r as usize,
         rays: rays.len(),
     };
-    let leaf = walk_round(nodes, results, &ray_of(&rays[r as usize]), &mut state, &mut stack);
+    let leaf = walk_round(
+        TopNodes::new(nodes),
+        results,
+        &ray_of(&rays[r as usize]),
+        &mut state,
+        &mut stack,
+    );
     let mut out = WalkOutput {
         hits,
         states,
@@ -629,6 +642,7 @@ pub fn finish_walks(
         return;
     }
     let grids = one_visit_grids(params, headers, vertices, radii, micro_triangles);
+    let top = TopNodes::new(nodes);
     let mut r = active_in[id.x as usize] as usize;
     let mut ray = ray_of(&rays[r]);
     let mut state = states[r];
@@ -640,7 +654,7 @@ pub fn finish_walks(
             ray: r,
             rays: rays.len(),
         };
-        let leaf = walk_round(nodes, results, &ray, &mut state, &mut stack);
+        let leaf = walk_round(top, results, &ray, &mut state, &mut stack);
         if leaf.count == 0 {
             hits[r] = HitRecord {
                 t: state.t,

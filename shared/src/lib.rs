@@ -23,5 +23,6 @@ pub mod sample;
 pub mod shade;
 pub mod smooth_normal;
 pub mod sphere;
+pub mod top_nodes;
 pub mod traverse;
 pub mod triangle;

@@ -28,7 +28,7 @@ fn build(mesh: &DisplacedMesh, representation: Representation, lod: Option<u32>)
     let options = BuildOptions {
         representation,
         lod,
-        ..BuildOptions::default()
+        ..BuildOptions::for_displaced()
     };
     Scene::build_displaced(mesh, &options).unwrap()
 }

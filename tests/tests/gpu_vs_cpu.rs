@@ -75,12 +75,14 @@ fn both_modes(gpu: &gridrt::gpu::Gpu, name: &str, mesh: &Mesh, levels: u32) {
 }
 
 /// Grid options whose hierarchies at `L = 3` are deeper than one visit walks (see
-/// `GridParams::one_visit`): the kernels with the sub-triangle stack.
+/// `GridParams::one_visit`): the kernels with the sub-triangle stack, here over a compact
+/// top level.
 fn stacked_options() -> gridrt::grid::GridOptions {
     gridrt::grid::GridOptions {
         excluded_levels: 1,
         half_radii: true,
         leaf_footprint: true,
+        compact_top: true,
     }
 }
 

@@ -136,21 +136,24 @@ fn default_scene_flat_and_other_depths() {
     }
 }
 
-/// The other grid variants: half-float radii, one or three sphere levels left out, and
-/// 32-bit inner vertices.
+/// The other grid variants: half-float radii, one or three sphere levels left out, 32-bit
+/// inner vertices, and a compact top level.
 #[test]
 fn default_scene_grid_variants() {
-    for (excluded_levels, half_radii, quantized, leaf_footprint) in [
-        (2, true, true, true),
-        (1, false, true, true),
-        (3, true, true, true),
-        (2, false, false, true),
-        (2, false, true, false),
+    for (excluded_levels, half_radii, quantized, leaf_footprint, compact_top) in [
+        (2, true, true, true, false),
+        (1, false, true, true, false),
+        (3, true, true, true, false),
+        (2, false, false, true, false),
+        (2, false, true, false, false),
+        (2, false, true, true, true),
+        (1, true, true, true, true),
     ] {
         let options = GridOptions {
             excluded_levels,
             half_radii,
             leaf_footprint,
+            compact_top,
         };
         let a = compare_with(
             &default_scene(),

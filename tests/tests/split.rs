@@ -34,6 +34,7 @@ fn pair() -> Pair {
 fn stacked_grids() -> Scene {
     let options = GridOptions {
         excluded_levels: 0,
+        compact_top: true,
         ..GridOptions::default()
     };
     build_pair_with(&default_scene(), 2, 2, Scheme::Loop, &options).grids

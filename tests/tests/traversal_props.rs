@@ -59,9 +59,10 @@ fn build() -> impl Strategy<Value = Build> {
         1u32..4,
         any::<bool>(),
         any::<bool>(),
+        any::<bool>(),
     )
         .prop_map(
-            |(levels, lod, flat, quantized, excluded_levels, half_radii, leaf_footprint)| Build {
+            |(levels, lod, flat, quantized, excluded_levels, half_radii, leaf_footprint, compact_top)| Build {
                 levels,
                 lod: lod.min(levels),
                 flat,
@@ -70,6 +71,7 @@ fn build() -> impl Strategy<Value = Build> {
                     excluded_levels,
                     half_radii,
                     leaf_footprint,
+                    compact_top,
                 },
             },
         )
@@ -117,8 +119,8 @@ proptest! {
         if g.params.one_visit() {
             for &(origin, target) in &rays {
                 let ray = Ray::new(Vec3::from(origin), Vec3::from(target) - Vec3::from(origin));
-                let stacked = trace(g.nodes.as_slice(), &g.view(), &ray, T_FAR);
-                let one_visit = trace(g.nodes.as_slice(), &OneVisitGrids(g.view()), &ray, T_FAR);
+                let stacked = trace(g.top(), &g.view(), &ray, T_FAR);
+                let one_visit = trace(g.top(), &OneVisitGrids(g.view()), &ray, T_FAR);
                 prop_assert_eq!(stacked, one_visit, "for {:?}", ray);
             }
         }

@@ -32,7 +32,7 @@ fn two_phase_hit(scene: &Scene, record: &RayRecord) -> (HitRecord, u32) {
         rays: 1,
     };
     let mut state = WalkState::default();
-    let nodes = grids.nodes.as_slice();
+    let nodes = grids.top();
     let mut leaf = walk_first_round(nodes, &ray, record.t_max, &mut state, &mut stack);
     let mut rounds = 0;
     loop {

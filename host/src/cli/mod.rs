@@ -204,6 +204,13 @@ pub struct BuildArgs {
     /// Store a displaced micro-mesh's sphere radii as 32-bit floats.
     #[arg(long, conflicts_with = "half_radii")]
     pub f32_radii: bool,
+    /// Store the top-level BVH in compact 16-byte nodes, boxes as 15-bit codes of the scene's
+    /// box rounded outwards (always so for displaced micro-meshes, unless --full-top).
+    #[arg(long)]
+    pub compact_top: bool,
+    /// Store a displaced micro-mesh's top-level BVH in full 32-byte nodes.
+    #[arg(long, conflicts_with = "compact_top")]
+    pub full_top: bool,
     /// Store no leaf thicknesses and cull leaves by their spheres alone (smaller, faster to
     /// build, slower to trace; see README).
     #[arg(long)]
@@ -254,16 +261,19 @@ impl BuildArgs {
             excluded_levels: self.excluded_levels,
             half_radii: self.half_radii,
             leaf_footprint: !self.no_leaf_footprint,
+            compact_top: self.compact_top,
         }
     }
 
     /// These arguments for a displaced micro-mesh of `level` built as displaced grids: its own
-    /// level, no subdivision, half-float radii unless `--f32-radii`.
+    /// level, no subdivision, half-float radii unless `--f32-radii`, a compact top level
+    /// unless `--full-top`.
     pub fn as_displaced(&self, level: u32) -> BuildArgs {
         BuildArgs {
             levels: level,
             subdivision: SubdivisionArg::Flat,
             half_radii: !self.f32_radii,
+            compact_top: !self.full_top,
             ..self.clone()
         }
     }

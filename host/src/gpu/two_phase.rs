@@ -108,7 +108,7 @@ impl Gpu {
     /// Most entries of a scene's leaves (grids), once the scene is known to take the schedule.
     fn widest_leaf(scene: &GpuScene) -> Result<u32> {
         match scene.scene {
-            Scene::Grids(g) if scene.takes_two_phase() => Ok(g.nodes.iter().map(|n| n.count).max().unwrap_or(0).max(1)),
+            Scene::Grids(g) if scene.takes_two_phase() => Ok(g.leaf_size()),
             _ => fail!(
                 Options,
                 "the two-phase schedule traces grids walked by their root's visit alone (sphere levels down to 1, \

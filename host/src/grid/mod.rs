@@ -5,6 +5,7 @@
 use std::collections::HashMap;
 
 use crate::error::{fail, Result};
+use gridrt_shared::buffer::Buffer;
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::grid_index::{
     edge_vertex_count, grid_size, inner_points, inner_vertex_count, sphere_count, triangle_count, GridSlots, Lattice,
@@ -12,11 +13,13 @@ use gridrt_shared::grid_index::{
 use gridrt_shared::grid_traverse::MAX_SPHERE_LEVEL;
 use gridrt_shared::layout::{BvhNode, GridHeader, GridIds, GridParams, MAX_HEADER_ID};
 use gridrt_shared::quantize;
+use gridrt_shared::top_nodes::{TopNodes, COMPACT};
 use rayon::prelude::*;
 
 use crate::bvh::{self, Aabb, BuildParams};
 use crate::limits::BufferSize;
 
+pub mod compact_top;
 pub mod displaced;
 mod lean;
 mod spheres;
@@ -41,6 +44,9 @@ pub struct GridOptions {
     /// Store each leaf's thickness, so the traversal can cull leaves by their footprint
     /// (see `gridrt_shared::footprint`) before loading their vertices.
     pub leaf_footprint: bool,
+    /// Store the top-level BVH in compact 16-byte nodes where it fits them (see
+    /// [`compact_top`]) rather than 32-byte ones.
+    pub compact_top: bool,
 }
 
 impl Default for GridOptions {
@@ -49,17 +55,20 @@ impl Default for GridOptions {
             excluded_levels: DEFAULT_EXCLUDED_LEVELS,
             half_radii: false,
             leaf_footprint: true,
+            compact_top: false,
         }
     }
 }
 
 impl GridOptions {
-    /// The defaults for displaced grids: radii as half floats. Their values already hold 11
-    /// bits, so `f32` radii bought no speed (the same Mrays/s within run-to-run noise on the
-    /// CPU and lavapipe) for 0.16 B per micro-triangle.
+    /// The defaults for displaced grids: radii as half floats and a compact top-level BVH.
+    /// Their values already hold 11 bits, so `f32` radii bought no speed (the same Mrays/s
+    /// within run-to-run noise on the CPU and lavapipe) for 0.16 B per micro-triangle; and
+    /// the top level is the largest part left.
     pub fn for_displaced() -> GridOptions {
         GridOptions {
             half_radii: true,
+            compact_top: true,
             ..GridOptions::default()
         }
     }
@@ -83,6 +92,29 @@ pub struct GridScene {
 }
 
 impl GridScene {
+    /// The top-level BVH as the traversal reads it, full or compact.
+    pub fn top(&self) -> TopNodes<&[BvhNode]> {
+        TopNodes::new(self.nodes.as_slice())
+    }
+
+    /// Nodes of the top-level BVH (not elements of its buffer, which hold two compact ones).
+    pub fn top_node_count(&self) -> u32 {
+        match self.nodes.first() {
+            Some(header) if header.count == COMPACT => header.first,
+            _ => self.nodes.len() as u32,
+        }
+    }
+
+    /// The most grids any leaf of the top-level BVH holds (at least 1).
+    pub fn leaf_size(&self) -> u32 {
+        let top = self.top();
+        (0..self.top_node_count())
+            .map(|i| top.load(i).count)
+            .max()
+            .unwrap_or(0)
+            .max(1)
+    }
+
     /// The scene as the traversal reads it.
     pub fn view(&self) -> gridrt_shared::grid_traverse::GridScene<'_, &[GridHeader], &[u32]> {
         gridrt_shared::grid_traverse::GridScene {
@@ -189,6 +221,7 @@ pub struct GridShape {
     pub levels: u32,
     pub leaf_level: u32,
     pub half_radii: bool,
+    pub compact_top: bool,
     pub leaf_footprint: bool,
     pub edge_offset: u32,
     pub corner_offset: u32,
@@ -212,6 +245,7 @@ impl GridShape {
             levels,
             leaf_level: levels.saturating_sub(options.excluded_levels),
             half_radii: options.half_radii,
+            compact_top: options.compact_top,
             leaf_footprint: options.leaf_footprint,
             edge_offset,
             corner_offset: edge_offset + edges as u32 * edge_vertex_count(levels),
@@ -348,7 +382,10 @@ fn least_buffer_sizes(base: &Mesh, edges: u64, build: &GridBuild) -> Vec<BufferS
     vec![
         BufferSize {
             at_least: true,
-            ..size("top-level BVH", bvh::least_node_count(grids, &top_level_params()) * 32)
+            ..size(
+                "top-level BVH",
+                top_level_bytes(bvh::least_node_count(grids, &top_level_params()), &shape),
+            )
         },
         size("grid header", grids * if shape.wide_headers { 32 } else { 16 }),
         size(
@@ -654,8 +691,12 @@ fn assemble(shape: &GridShape, ids: &[GridIds], per_grid: &PerGrid, mut vertices
         radii.splice(0..0, half);
     }
     let thickness_word = (radii.len() - grids * leaf_words) as u32;
+    let nodes = match shape.compact_top {
+        true => compact_top::pack(&top.nodes).unwrap_or(top.nodes),
+        false => top.nodes,
+    };
     GridScene {
-        nodes: top.nodes,
+        nodes,
         headers: leaf_headers,
         vertices,
         radii,
@@ -680,6 +721,15 @@ fn assemble(shape: &GridShape, ids: &[GridIds], per_grid: &PerGrid, mut vertices
             ..Default::default()
         },
         base_triangle: top.order,
+    }
+}
+
+/// Bytes of a top-level BVH of `nodes` nodes in the form `shape` asks for (compact: a
+/// header, then two nodes to 32 bytes).
+fn top_level_bytes(nodes: u64, shape: &GridShape) -> u64 {
+    match shape.compact_top {
+        true => 32 * (1 + nodes.div_ceil(2)),
+        false => 32 * nodes,
     }
 }
 

@@ -214,6 +214,7 @@ fn buffer_sizes_are_known_before_the_build() {
         half_radii: true,
         leaf_footprint: false,
         excluded_levels: 1,
+        compact_top: true,
     };
     for mesh in [default_scene(), fins(), cube()] {
         for (levels, options, quantized) in [
@@ -324,6 +325,7 @@ fn the_lean_build_equals_the_whole_mesh_build() {
             excluded_levels: 1,
             half_radii: true,
             leaf_footprint: false,
+            compact_top: true,
         },
     ];
     for (name, mesh) in [
