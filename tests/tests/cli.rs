@@ -859,26 +859,6 @@ fn machined_part(uri: Option<&str>) -> (String, Vec<u8>) {
     (json, bin)
 }
 
-/// The same document as a GLB container (chunks padded to four bytes).
-fn glb(json: &str, bin: &[u8]) -> Vec<u8> {
-    let pad = |mut v: Vec<u8>, with: u8| {
-        v.resize(v.len().next_multiple_of(4), with);
-        v
-    };
-    let (json, bin) = (pad(json.as_bytes().to_vec(), b' '), pad(bin.to_vec(), 0));
-    let mut out = Vec::new();
-    out.extend(b"glTF");
-    out.extend(2u32.to_le_bytes());
-    out.extend((12 + 8 + json.len() as u32 + 8 + bin.len() as u32).to_le_bytes());
-    out.extend((json.len() as u32).to_le_bytes());
-    out.extend(b"JSON");
-    out.extend(&json);
-    out.extend((bin.len() as u32).to_le_bytes());
-    out.extend(b"BIN\0");
-    out.extend(&bin);
-    out
-}
-
 /// glTF end to end through the binary: a part with a node transform and two primitives, as
 /// `.gltf` with an external buffer and as `.glb`, renders the same picture creased and
 /// smooth-shaded; the report counts both primitives' triangles.
@@ -889,7 +869,11 @@ fn renders_gltf_files_end_to_end() {
     std::fs::write(dir.join("part.bin"), &bin).unwrap();
     std::fs::write(dir.join("part.gltf"), json).unwrap();
     let (json, bin) = machined_part(None);
-    std::fs::write(dir.join("part.glb"), glb(&json, &bin)).unwrap();
+    std::fs::write(
+        dir.join("part.glb"),
+        gridrt::mesh::gltf::glb_container(json.as_bytes(), &bin),
+    )
+    .unwrap();
     let mut pictures = Vec::new();
     for file in ["part.gltf", "part.glb"] {
         let input = dir.join(file);

@@ -653,10 +653,9 @@ fn triangle_list(mode: Mode, indices: &[u32]) -> Vec<[u32; 3]> {
     }
 }
 
-/// A GLB container as tests lay one out by hand: header, JSON chunk, binary chunk, each
-/// padded to four bytes.
-#[cfg(test)]
-pub(crate) fn glb_container(json: &[u8], bin: &[u8]) -> Vec<u8> {
+/// A GLB container of a glTF document `json` and its binary buffer `bin`: header, JSON
+/// chunk, binary chunk, each padded to four bytes (what [`parse_glb`] reads).
+pub fn glb_container(json: &[u8], bin: &[u8]) -> Vec<u8> {
     let pad = |mut v: Vec<u8>, with: u8| {
         while !v.len().is_multiple_of(4) {
             v.push(with);
