@@ -135,11 +135,12 @@ fn decode(data: &[u8]) -> (Plan, Mesh, Bytes<'_>) {
     let mut b = Bytes(data);
     let flags = b.u8();
     let levels = (flags & 3) as u32;
-    // The second byte: the depth rendered (low half), the crease angle (high half, 0: none).
+    // The second byte: the depth rendered (low three bits), a compact top level (the fourth),
+    // the crease angle (high half, 0: none).
     let detail = b.u8();
     let plan = Plan {
         levels,
-        lod: (detail & 15) as u32 % (levels + 1),
+        lod: (detail & 7) as u32 % (levels + 1),
         scheme: if flags & 4 != 0 { Scheme::Flat } else { Scheme::Loop },
         crease_angle: (detail >> 4 != 0).then_some((detail >> 4) as f32 * 12.0 - 6.0),
         quantized: flags & 8 != 0,
@@ -147,6 +148,7 @@ fn decode(data: &[u8]) -> (Plan, Mesh, Bytes<'_>) {
             half_radii: flags & 16 != 0,
             leaf_footprint: flags & 32 == 0,
             excluded_levels: 1 + (flags >> 6) as u32 % 3,
+            compact_top: detail & 8 != 0,
         },
     };
     let vertices = 3 + b.u8() as usize % 13;
