@@ -40,7 +40,8 @@ const SKY_BITS: u32 = 32 - SKY_SHIFT;
 /// - eye light: a two-sided headlight, so the shape reads without any light set-up;
 /// - normal: the unit geometric normal mapped to RGB;
 /// - primitive: a colour hashed from the primitive id, to see the micro-triangles;
-/// - ambient occlusion: the plain material, which [`ao_pixel`] darkens by occlusion;
+/// - ambient occlusion and lit: the plain material, which [`ao_pixel`] darkens by occlusion
+///   or lights (the kernels return ray counts and light cosines for these instead);
 /// - depth: white at `frame.depth_near` from the eye to black at `frame.depth_far`;
 /// - level: a colour per depth of the micro-triangles hit (see [`level_color`]), lit by the
 ///   headlight.
