@@ -181,6 +181,9 @@ pub fn scratch(test: &str) -> PathBuf {
 }
 
 /// Runs the `gridrt` binary with `args`.
+/// `bench` flags for the smallest run that still measures: one 32x24 view, one repeat.
+pub const TINY_BENCH: [&str; 8] = ["--width", "32", "--height", "24", "--views", "1", "--repeats", "1"];
+
 pub fn gridrt(args: &[&str]) -> Output {
     Command::new(gridrt_exe()).args(args).output().expect("run gridrt")
 }

@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use gridrt::mesh::Mesh;
-use gridrt_tests::{bumpy_ball, fails_with, gridrt, scratch, stderr};
+use gridrt_tests::{bumpy_ball, fails_with, gridrt, scratch, stderr, TINY_BENCH};
 
 fn write_obj(path: &Path, mesh: &Mesh, offset: f64) {
     let mut text = String::new();
@@ -71,22 +71,10 @@ fn a_mesh_bakes_into_files_the_other_commands_read() {
 
     // The benchmark against the reference: the same distance, the reference's bytes.
     let json_path = dir.join("bench.json");
-    let o = gridrt(&[
-        "bench",
-        out.to_str().unwrap(),
-        "--reference",
-        r,
-        "--width",
-        "32",
-        "--height",
-        "24",
-        "--views",
-        "1",
-        "--repeats",
-        "1",
-        "--json",
-        json_path.to_str().unwrap(),
-    ]);
+    let mut args = vec!["bench", out.to_str().unwrap(), "--reference", r];
+    args.extend(TINY_BENCH);
+    args.extend(["--json", json_path.to_str().unwrap()]);
+    let o = gridrt(&args);
     assert!(o.status.success(), "{}", stderr(&o));
     let bench: serde_json::Value = serde_json::from_slice(&std::fs::read(&json_path).unwrap()).unwrap();
     let against = &bench[0]["reference"];

@@ -3,7 +3,9 @@
 use std::path::Path;
 use std::process::Command;
 
-use gridrt_tests::{fails_with, gpu_or_skip, gridrt, gridrt_exe, meshes_dir, meshes_dir_or_skip, scratch, stderr};
+use gridrt_tests::{
+    fails_with, gpu_or_skip, gridrt, gridrt_exe, meshes_dir, meshes_dir_or_skip, scratch, stderr, TINY_BENCH,
+};
 
 /// Runs gridrt, which must succeed, and returns the line of its report starting with `prefix`.
 fn report_line(args: &[&str], prefix: &str) -> String {
@@ -60,7 +62,7 @@ fn covered(path: &Path) -> f64 {
 }
 
 /// The default view frames the mesh by its vertices, not by its box: each of the meshes
-/// covers at least 30% of a 320x240 picture (framed by the box, the bunny covered 15%).
+/// covers at least 30% of a 320x240 picture.
 #[test]
 fn auto_framing_fills_the_picture() {
     let Some(meshes) = meshes_dir_or_skip("auto_framing_fills_the_picture") else {
@@ -1080,18 +1082,7 @@ fn displaced_micro_meshes_are_decoded_not_subdivided() {
     );
     assert!(stats["grid"]["parts"]["inner_values"].as_u64().is_some(), "{stats}");
 
-    let o = gridrt(&[
-        "bench",
-        g,
-        "--width",
-        "32",
-        "--height",
-        "24",
-        "--views",
-        "1",
-        "--repeats",
-        "1",
-    ]);
+    let o = gridrt(&[&["bench", g][..], &TINY_BENCH].concat());
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(String::from_utf8_lossy(&o.stdout).contains("| baked.gltf | 128 |"));
 }

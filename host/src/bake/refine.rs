@@ -115,13 +115,17 @@ impl MicroLines {
 
     /// The micro-mesh that `values` (one per line) decode to.
     pub fn mesh(&self, values: &[f32]) -> Mesh {
-        let positions = (self.origins.iter().zip(&self.directions).zip(values))
-            .map(|((&o, &d), &u)| o + d * u)
-            .collect();
         Mesh {
-            positions,
+            positions: self.positions(values),
             triangles: self.micro_triangles.clone(),
         }
+    }
+
+    /// The points that `values` (one per line) decode to.
+    fn positions(&self, values: &[f32]) -> Vec<Vec3> {
+        (self.origins.iter().zip(&self.directions).zip(values))
+            .map(|((&o, &d), &u)| o + d * u)
+            .collect()
     }
 }
 
@@ -136,8 +140,11 @@ pub fn refine(reference: &Mesh, lines: &MicroLines, values: &mut [f32], refineme
         seed: 0x0ff5e7,
     };
     let samples = area_samples(reference, &sampling);
-    for _ in 0..refinement.rounds {
-        let micro = lines.mesh(values);
+    let mut micro = lines.mesh(values);
+    for round in 0..refinement.rounds {
+        if round > 0 {
+            micro.positions = lines.positions(values);
+        }
         let nearest = NearestTriangles::new(&micro);
         let mut sums = Sums::new(values.len());
         for chunk in samples.chunks(CHUNK) {
