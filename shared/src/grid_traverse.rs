@@ -3,6 +3,7 @@
 //! top-level BVH of [`crate::traverse`].
 
 use crate::buffer::{Buffer, Chunks, Split};
+use crate::compressed_values::{read_bits, CodedGrid, CodedScene, ValueCode};
 use crate::cost::Tally;
 use crate::displacement::{displaced_point, unorm11_displacement, DisplacedTriangle};
 use crate::footprint::FootprintFrame;
@@ -12,8 +13,8 @@ use crate::grid_index::{
     MAX_LEAF_DEPTH,
 };
 use crate::layout::{
-    BvhNode, GridHeader, GridIds, GridParams, Hit, SplitParams, GRID_HEADERS, GRID_RADII, GRID_VERTICES,
-    LEAF_TEST_CLASSES,
+    BvhNode, GridHeader, GridIds, GridParams, Hit, SplitParams, DISPLACED_COMPRESSED, GRID_HEADERS, GRID_RADII,
+    GRID_VERTICES, LEAF_TEST_CLASSES,
 };
 use crate::lod::grid_level;
 use crate::quantize::{dequantize, halves_from_words, read_half, unit_from_exponent};
@@ -57,6 +58,8 @@ pub struct OpenGrid {
     unit: f32,
     /// The base triangle a displaced grid decodes its lattice points from (unused otherwise).
     base: DisplacedTriangle,
+    /// Where a grid of compressed values finds them (unused otherwise).
+    coded: CodedGrid,
 }
 
 /// Bits of one stored displacement value.
@@ -180,6 +183,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                 directions: [Vec3::ZERO; 3],
                 ids: [0; 3],
             },
+            coded: CodedGrid::default(),
         }
     }
 
@@ -194,6 +198,20 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         let inner_bit = 32 * grid * g.inner_words;
         let slots = GridSlots::addressed(&ids, n, inner_bit, edge_bit, corner_bit, DISPLACEMENT_BITS);
         let corner_ids = [ids.corner(0), ids.corner(1), ids.corner(2)];
+        let coded = if g.displaced == DISPLACED_COMPRESSED {
+            let scene = CodedScene {
+                code: ValueCode {
+                    levels: g.levels,
+                    widths: g.value_widths,
+                },
+                edge_bit,
+                edge_block_bits: g.edge_block_bits,
+                corner_bit: g.corner_bit,
+            };
+            scene.open(self.vertices, &ids, inner_bit)
+        } else {
+            CodedGrid::default()
+        };
         let at = |c: usize, k: u32| load_vec3_bits(self.vertices, g.base_word + 6 * corner_ids[c] + k);
         let base = DisplacedTriangle {
             positions: [at(0, 0), at(1, 0), at(2, 0)],
@@ -206,6 +224,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             origin: Vec3::ZERO,
             unit: 0.0,
             base,
+            coded,
         };
         open.corners = [
             self.displaced_vertex(&open, [0, 0]),
@@ -238,18 +257,18 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     }
 
     /// Lattice point `p` of a displaced grid: its 11-bit value (a unorm whose range the base
-    /// vertices' positions and directions hold) decoded along its interpolated direction, by
+    /// vertices' positions and directions hold; stored, or decoded from its corrections)
+    /// decoded along its interpolated direction, by
     /// the one decoder the host's triangles are made with.
     #[inline(always)]
     fn displaced_vertex(&self, grid: &OpenGrid, p: Lattice) -> Vec3 {
-        let bit = grid.slots.slot(p);
-        let (word, shift) = (bit >> 5, bit & 31);
-        // The value may run on into the next word (always there: the base vertices follow
-        // the values). Shifted in two steps, so a value that starts a word shifts the next
-        // one out entirely rather than by 32, which shifts by nothing on some targets.
-        let low = self.vertices.load(word) >> shift;
-        let high = (self.vertices.load(word + 1) << 1) << (31 - shift);
-        let q = (low | high) & ((1 << DISPLACEMENT_BITS) - 1);
+        // A value may run on into the next word, always there: the base vertices follow the
+        // values.
+        let q = if self.params.displaced == DISPLACED_COMPRESSED {
+            grid.coded.value(self.vertices, p)
+        } else {
+            read_bits(self.vertices, grid.slots.slot(p), DISPLACEMENT_BITS)
+        };
         displaced_point(
             &grid.base,
             p,

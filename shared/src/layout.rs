@@ -240,7 +240,18 @@ pub struct GridParams {
     /// Word of the vertex buffer where the base vertices of a displaced scene begin: a
     /// position and a direction, six `f32`, per base vertex.
     pub base_word: u32,
+    /// For displaced grids of compressed values ([`DISPLACED_COMPRESSED`]): each level's
+    /// correction width (see `crate::compressed_values::ValueCode`), the bits of one base
+    /// edge's block, and the bit where the corner values begin.
+    pub value_widths: u32,
+    pub edge_block_bits: u32,
+    pub corner_bit: u32,
 }
+
+/// [`GridParams::displaced`] for grids of plain 11-bit values.
+pub const DISPLACED_PLAIN: u32 = 1;
+/// [`GridParams::displaced`] for grids of compressed values (see `crate::compressed_values`).
+pub const DISPLACED_COMPRESSED: u32 = 2;
 
 impl GridParams {
     /// Whether every grid's hierarchy is walked by its root's visit alone: its stored leaves

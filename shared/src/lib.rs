@@ -10,6 +10,7 @@ pub use spirv_std::glam;
 pub mod aabb;
 pub mod buffer;
 pub mod camera;
+pub mod compressed_values;
 pub mod cost;
 pub mod displacement;
 pub mod footprint;

@@ -1,11 +1,13 @@
-//! Displaced grids (a baked micro-mesh traced from its 16-bit values) against the same
-//! micro-triangles decoded into a list under the baseline's BVH: the same closest hits, no
-//! leaks at shared edges and corners, and the same pictures on the GPU and the CPU.
+//! Displaced grids (a baked micro-mesh traced from its 11-bit values, plain or compressed)
+//! against the same micro-triangles decoded into a list under the baseline's BVH: the same
+//! closest hits, no leaks at shared edges and corners, and the same pictures on the GPU and
+//! the CPU.
 
 use gridrt::bake::{bake, BakeOptions, Base};
 use gridrt::bvh::Aabb;
 use gridrt::camera;
 use gridrt::displaced::DisplacedMesh;
+use gridrt::grid::compressed::{compress, ValueCompression};
 use gridrt::image_io::fraction_within;
 use gridrt::pipeline::{BuildOptions, Representation};
 use gridrt::scene::{render_cpu, Scene};
@@ -22,6 +24,16 @@ fn baked_ball(levels: u32) -> DisplacedMesh {
         ..BakeOptions::for_reference(&reference, levels)
     };
     bake(&reference, &options).unwrap().mesh
+}
+
+/// The ball's values plain, and compressed loosely enough that most levels lose bits (and
+/// clamped corrections, shifts and zero widths all occur).
+fn variants(levels: u32) -> [(&'static str, DisplacedMesh); 2] {
+    let mesh = baked_ball(levels);
+    let compressed = compress(&mesh, &ValueCompression { max_added_error: 2e-3 })
+        .unwrap()
+        .mesh;
+    [("plain", mesh), ("compressed", compressed)]
 }
 
 fn build(mesh: &DisplacedMesh, representation: Representation, lod: Option<u32>) -> Scene {
@@ -43,8 +55,8 @@ fn both(mesh: &DisplacedMesh) -> (Scene, Scene) {
 /// Random rays: the same micro-triangle at the same distance, or a tie at a shared edge.
 #[test]
 fn displaced_grids_hit_as_their_decoded_triangles() {
-    for levels in [0, 1, 2, 3, 4] {
-        let mesh = baked_ball(levels);
+    for (variant, mesh) in [0, 1, 2, 3, 4].into_iter().flat_map(variants) {
+        let levels = mesh.uniform_level().unwrap();
         let (grids, triangles) = both(&mesh);
         let b = triangles.bounds();
         let outer = Aabb {
@@ -62,7 +74,11 @@ fn displaced_grids_hit_as_their_decoded_triangles() {
             };
             let ray = Ray::new(origin, dir);
             let (g, t) = (grids.trace(&ray, T_FAR), triangles.trace(&ray, T_FAR));
-            assert_eq!(g.is_hit(), t.is_hit(), "L{levels} ray {k}: one hits, the other not");
+            assert_eq!(
+                g.is_hit(),
+                t.is_hit(),
+                "{variant} L{levels} ray {k}: one hits, the other not"
+            );
             if !g.is_hit() {
                 continue;
             }
@@ -78,10 +94,10 @@ fn displaced_grids_hit_as_their_decoded_triangles() {
                 false => ties += 1,
             }
         }
-        eprintln!("L{levels}: {rays} rays, {hits} hits, {same} on the same micro-triangle, {ties} ties");
+        eprintln!("{variant} L{levels}: {rays} rays, {hits} hits, {same} on the same micro-triangle, {ties} ties");
         assert!(
             hits > rays / 5 && ties * 1000 < hits,
-            "L{levels}: {hits} hits, {ties} ties"
+            "{variant} L{levels}: {hits} hits, {ties} ties"
         );
     }
 }
@@ -90,27 +106,32 @@ fn displaced_grids_hit_as_their_decoded_triangles() {
 /// cross the closed surface: none passes through.
 #[test]
 fn shared_edges_of_displaced_grids_do_not_leak() {
-    let mesh = baked_ball(3).with_ranges_folded();
-    let grids = build(&mesh, Representation::Grids, None);
-    let n = 8;
-    let mut rng = Rng::new(5);
-    let mut rays = 0;
-    for t in 0..mesh.triangles.len() {
-        let points = mesh.micro_vertices(t);
-        let lattice = gridrt_shared::grid_index::lattice_points(n);
-        for (p, [i, j]) in points.iter().zip(lattice) {
-            if i != 0 && j != 0 && i + j != n {
-                continue;
+    for (variant, mesh) in variants(3) {
+        let mesh = mesh.with_ranges_folded();
+        let grids = build(&mesh, Representation::Grids, None);
+        let n = 8;
+        let mut rng = Rng::new(5);
+        let mut rays = 0;
+        for t in 0..mesh.triangles.len() {
+            let points = mesh.micro_vertices(t);
+            let lattice = gridrt_shared::grid_index::lattice_points(n);
+            for (p, [i, j]) in points.iter().zip(lattice) {
+                if i != 0 && j != 0 && i + j != n {
+                    continue;
+                }
+                // From outside, aimed at the point through the ball's centre region.
+                let dir = (Vec3::ZERO - *p).normalize() + rng.direction() * 0.2;
+                let origin = *p - dir * 3.0;
+                let hit = grids.trace(&Ray::new(origin, dir), T_FAR);
+                assert!(
+                    hit.is_hit() && hit.t <= 3.0 * 1.0001,
+                    "{variant}: a ray through {p} leaked"
+                );
+                rays += 1;
             }
-            // From outside, aimed at the point through the ball's centre region.
-            let dir = (Vec3::ZERO - *p).normalize() + rng.direction() * 0.2;
-            let origin = *p - dir * 3.0;
-            let hit = grids.trace(&Ray::new(origin, dir), T_FAR);
-            assert!(hit.is_hit() && hit.t <= 3.0 * 1.0001, "a ray through {p} leaked");
-            rays += 1;
         }
+        assert!(rays > 1000, "{rays}");
     }
-    assert!(rays > 1000, "{rays}");
 }
 
 /// The GPU decodes what the CPU does: the pictures agree (see gpu_vs_cpu.rs for the
@@ -120,17 +141,16 @@ fn displaced_grids_gpu_equals_cpu() {
     let Some(gpu) = gpu_or_skip("displaced_grids_gpu_equals_cpu") else {
         return;
     };
-    let mesh = baked_ball(3);
-    for lod in [3, 1] {
+    for ((variant, mesh), lod) in variants(3).into_iter().flat_map(|v| [(v.clone(), 3), (v, 1)]) {
         let grids = build(&mesh, Representation::Grids, Some(lod));
         let frame = grids.frame(camera::frame(&grids.bounds(), 256, 192), SHADE_EYE_LIGHT);
         let cpu = render_cpu(&grids, &frame);
         let on_gpu = gpu.render(&grids, &frame).expect("GPU render");
         let within = fraction_within(&cpu, &on_gpu, 2);
         eprintln!(
-            "displaced grids lod {lod}: {:.3}% of pixels within 2/255",
+            "{variant} displaced grids lod {lod}: {:.3}% of pixels within 2/255",
             100.0 * within
         );
-        assert!(within >= 0.995, "lod {lod}: {within}");
+        assert!(within >= 0.995, "{variant} lod {lod}: {within}");
     }
 }

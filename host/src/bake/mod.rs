@@ -185,6 +185,7 @@ pub fn bake(reference: &Mesh, options: &BakeOptions) -> Result<Baked> {
         directions: folded,
         triangles: base.triangles,
         micromap: Micromap::from_triangles(0.0, 1.0, &values),
+        value_code: None,
     };
     mesh.check()?;
     Ok(Baked { mesh, report })

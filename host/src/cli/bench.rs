@@ -176,7 +176,11 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
     let meshes = args
         .meshes
         .iter()
-        .map(|path| super::load(Some(path)))
+        .map(|path| {
+            let mut input = super::load(Some(path))?;
+            super::compress_values(&mut input, &args.build)?;
+            Ok(input)
+        })
         .collect::<Result<Vec<_>>>()?;
     if let Some(input) = (meshes.iter()).find(|m| m.displaced.is_some() && grids_of(m).is_none()) {
         bail!(

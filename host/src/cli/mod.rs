@@ -220,6 +220,44 @@ pub struct BuildArgs {
     /// 32-bit floats. Both representations get the same positions.
     #[arg(long, value_enum, default_value_t = InnerVertices::Quantized)]
     pub inner_vertices: InnerVertices,
+    /// A displaced micro-mesh's values compressed (corrections to midpoint predictions, a
+    /// width per level), adding at most this RMS error, as a fraction of the bounding-box
+    /// diagonal. Grids and the triangles they are compared with both get the compressed values.
+    #[arg(long, value_name = "MAX_ADDED_ERROR", value_parser = parse_value_error)]
+    pub compress_values: Option<f32>,
+}
+
+fn parse_value_error(s: &str) -> std::result::Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(e) if e.is_finite() && e >= 0.0 => Ok(e),
+        _ => Err(format!(
+            "'{s}' is not an error bound: a fraction of the diagonal, at least 0"
+        )),
+    }
+}
+
+/// Compresses the values of `input`'s displaced micro-mesh when `build` asks for it, so
+/// everything after (grids, the baseline's triangles) traces the compressed surface.
+pub fn compress_values(input: &mut Input, build: &BuildArgs) -> Result<()> {
+    let (Some(bound), Some(micromesh)) = (build.compress_values, &input.micromesh) else {
+        return Ok(());
+    };
+    if micromesh.uniform_level().is_none() {
+        return Ok(());
+    }
+    let options = grid::compressed::ValueCompression { max_added_error: bound };
+    let compressed = grid::compressed::compress(micromesh, &options).map_err(|e| e.prefixed(&input.name))?;
+    let level = micromesh.uniform_level().unwrap_or(0);
+    let widths: Vec<String> = (1..=level).map(|l| compressed.code.width(l).to_string()).collect();
+    eprintln!(
+        "note: {}: values compressed to widths [{}] bits per level, adding {:.3e} of the diagonal (RMS)",
+        input.name,
+        widths.join(", "),
+        compressed.added_error
+    );
+    input.mesh = compressed.mesh.decoded_welded();
+    input.micromesh = Some(compressed.mesh);
+    Ok(())
 }
 
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -751,7 +789,11 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
         displaced,
         micromesh,
         ..
-    } = stages.run("load", || load_all(&paths))?;
+    } = stages.run("load", || {
+        let mut input = load_all(&paths)?;
+        compress_values(&mut input, &args.build)?;
+        anyhow::Ok(input)
+    })?;
     // A displaced micro-mesh of one level becomes displaced grids; otherwise, and for the
     // baseline, its decoded micro-triangles are traced as they are.
     let displaced_grids = micromesh.filter(|m| args.mode == Mode::Grid && m.uniform_level().is_some());

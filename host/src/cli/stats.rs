@@ -210,7 +210,11 @@ pub fn run(args: &StatsArgs, quiet: bool) -> Result<()> {
         displaced,
         micromesh,
         ..
-    } = super::load(args.mesh.as_deref())?;
+    } = {
+        let mut input = super::load(args.mesh.as_deref())?;
+        super::compress_values(&mut input, &args.build)?;
+        input
+    };
     let step = |step: &str| bar.set_message(format!("{name}: {step}"));
     // A displaced micro-mesh of one level: displaced grids against its decoded triangles;
     // of mixed levels, its decoded micro-triangles measured as they are.

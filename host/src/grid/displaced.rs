@@ -20,7 +20,9 @@ use gridrt_shared::glam::Vec3;
 use gridrt_shared::grid_index::{edge_vertex_count, grid_size, inner_points, inner_vertex_count, Lattice};
 use gridrt_shared::grid_traverse::DISPLACEMENT_BITS;
 
-use super::{check_counts, edge_points, BaseEdges, GridBuild, GridLayout, GridOptions, GridScene, GridShape};
+use super::{
+    check_counts, compressed, edge_points, BaseEdges, GridBuild, GridLayout, GridOptions, GridScene, GridShape,
+};
 use crate::displaced::DisplacedMesh;
 use crate::error::{fail, Result};
 use crate::limits::BufferSize;
@@ -92,12 +94,43 @@ pub fn layout(mesh: &DisplacedMesh, options: &GridOptions) -> Result<GridLayout>
         vertices.push(p.unwrap_or(Vec3::ZERO));
     }
 
-    let inner = grids * inner_count;
-    let inner_by_grid: Vec<u32> = (0..grids)
-        .flat_map(|g| pack(&values[g * inner_count..(g + 1) * inner_count]))
-        .collect();
+    let (inner_by_grid, shared) = match mesh.value_code {
+        None => {
+            let inner = grids * inner_count;
+            let inner_by_grid = (0..grids)
+                .flat_map(|g| pack(&values[g * inner_count..(g + 1) * inner_count]))
+                .collect();
+            (inner_by_grid, pack(&values[inner..]))
+        }
+        Some(code) => {
+            let encoded = compressed::encode(&mesh, &edges, code);
+            if (0..grids).any(|g| encoded.values[g] != mesh.micromap.triangle_values(g)) {
+                fail!(
+                    Input,
+                    "its values are not those of their compressed code: compress the micro-mesh again"
+                );
+            }
+            shape.inner_words = code.inner_block_bits().div_ceil(32);
+            shape.value_code = Some(code);
+            shape.edge_block_bits = code.edge_block_bits();
+            let edge_word = grids * shape.inner_words as usize;
+            let corner_bit = 32 * edge_word as u64 + edges.owner.len() as u64 * code.edge_block_bits() as u64;
+            let base_word = edge_word as u64 + encoded.shared.len() as u64;
+            if 32 * base_word >= 1 << 32 {
+                fail!(
+                    Limits,
+                    "{grids} grids of compressed values need {}, more than displaced grids address (512 MiB)",
+                    crate::limits::human(4 * base_word)
+                );
+            }
+            shape.corner_bit = corner_bit as u32;
+            shape.base_word = base_word as u32;
+            (encoded.grid_blocks.concat(), encoded.shared)
+        }
+    };
+    let edge_word = grids * shape.inner_words as usize;
     let mut buffer = vec![0u32; shape.base_word as usize + 6 * base.positions.len()];
-    buffer[edge_word..shape.base_word as usize].copy_from_slice(&pack(&values[inner..]));
+    buffer[edge_word..edge_word + shared.len()].copy_from_slice(&shared);
     for (record, (p, d)) in buffer[shape.base_word as usize..]
         .chunks_mut(6)
         .zip(mesh.positions.iter().zip(&mesh.directions))

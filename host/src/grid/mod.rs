@@ -6,12 +6,15 @@ use std::collections::HashMap;
 
 use crate::error::{fail, Result};
 use gridrt_shared::buffer::Buffer;
+use gridrt_shared::compressed_values::ValueCode;
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::grid_index::{
     edge_vertex_count, grid_size, inner_points, inner_vertex_count, sphere_count, triangle_count, GridSlots, Lattice,
 };
 use gridrt_shared::grid_traverse::MAX_SPHERE_LEVEL;
-use gridrt_shared::layout::{BvhNode, GridHeader, GridIds, GridParams, MAX_HEADER_ID};
+use gridrt_shared::layout::{
+    BvhNode, GridHeader, GridIds, GridParams, DISPLACED_COMPRESSED, DISPLACED_PLAIN, MAX_HEADER_ID,
+};
 use gridrt_shared::quantize;
 use gridrt_shared::top_nodes::{TopNodes, COMPACT};
 use rayon::prelude::*;
@@ -20,6 +23,7 @@ use crate::bvh::{self, Aabb, BuildParams};
 use crate::limits::BufferSize;
 
 pub mod compact_top;
+pub mod compressed;
 pub mod displaced;
 mod lean;
 mod spheres;
@@ -233,6 +237,11 @@ pub struct GridShape {
     pub wide_headers: bool,
     /// Word of the base vertex records of displaced grids (see [`displaced`]); 0 otherwise.
     pub base_word: u32,
+    /// For displaced grids of compressed values: their code, the bits of a base edge's block
+    /// and the bit where the corner values begin (see [`compressed`]).
+    pub value_code: Option<ValueCode>,
+    pub edge_block_bits: u32,
+    pub corner_bit: u32,
 }
 
 impl GridShape {
@@ -255,6 +264,9 @@ impl GridShape {
             },
             wide_headers: needs_wide_headers(edges as u64, base.positions.len() as u64),
             base_word: 0,
+            value_code: None,
+            edge_block_bits: 0,
+            corner_bit: 0,
         }
     }
 
@@ -715,8 +727,15 @@ fn assemble(shape: &GridShape, ids: &[GridIds], per_grid: &PerGrid, mut vertices
             radius_scale,
             thickness_word,
             wide_headers: shape.wide_headers as u32,
-            displaced: (shape.base_word != 0) as u32,
+            displaced: match (shape.base_word, shape.value_code) {
+                (0, _) => 0,
+                (_, None) => DISPLACED_PLAIN,
+                (_, Some(_)) => DISPLACED_COMPRESSED,
+            },
             base_word: shape.base_word,
+            value_widths: shape.value_code.map_or(0, |c| c.widths),
+            edge_block_bits: shape.edge_block_bits,
+            corner_bit: shape.corner_bit,
             ..Default::default()
         },
         base_triangle: top.order,

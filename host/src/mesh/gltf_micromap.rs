@@ -64,6 +64,7 @@ impl DisplacedWorld {
             directions: directions.iter().map(|d| (*d * frame.scale).as_vec3()).collect(),
             triangles: base.triangles,
             micromap,
+            value_code: None,
         };
         (mesh, frame)
     }
@@ -301,6 +302,7 @@ mod tests {
             directions: vec![Vec3::Z, Vec3::new(0.0, 0.1, 1.0), Vec3::new(0.1, 0.0, 1.0), Vec3::Z],
             triangles: vec![[0, 1, 2], [1, 3, 2]],
             micromap: Micromap::from_triangles(-0.01, 0.02, &[(2, values(0, 2)), (1, values(7, 1))]),
+            value_code: None,
         }
     }
 
