@@ -21,10 +21,12 @@
 //! level-`l` lattice), so a point's place among them is a closed form of its coordinates.
 //!
 //! [`CodedGrid::value`] decodes any one point by walking down from the grid's corners,
-//! deriving the three midpoints of the sub-triangle that holds the point at each level.
+//! deriving the three midpoints of the sub-triangle that holds the point at each level; the
+//! traversal walks to a sub-triangle's corners once ([`CodedGrid::sub_triangle_values`]) and
+//! decodes a leaf's whole lattice from them ([`CodedGrid::decode_lattice`]).
 
 use crate::buffer::Buffer;
-use crate::grid_index::Lattice;
+use crate::grid_index::{lattice_index, Lattice};
 use crate::layout::GridIds;
 
 /// Bits of one block's shift for one level.
@@ -267,51 +269,152 @@ impl CodedGrid {
         corrected(a, b, read_bits(buffer, bit + place, width), width, shift)
     }
 
+    /// The grid itself, as the start of a walk down its hierarchy.
+    #[inline]
+    fn root(&self) -> Walk {
+        Walk {
+            a: [0, 0],
+            h: 1 << self.code_levels,
+            d: 1,
+            q: self.corner_values,
+        }
+    }
+
     /// The value of lattice point `p`: its corner's, or derived level by level from the
     /// corners down the sub-triangles that hold it.
     pub fn value<B: Buffer<u32>>(&self, buffer: B, p: Lattice) -> u32 {
-        let n = 1i32 << self.code_levels;
         let (pi, pj) = (p[0] as i32, p[1] as i32);
-        // The sub-triangle: first corner `a`, edge length `h`, orientation `d` (the corners
-        // are `a`, `a + d (h, 0)`, `a + d (0, h)`), and the corners' values.
-        let mut a = [0i32, 0];
-        let mut h = n;
-        let mut d = 1i32;
-        let [mut qa, mut qb, mut qc] = self.corner_values;
+        let mut walk = self.root();
         loop {
-            let (u, v) = (d * (pi - a[0]), d * (pj - a[1]));
+            let (u, v) = (walk.d * (pi - walk.a[0]), walk.d * (pj - walk.a[1]));
             if u == 0 && v == 0 {
-                return qa;
+                return walk.q[0];
             }
-            if u == h {
-                return qb;
+            if u == walk.h {
+                return walk.q[1];
             }
-            if v == h {
-                return qc;
+            if v == walk.h {
+                return walk.q[2];
             }
-            let g = h / 2;
-            let at = |x: i32, y: i32| [(a[0] + d * x) as u32, (a[1] + d * y) as u32];
-            let qab = self.midpoint(buffer, at(g, 0), qa, qb);
-            let qbc = self.midpoint(buffer, at(g, g), qb, qc);
-            let qca = self.midpoint(buffer, at(0, g), qc, qa);
-            // The child that holds the point: corner children at a, b, c, else the
-            // inverted middle one, whose first corner is the midpoint of b and c.
-            let corner = |x: i32, y: i32| [a[0] + d * x, a[1] + d * y];
-            if u + v <= g {
-                (qb, qc) = (qab, qca);
+            let g = walk.h / 2;
+            let child = if u + v <= g {
+                0
             } else if u >= g {
-                a = corner(g, 0);
-                (qa, qc) = (qab, qbc);
+                1
             } else if v >= g {
-                a = corner(0, g);
-                (qa, qb) = (qca, qbc);
+                2
             } else {
-                a = corner(g, g);
-                d = -d;
-                (qa, qb, qc) = (qbc, qca, qab);
-            }
-            h = g;
+                3
+            };
+            walk.descend(self, buffer, child);
         }
+    }
+
+    /// The values at the corners of sub-triangle `index` at depth `level`, whose base-4
+    /// digits, most significant first, name the child taken at each level.
+    pub fn sub_triangle_values<B: Buffer<u32>>(&self, buffer: B, level: u32, index: u32) -> [u32; 3] {
+        let mut walk = self.root();
+        let mut k = level;
+        while k > 0 {
+            k -= 1;
+            walk.descend(self, buffer, (index >> (2 * k)) & 3);
+        }
+        walk.q
+    }
+
+    /// The values of a sub-triangle's lattice `k` levels deep, coarse to fine from its corners'
+    /// values `corners`, into `out` at [`lattice_index`]`(la, lb, 2^k)`: lattice point
+    /// `(la, lb)` is grid point `first + (la, lb) * step` (`step` negative for an inverted
+    /// sub-triangle).
+    pub fn decode_lattice<B: Buffer<u32>, const N: usize>(
+        &self,
+        buffer: B,
+        first: [i32; 2],
+        step: i32,
+        k: u32,
+        corners: [u32; 3],
+        out: &mut [u32; N],
+    ) {
+        let m = 1u32 << k;
+        out[lattice_index(0, 0, m) as usize] = corners[0];
+        out[lattice_index(m, 0, m) as usize] = corners[1];
+        out[lattice_index(0, m, m) as usize] = corners[2];
+        let mut s = m;
+        while s > 1 {
+            let h = s / 2;
+            // The points new at spacing `h`: multiples of `h`, not both multiples of `s`.
+            let mut la = 0;
+            while la <= m {
+                let mut lb = 0;
+                while la + lb <= m {
+                    if (la | lb) & h != 0 {
+                        let (a, b) = if lb & h == 0 {
+                            ([la - h, lb], [la + h, lb])
+                        } else if la & h == 0 {
+                            ([la, lb - h], [la, lb + h])
+                        } else {
+                            ([la - h, lb + h], [la + h, lb - h])
+                        };
+                        let p = [
+                            (first[0] + la as i32 * step) as u32,
+                            (first[1] + lb as i32 * step) as u32,
+                        ];
+                        let qa = out[lattice_index(a[0], a[1], m) as usize];
+                        let qb = out[lattice_index(b[0], b[1], m) as usize];
+                        out[lattice_index(la, lb, m) as usize] = self.midpoint(buffer, p, qa, qb);
+                    }
+                    lb += h;
+                }
+                la += h;
+            }
+            s = h;
+        }
+    }
+}
+
+/// A sub-triangle on the way down a grid's hierarchy: first corner `a`, edge length `h`,
+/// orientation `d` (its corners are `a`, `a + d (h, 0)`, `a + d (0, h)`) and their values.
+#[derive(Copy, Clone)]
+struct Walk {
+    a: [i32; 2],
+    h: i32,
+    d: i32,
+    q: [u32; 3],
+}
+
+impl Walk {
+    /// Lattice point `(x, y)` of the sub-triangle's frame.
+    #[inline]
+    fn at(&self, x: i32, y: i32) -> Lattice {
+        [(self.a[0] + self.d * x) as u32, (self.a[1] + self.d * y) as u32]
+    }
+
+    /// One level down, into child `child`: 0, 1, 2 at corners a, b, c, 3 the inverted middle
+    /// one, whose first corner is the midpoint of b and c (as `crate::grid_traverse` numbers
+    /// them); its three midpoints decoded on the way.
+    #[inline]
+    fn descend<B: Buffer<u32>>(&mut self, grid: &CodedGrid, buffer: B, child: u32) {
+        let g = self.h / 2;
+        let [qa, qb, qc] = self.q;
+        let qab = grid.midpoint(buffer, self.at(g, 0), qa, qb);
+        let qbc = grid.midpoint(buffer, self.at(g, g), qb, qc);
+        let qca = grid.midpoint(buffer, self.at(0, g), qc, qa);
+        let (a, d) = (self.a, self.d);
+        let corner = |x: i32, y: i32| [a[0] + d * x, a[1] + d * y];
+        if child == 0 {
+            self.q = [qa, qab, qca];
+        } else if child == 1 {
+            self.a = corner(g, 0);
+            self.q = [qab, qb, qbc];
+        } else if child == 2 {
+            self.a = corner(0, g);
+            self.q = [qca, qbc, qc];
+        } else {
+            self.a = corner(g, g);
+            self.d = -d;
+            self.q = [qbc, qca, qab];
+        }
+        self.h = g;
     }
 }
 

@@ -227,20 +227,40 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             coded,
         };
         open.corners = [
-            self.displaced_vertex(&open, [0, 0]),
-            self.displaced_vertex(&open, [n, 0]),
-            self.displaced_vertex(&open, [0, n]),
+            self.vertex(&open, [0, 0]),
+            self.vertex(&open, [n, 0]),
+            self.vertex(&open, [0, n]),
         ];
         open.origin = sphere_center(open.corners[0], open.corners[1], open.corners[2]);
         open
     }
 
-    /// Position of lattice point `p` of an opened grid. (Always inlined: a call per vertex
-    /// costs the CPU backend about 8%.)
+    /// Position of lattice point `p` of an opened grid, read on its own: a compressed value
+    /// is decoded by walking down from the grid's corners.
     #[inline(always)]
     pub fn vertex(&self, grid: &OpenGrid, p: Lattice) -> Vec3 {
+        if self.compressed() {
+            return self.displaced_at(grid, p, grid.coded.value(self.vertices, p));
+        }
+        self.stored_vertex(grid, p)
+    }
+
+    /// Whether the grids hold compressed values, which the traversal decodes a sub-triangle
+    /// at a time rather than a point at a time.
+    #[inline(always)]
+    fn compressed(&self) -> bool {
+        !W::SPLIT && self.params.displaced == DISPLACED_COMPRESSED
+    }
+
+    /// Position of lattice point `p` of an opened grid whose vertices or values are stored
+    /// as they are read (not compressed). (Always inlined: a call per vertex costs the CPU
+    /// backend about 8%.)
+    #[inline(always)]
+    fn stored_vertex(&self, grid: &OpenGrid, p: Lattice) -> Vec3 {
         if !W::SPLIT && self.params.displaced != 0 {
-            return self.displaced_vertex(grid, p);
+            // A value may run on into the next word, always there: the base vertices follow
+            // the values.
+            return self.displaced_at(grid, p, read_bits(self.vertices, grid.slots.slot(p), DISPLACEMENT_BITS));
         }
         let at = grid.slots.slot(p);
         let codes = at & INNER_CODES != 0;
@@ -256,25 +276,39 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         dequantize(grid.origin, halves_from_words(x, y, h & 1), grid.unit)
     }
 
-    /// Lattice point `p` of a displaced grid: its 11-bit value (a unorm whose range the base
-    /// vertices' positions and directions hold; stored, or decoded from its corrections)
-    /// decoded along its interpolated direction, by
-    /// the one decoder the host's triangles are made with.
+    /// Lattice point `p` of a displaced grid whose 11-bit value is `q` (a unorm whose range
+    /// the base vertices' positions and directions hold), decoded along its interpolated
+    /// direction by the one decoder the host's triangles are made with.
     #[inline(always)]
-    fn displaced_vertex(&self, grid: &OpenGrid, p: Lattice) -> Vec3 {
-        // A value may run on into the next word, always there: the base vertices follow the
-        // values.
-        let q = if self.params.displaced == DISPLACED_COMPRESSED {
-            grid.coded.value(self.vertices, p)
-        } else {
-            read_bits(self.vertices, grid.slots.slot(p), DISPLACEMENT_BITS)
-        };
+    fn displaced_at(&self, grid: &OpenGrid, p: Lattice, q: u32) -> Vec3 {
         displaced_point(
             &grid.base,
             p,
             1 << self.params.levels,
             unorm11_displacement(q, 1.0, 0.0),
         )
+    }
+
+    /// The corners of sub-triangle `index` at depth `level` (lattice points `corners`) and
+    /// its edges' midpoints (ab, bc, ca) from compressed values: the corners' from one walk
+    /// down the hierarchy, then the midpoints'. Kept out of line on the CPU, so grids of other
+    /// formats trace the same code as before.
+    #[cfg_attr(not(target_arch = "spirv"), inline(never))]
+    fn compressed_points(&self, open: &OpenGrid, level: u32, index: u32, corners: [Lattice; 3]) -> [Vec3; 6] {
+        let coded = &open.coded;
+        let [qa, qb, qc] = coded.sub_triangle_values(self.vertices, level, index);
+        let [a, b, c] = corners;
+        let mid = |p: Lattice, q: Lattice| [(p[0] + q[0]) / 2, (p[1] + q[1]) / 2];
+        let midpoint =
+            |p: Lattice, q0: u32, q1: u32| self.displaced_at(open, p, coded.midpoint(self.vertices, p, q0, q1));
+        [
+            self.displaced_at(open, a, qa),
+            self.displaced_at(open, b, qb),
+            self.displaced_at(open, c, qc),
+            midpoint(mid(a, b), qa, qb),
+            midpoint(mid(b, c), qb, qc),
+            midpoint(mid(c, a), qc, qa),
+        ]
     }
 
     /// Radius of sphere `node` (breadth-first id) of `grid`.
@@ -323,6 +357,9 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         tally: &mut T,
     ) {
         let m = 1u32 << k;
+        // Compressed values come decoded in `sides` (see `test_window`), where each point's
+        // side bits replace its value once its position is made.
+        let compressed = self.compressed();
         // In the sheared frame the ray is the z axis; triangles whose vertices all lie strictly
         // on one side of it (right, left, above or below: one bit each) cannot be crossed. A
         // leaf whose loaded vertices all agree is done before any triangle test.
@@ -344,8 +381,13 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                         (corner[0] + la as i32 * step) as u32,
                         (corner[1] + lb as i32 * step) as u32,
                     ];
-                    let sv = shear(self.vertex(open, p), ray);
                     let slot = lattice_index(la, lb, m) as usize;
+                    let v = if compressed {
+                        self.displaced_at(open, p, scratch.sides[slot])
+                    } else {
+                        self.stored_vertex(open, p)
+                    };
+                    let sv = shear(v, ray);
                     scratch.sheared[slot] = sv;
                     let side = (sv.x > 0.0) as u32
                         | ((sv.x < 0.0) as u32) << 1
@@ -582,25 +624,28 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             // The four children share six vertices: three corners and three midpoints.
             let (s, h) = (d * size, d * size / 2);
             let at = |x: i32, y: i32| [(a[0] + x) as u32, (a[1] + y) as u32];
-            // The root's corners are the grid's, already loaded.
-            let pa = if level == 0 {
-                open.corners[0]
+            let (pa, pb, pc, pab, pbc, pca) = if self.compressed() {
+                let [pa, pb, pc, pab, pbc, pca] =
+                    self.compressed_points(&open, level, index, [at(0, 0), at(s, 0), at(0, s)]);
+                (pa, pb, pc, pab, pbc, pca)
             } else {
-                self.vertex(&open, at(0, 0))
+                // The root's corners are the grid's, already loaded.
+                let corner = |c: usize, p: Lattice| {
+                    if level == 0 {
+                        open.corners[c]
+                    } else {
+                        self.stored_vertex(&open, p)
+                    }
+                };
+                (
+                    corner(0, at(0, 0)),
+                    corner(1, at(s, 0)),
+                    corner(2, at(0, s)),
+                    self.stored_vertex(&open, at(h, 0)),
+                    self.stored_vertex(&open, at(h, h)),
+                    self.stored_vertex(&open, at(0, h)),
+                )
             };
-            let pb = if level == 0 {
-                open.corners[1]
-            } else {
-                self.vertex(&open, at(s, 0))
-            };
-            let pc = if level == 0 {
-                open.corners[2]
-            } else {
-                self.vertex(&open, at(0, s))
-            };
-            let pab = self.vertex(&open, at(h, 0));
-            let pbc = self.vertex(&open, at(h, h));
-            let pca = self.vertex(&open, at(0, h));
             // Children 0, 1, 2 at corners a, b, c, and the inverted middle child 3; their radii
             // are adjacent in BFS order.
             let first_child = level_start(level + 1) + 4 * index;
@@ -720,7 +765,27 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             level: lod,
         };
         let step = d * (size >> k);
+        if self.compressed() {
+            self.decode_leaf(&visit.open, sub, step, k, &mut scratch.sides);
+        }
         self.intersect_leaf_triangles(&visit.open, sub.corner, step, k, window, ids, ray, hit, scratch, tally);
+    }
+
+    /// The compressed values of sub-triangle `sub`'s lattice `k` levels deep (one step
+    /// `step` grid units), decoded into `values` as the leaf test indexes its points. Kept
+    /// out of line on the CPU, so grids of other formats trace the same code as before.
+    #[cfg_attr(not(target_arch = "spirv"), inline(never))]
+    fn decode_leaf<const N: usize>(
+        &self,
+        open: &OpenGrid,
+        sub: &SubTriangle,
+        step: i32,
+        k: u32,
+        values: &mut [u32; N],
+    ) {
+        let corners = open.coded.sub_triangle_values(self.vertices, sub.level, sub.index);
+        open.coded
+            .decode_lattice(self.vertices, sub.corner, step, k, corners, values);
     }
 }
 
