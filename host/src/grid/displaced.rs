@@ -11,6 +11,10 @@
 //! spheres enclose exactly the points the traversal computes. The micromap's ranges are
 //! folded into the base mesh first (see [`DisplacedMesh::with_ranges_folded`]).
 //!
+//! A micro-mesh whose values carry a compressed code ([`DisplacedMesh::value_code`]) is laid
+//! out the same way with blocks for values: each grid's block in whole words, then the base
+//! edges' blocks end to end and the corners' 11-bit values (see [`super::compressed`]).
+//!
 //! A value on a shared base edge or corner is taken from the first grid that uses it; in a
 //! consistent micromap (gridrt's, or any tool's that keeps edges watertight) every grid holds
 //! the same value there.
@@ -51,13 +55,7 @@ pub fn layout(mesh: &DisplacedMesh, options: &GridOptions) -> Result<GridLayout>
     let edge_word = grids * shape.inner_words as usize;
     let shared_values = (shape.corner_offset - shape.edge_offset) as usize + base.positions.len();
     let base_word = edge_word as u64 + packed_words(shared_values as u64);
-    if 32 * base_word >= 1 << 32 {
-        fail!(
-            Limits,
-            "{grids} grids at level {levels} need {} of displacement values, more than displaced grids address              (512 MiB)",
-            crate::limits::human(4 * base_word)
-        );
-    }
+    check_addressable(base_word, &format!("{grids} grids at level {levels}"))?;
     shape.base_word = base_word as u32;
 
     let value = |g: usize, p: Lattice| mesh.micromap.triangle_values(g)[u_major_index(p, n) as usize];
@@ -116,13 +114,10 @@ pub fn layout(mesh: &DisplacedMesh, options: &GridOptions) -> Result<GridLayout>
             let edge_word = grids * shape.inner_words as usize;
             let corner_bit = 32 * edge_word as u64 + edges.owner.len() as u64 * code.edge_block_bits() as u64;
             let base_word = edge_word as u64 + encoded.shared.len() as u64;
-            if 32 * base_word >= 1 << 32 {
-                fail!(
-                    Limits,
-                    "{grids} grids of compressed values need {}, more than displaced grids address (512 MiB)",
-                    crate::limits::human(4 * base_word)
-                );
-            }
+            check_addressable(
+                base_word,
+                &format!("{grids} grids of compressed values at level {levels}"),
+            )?;
             shape.corner_bit = corner_bit as u32;
             shape.base_word = base_word as u32;
             (encoded.grid_blocks.concat(), encoded.shared)
@@ -145,6 +140,19 @@ pub fn layout(mesh: &DisplacedMesh, options: &GridOptions) -> Result<GridLayout>
         inner_by_grid,
         buffer,
     })
+}
+
+/// Refuses values that end past what bit addresses reach (`whose` says whose they are):
+/// everything before the base vertices, `base_word` words, within 2^32 bits.
+fn check_addressable(base_word: u64, whose: &str) -> Result<()> {
+    if 32 * base_word >= 1 << 32 {
+        fail!(
+            Limits,
+            "{whose} need {} of displacement values, more than displaced grids address (512 MiB)",
+            crate::limits::human(4 * base_word)
+        );
+    }
+    Ok(())
 }
 
 /// Words that hold `values` 11-bit values end to end.
