@@ -244,7 +244,7 @@ pub fn narrowest_fov_degrees(height: u32) -> f32 {
 }
 
 /// Share of the frame the auto-framed box's picture may fill, each way.
-const FILL: f32 = 0.95;
+pub const FILL: f32 = 0.95;
 
 /// The view's frame as auto-framing sees it: its axes, and the tangents of the half angles
 /// that [`FILL`] of it spans.
