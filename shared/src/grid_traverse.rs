@@ -198,7 +198,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         let inner_bit = 32 * grid * g.inner_words;
         let slots = GridSlots::addressed(&ids, n, inner_bit, edge_bit, corner_bit, DISPLACEMENT_BITS);
         let corner_ids = [ids.corner(0), ids.corner(1), ids.corner(2)];
-        let coded = if g.displaced == DISPLACED_COMPRESSED {
+        let coded = if self.compressed() {
             let scene = CodedScene {
                 code: ValueCode {
                     levels: g.levels,
@@ -246,10 +246,12 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     }
 
     /// Whether the grids hold compressed values, which the traversal decodes a sub-triangle
-    /// at a time rather than a point at a time.
+    /// at a time rather than a point at a time (on the CPU only, for now).
     #[inline(always)]
     fn compressed(&self) -> bool {
-        !W::SPLIT && self.params.displaced == DISPLACED_COMPRESSED
+        // Left out of the GPU kernels for now: lavapipe runs the code of a branch that none of
+        // its rays takes, so the decoder's loops at every vertex read slowed every grid kernel.
+        !W::SPLIT && !cfg!(target_arch = "spirv") && self.params.displaced == DISPLACED_COMPRESSED
     }
 
     /// Position of lattice point `p` of an opened grid whose vertices or values are stored

@@ -10,7 +10,8 @@ use crate::error::{error, fail, Result};
 use gridrt_shared::buffer::SPLIT_CHUNKS;
 use gridrt_shared::grid_index::MICRO_TRIANGLES;
 use gridrt_shared::layout::{
-    FrameParams, HitRecord, RayRecord, SplitParams, TraceParams, SHADE_COST, TRACE_WORKGROUP_SIZE, WORKGROUP_SIZE,
+    FrameParams, HitRecord, RayRecord, SplitParams, TraceParams, DISPLACED_COMPRESSED, SHADE_COST,
+    TRACE_WORKGROUP_SIZE, WORKGROUP_SIZE,
 };
 use wgpu::util::DeviceExt;
 
@@ -327,6 +328,14 @@ impl Gpu {
     /// all of them in chunks (see [`crate::split`]). What cannot be bound is refused, naming
     /// the buffers and this adapter's limits, before anything is uploaded.
     pub fn upload<'a>(&self, scene: &'a Scene) -> Result<GpuScene<'a>> {
+        if let Scene::Grids(grids) = scene {
+            if grids.params.displaced == DISPLACED_COMPRESSED {
+                fail!(
+                    Options,
+                    "grids of compressed values are traced on the CPU backend only (--backend cpu), for now"
+                );
+            }
+        }
         let buffers = scene_buffers(scene);
         let statics = match scene {
             Scene::Triangles(_) => vec![],
