@@ -95,22 +95,24 @@ impl ValueCode {
     /// Bit, within a grid's block, where level `l`'s corrections begin.
     #[inline]
     pub fn inner_level_bit(&self, l: u32) -> u32 {
-        let mut bit = self.shift_bits();
-        let mut k = 1;
-        while k < l {
-            bit += inner_new_count(k) * self.width(k);
-            k += 1;
-        }
-        bit
+        self.level_bit(l, false)
     }
 
     /// Bit, within a base edge's block, where level `l`'s corrections begin.
     #[inline]
     pub fn edge_level_bit(&self, l: u32) -> u32 {
+        self.level_bit(l, true)
+    }
+
+    /// Bit, within a base edge's block (`edge`) or a grid's, where level `l`'s corrections
+    /// begin: after the shifts and the coarser levels.
+    #[inline]
+    fn level_bit(&self, l: u32, edge: bool) -> u32 {
         let mut bit = self.shift_bits();
         let mut k = 1;
         while k < l {
-            bit += edge_new_count(k) * self.width(k);
+            let count = if edge { edge_new_count(k) } else { inner_new_count(k) };
+            bit += count * self.width(k);
             k += 1;
         }
         bit
