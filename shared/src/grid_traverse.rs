@@ -255,8 +255,8 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     }
 
     /// Position of lattice point `p` of an opened grid whose vertices or values are stored
-    /// as they are read (not compressed). (Always inlined: a call per vertex costs the CPU
-    /// backend about 8%.)
+    /// as they are read (not compressed). (Always inlined: the traversal reads vertices in its
+    /// innermost loops, where a call per vertex shows in the CPU backend's speed.)
     #[inline(always)]
     fn stored_vertex(&self, grid: &OpenGrid, p: Lattice) -> Vec3 {
         if !W::SPLIT && self.params.displaced != 0 {

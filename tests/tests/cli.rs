@@ -62,7 +62,7 @@ fn covered(path: &Path) -> f64 {
 }
 
 /// The default view frames the mesh by its vertices, not by its box: each of the meshes
-/// covers at least 30% of a 320x240 picture.
+/// covers at least the share of a 320x240 picture the assertion names.
 #[test]
 fn auto_framing_fills_the_picture() {
     let Some(meshes) = meshes_dir_or_skip("auto_framing_fills_the_picture") else {

@@ -242,12 +242,11 @@ pub fn compress_values(input: &mut Input, build: &BuildArgs) -> Result<()> {
     let (Some(bound), Some(micromesh)) = (build.compress_values, &input.micromesh) else {
         return Ok(());
     };
-    if micromesh.uniform_level().is_none() {
+    let Some(level) = micromesh.uniform_level() else {
         return Ok(());
-    }
+    };
     let options = grid::compressed::ValueCompression { max_added_error: bound };
     let compressed = grid::compressed::compress(micromesh, &options).map_err(|e| e.prefixed(&input.name))?;
-    let level = micromesh.uniform_level().unwrap_or(0);
     let widths: Vec<String> = (1..=level).map(|l| compressed.code.width(l).to_string()).collect();
     eprintln!(
         "note: {}: values compressed to widths [{}] bits per level, adding {:.3e} of the diagonal (RMS)",

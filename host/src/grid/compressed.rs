@@ -20,7 +20,7 @@ use gridrt_shared::grid_index::{grid_size, Lattice};
 
 use rayon::prelude::*;
 
-use super::BaseEdges;
+use super::{corner_point, edge_point, BaseEdges};
 use crate::bary::MicromapTriangle;
 use crate::displaced::DisplacedMesh;
 use crate::error::{fail, Result};
@@ -282,20 +282,6 @@ fn encode_grid(
     (block, values)
 }
 
-/// Lattice point of corner `c`.
-fn corner_point(c: usize, n: u32) -> Lattice {
-    [[0, 0], [n, 0], [0, n]][c]
-}
-
-/// Lattice point `s` steps along edge `e` from corner `e`.
-fn edge_point(e: usize, s: u32, n: u32) -> Lattice {
-    match e {
-        0 => [s, 0],
-        1 => [n - s, s],
-        _ => [0, n - s],
-    }
-}
-
 /// The two points of the coarser lattice (spacing `2 step`) that inner point `p`, new on the
 /// lattice of spacing `step`, halves.
 fn parents(p: Lattice, step: u32) -> (Lattice, Lattice) {
@@ -489,7 +475,7 @@ mod tests {
                 let scene = CodedScene {
                     code,
                     edge_bit: 32 * 4 * shape.inner_words,
-                    edge_block_bits: shape.edge_block_bits,
+                    edge_block_bits: code.edge_block_bits(),
                     corner_bit: shape.corner_bit,
                 };
                 let n = grid_size(levels);

@@ -25,7 +25,8 @@ use gridrt_shared::grid_index::{edge_vertex_count, grid_size, inner_points, inne
 use gridrt_shared::grid_traverse::DISPLACEMENT_BITS;
 
 use super::{
-    check_counts, compressed, edge_points, BaseEdges, GridBuild, GridLayout, GridOptions, GridScene, GridShape,
+    check_counts, compressed, corner_point, edge_points, BaseEdges, GridBuild, GridLayout, GridOptions, GridScene,
+    GridShape,
 };
 use crate::displaced::DisplacedMesh;
 use crate::error::{fail, Result};
@@ -81,7 +82,7 @@ pub fn layout(mesh: &DisplacedMesh, options: &GridOptions) -> Result<GridLayout>
     let mut corner_of = vec![None; base.positions.len()];
     for (g, t) in base.triangles.iter().enumerate() {
         for (c, &v) in t.iter().enumerate() {
-            let lattice = [[0, 0], [n, 0], [0, n]][c];
+            let lattice = corner_point(c, n);
             corner_of[v as usize].get_or_insert((g, lattice));
         }
     }
@@ -110,7 +111,6 @@ pub fn layout(mesh: &DisplacedMesh, options: &GridOptions) -> Result<GridLayout>
             }
             shape.inner_words = code.inner_block_bits().div_ceil(32);
             shape.value_code = Some(code);
-            shape.edge_block_bits = code.edge_block_bits();
             let edge_word = grids * shape.inner_words as usize;
             let corner_bit = 32 * edge_word as u64 + edges.owner.len() as u64 * code.edge_block_bits() as u64;
             let base_word = edge_word as u64 + encoded.shared.len() as u64;

@@ -237,10 +237,9 @@ pub struct GridShape {
     pub wide_headers: bool,
     /// Word of the base vertex records of displaced grids (see [`displaced`]); 0 otherwise.
     pub base_word: u32,
-    /// For displaced grids of compressed values: their code, the bits of a base edge's block
-    /// and the bit where the corner values begin (see [`compressed`]).
+    /// For displaced grids of compressed values: their code and the bit where the corner
+    /// values begin (see [`compressed`]).
     pub value_code: Option<ValueCode>,
-    pub edge_block_bits: u32,
     pub corner_bit: u32,
 }
 
@@ -265,7 +264,6 @@ impl GridShape {
             wide_headers: needs_wide_headers(edges as u64, base.positions.len() as u64),
             base_word: 0,
             value_code: None,
-            edge_block_bits: 0,
             corner_bit: 0,
         }
     }
@@ -734,7 +732,7 @@ fn assemble(shape: &GridShape, ids: &[GridIds], per_grid: &PerGrid, mut vertices
             },
             base_word: shape.base_word,
             value_widths: shape.value_code.map_or(0, |c| c.widths),
-            edge_block_bits: shape.edge_block_bits,
+            edge_block_bits: shape.value_code.map_or(0, |c| c.edge_block_bits()),
             corner_bit: shape.corner_bit,
             ..Default::default()
         },
@@ -792,13 +790,19 @@ fn chunks_or_empty<T>(items: &mut [T], per_grid: usize) -> Box<dyn Iterator<Item
 /// edge area stores them: from the lower base vertex id towards the higher.
 fn edge_points(t: &[u32; 3], e: usize, n: u32) -> impl Iterator<Item = Lattice> {
     let reversed = t[e] > t[(e + 1) % 3];
-    (1..n).map(move |s| {
-        // `step` steps from corner `e` towards corner `e + 1`.
-        let step = if reversed { n - s } else { s };
-        match e {
-            0 => [step, 0],
-            1 => [n - step, step],
-            _ => [0, n - step],
-        }
-    })
+    (1..n).map(move |s| edge_point(e, if reversed { n - s } else { s }, n))
+}
+
+/// The lattice point `step` steps along edge `e` from corner `e` towards corner `e + 1`.
+fn edge_point(e: usize, step: u32, n: u32) -> Lattice {
+    match e {
+        0 => [step, 0],
+        1 => [n - step, step],
+        _ => [0, n - step],
+    }
+}
+
+/// The lattice point of corner `c`.
+fn corner_point(c: usize, n: u32) -> Lattice {
+    [[0, 0], [n, 0], [0, n]][c]
 }
