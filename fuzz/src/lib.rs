@@ -2,7 +2,7 @@
 //! same checks can run over the committed corpus without libFuzzer.
 
 use gridrt::error::{Error, ErrorKind, Result};
-use gridrt::grid::{self, GridOptions};
+use gridrt::grid::{self, GridOptions, RadiusFormat};
 use gridrt::mesh::{Mesh, WorldMesh};
 use gridrt::scene::{closest_hit_slack, hit_uncertainty, hits_only_by_rounding, Scene};
 use gridrt::subdiv::{subdivide_creased, Scheme};
@@ -154,7 +154,7 @@ fn decode(data: &[u8]) -> (Plan, Mesh, Bytes<'_>) {
         crease_angle: (detail >> 4 != 0).then_some((detail >> 4) as f32 * 12.0 - 6.0),
         quantized: flags & 8 != 0,
         options: GridOptions {
-            half_radii: flags & 16 != 0,
+            radii: if flags & 16 != 0 { RadiusFormat::Relative } else { RadiusFormat::Half },
             leaf_footprint: flags & 32 == 0,
             excluded_levels: 1 + (flags >> 6) as u32 % 3,
             compact_top: detail & 8 != 0,

@@ -14,12 +14,12 @@ use crate::grid_index::{
 };
 use crate::layout::{
     BvhNode, GridHeader, GridIds, GridParams, Hit, SplitParams, DISPLACED_COMPRESSED, GRID_HEADERS, GRID_RADII,
-    GRID_VERTICES, LEAF_TEST_CLASSES,
+    GRID_VERTICES, LEAF_TEST_CLASSES, RADII_HALF, RADII_RELATIVE,
 };
 use crate::lod::grid_level;
 use crate::quantize::{dequantize, halves_from_words, read_half, unit_from_exponent};
 use crate::ray::{Ray, T_FAR};
-use crate::sphere::{decode_radius, intersect_sphere_scaled};
+use crate::sphere::{decode_radius, intersect_sphere_scaled, relative_radius, relative_radius_words};
 use crate::traverse::{load_vec3_bits, record_hit, trace, LeafPrimitives};
 use crate::triangle::{intersect_sheared, shear};
 
@@ -36,8 +36,8 @@ pub struct GridScene<'a, H, W> {
     /// Each grid's inner area (`GridParams::inner_words` words: `f32` triples or 16-bit
     /// codes), then the edge and corner areas as `f32` triples.
     pub vertices: W,
-    /// Sphere radii in breadth-first order per grid: `f32` bits, or half floats two to a
-    /// word (see `GridParams::half_radii`).
+    /// Sphere radii in breadth-first order per grid (see `GridParams::radius_format`), then
+    /// the leaves' thicknesses.
     pub radii: W,
     /// The static index list, [`crate::grid_index::MICRO_TRIANGLES`]: read where it lives
     /// (a storage buffer on the GPU) rather than copied per ray, which costs a GPU thread 85
@@ -316,14 +316,46 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     /// Radius of sphere `node` (breadth-first id) of `grid`.
     #[inline]
     pub fn radius(&self, grid: u32, node: u32) -> f32 {
+        if self.params.radius_format == RADII_RELATIVE {
+            let first = grid * relative_radius_words(self.params.sphere_count);
+            let root = f32::from_bits(self.radii.load(first));
+            if node == 0 {
+                return root;
+            }
+            let word = self.radii.load(first + 1 + (node - 1) / 4);
+            return relative_radius(root, word, (node - 1) & 3);
+        }
         let k = grid * self.params.sphere_count + node;
         // One read either way (see `ids`).
-        let half_radii = self.params.half_radii != 0;
+        let half_radii = self.params.radius_format == RADII_HALF;
         let word = self.radii.load(if half_radii { k / 2 } else { k });
         if !half_radii {
             return f32::from_bits(word);
         }
         decode_radius((word >> (16 * (k & 1))) & 0xffff, self.params.radius_scale)
+    }
+
+    /// Radii of the four children of a sphere whose first child is `first_child`, in a grid
+    /// whose root has radius `root_radius`.
+    #[inline]
+    fn child_radii(&self, grid: u32, first_child: u32, root_radius: f32) -> [f32; 4] {
+        if self.params.radius_format == RADII_RELATIVE {
+            // The four bytes of one word.
+            let first = grid * relative_radius_words(self.params.sphere_count);
+            let word = self.radii.load(first + 1 + (first_child - 1) / 4);
+            return [
+                relative_radius(root_radius, word, 0),
+                relative_radius(root_radius, word, 1),
+                relative_radius(root_radius, word, 2),
+                relative_radius(root_radius, word, 3),
+            ];
+        }
+        [
+            self.radius(grid, first_child),
+            self.radius(grid, first_child + 1),
+            self.radius(grid, first_child + 2),
+            self.radius(grid, first_child + 3),
+        ]
     }
 
     /// Thickness of leaf `leaf` (its index at the stored leaf level) of `grid`, whose sphere
@@ -651,12 +683,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             // Children 0, 1, 2 at corners a, b, c, and the inverted middle child 3; their radii
             // are adjacent in BFS order.
             let first_child = level_start(level + 1) + 4 * index;
-            let r = [
-                self.radius(grid, first_child),
-                self.radius(grid, first_child + 1),
-                self.radius(grid, first_child + 2),
-                self.radius(grid, first_child + 3),
-            ];
+            let r = self.child_radii(grid, first_child, visit.root_radius);
             let entry = |center: Vec3, child: u32| {
                 Entry::new(
                     intersect_sphere_scaled(center, r[child as usize], ray, inv_dir_len2, hit.t),

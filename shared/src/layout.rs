@@ -212,9 +212,9 @@ pub struct GridParams {
     pub inner_words: u32,
     /// Word where the edge area (then the corner area, `f32` triples) begins.
     pub edge_word: u32,
-    /// Radii as half floats, two to a word, in units of `radius_scale` (a power of two);
-    /// otherwise one `f32` per word.
-    pub half_radii: u32,
+    /// How the sphere radii are stored: [`RADII_F32`], [`RADII_HALF`] (in units of
+    /// `radius_scale`, a power of two) or [`RADII_RELATIVE`].
+    pub radius_format: u32,
     pub radius_scale: f32,
     /// Word of the radius buffer where the leaves' thicknesses begin: a byte per leaf, the
     /// thickness in 255ths of the leaf's radius (see `crate::footprint`), `4^leaf_level` bytes
@@ -247,6 +247,16 @@ pub struct GridParams {
     pub edge_block_bits: u32,
     pub corner_bit: u32,
 }
+
+/// [`GridParams::radius_format`]: one `f32` per radius.
+pub const RADII_F32: u32 = 0;
+/// [`GridParams::radius_format`]: half floats, two to a word, rounded up.
+pub const RADII_HALF: u32 = 1;
+/// [`GridParams::radius_format`]: per grid, the root's radius as an `f32` word, then a byte
+/// per sphere below it, in 255ths of the root's radius, rounded up. A sphere's four children
+/// are one word, so a visit reads their radii in one load, and every radius decodes from its
+/// own byte and the root's (no chain through the parents).
+pub const RADII_RELATIVE: u32 = 2;
 
 /// [`GridParams::displaced`] for grids of plain 11-bit values.
 pub const DISPLACED_PLAIN: u32 = 1;

@@ -18,6 +18,20 @@ pub fn decode_radius(half: u32, scale: f32) -> f32 {
     value * scale
 }
 
+/// Words of one grid's radii stored relative to its root (`layout::RADII_RELATIVE`): the
+/// root's `f32`, then a byte per other sphere, four to a word.
+#[inline]
+pub fn relative_radius_words(sphere_count: u32) -> u32 {
+    1 + (sphere_count - 1).div_ceil(4)
+}
+
+/// The radius that byte `k` of `word` codes, in 255ths of the root's radius `root`.
+#[inline]
+pub fn relative_radius(root: f32, word: u32, k: u32) -> f32 {
+    let code = (word >> (8 * k)) & 0xff;
+    root * (code as f32 * (1.0 / 255.0))
+}
+
 /// Ray against a bounding sphere. Returns the entry distance (clamped to 0 when the origin is
 /// inside) when the sphere overlaps `[0, t_max]` along the ray, otherwise `T_FAR`.
 ///

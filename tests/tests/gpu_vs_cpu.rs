@@ -80,7 +80,7 @@ fn both_modes(gpu: &gridrt::gpu::Gpu, name: &str, mesh: &Mesh, levels: u32) {
 fn stacked_options() -> gridrt::grid::GridOptions {
     gridrt::grid::GridOptions {
         excluded_levels: 1,
-        half_radii: true,
+        radii: gridrt::grid::RadiusFormat::Half,
         leaf_footprint: true,
         compact_top: true,
     }

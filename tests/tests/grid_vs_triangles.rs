@@ -3,7 +3,7 @@
 
 use gridrt::bvh::Aabb;
 use gridrt::camera;
-use gridrt::grid::GridOptions;
+use gridrt::grid::{GridOptions, RadiusFormat};
 use gridrt::image_io::fraction_within;
 use gridrt::mesh::{load_mesh, scene::default_scene, Mesh};
 use gridrt::scene::render_cpu;
@@ -140,18 +140,21 @@ fn default_scene_flat_and_other_depths() {
 /// inner vertices, and a compact top level.
 #[test]
 fn default_scene_grid_variants() {
-    for (excluded_levels, half_radii, quantized, leaf_footprint, compact_top) in [
-        (2, true, true, true, false),
-        (1, false, true, true, false),
-        (3, true, true, true, false),
-        (2, false, false, true, false),
-        (2, false, true, false, false),
-        (2, false, true, true, true),
-        (1, true, true, true, true),
+    use RadiusFormat::{Half, Relative, F32};
+    for (excluded_levels, radii, quantized, leaf_footprint, compact_top) in [
+        (2, Half, true, true, false),
+        (1, F32, true, true, false),
+        (3, Half, true, true, false),
+        (2, F32, false, true, false),
+        (2, F32, true, false, false),
+        (2, F32, true, true, true),
+        (1, Half, true, true, true),
+        (1, Relative, true, true, false),
+        (2, Relative, true, true, true),
     ] {
         let options = GridOptions {
             excluded_levels,
-            half_radii,
+            radii,
             leaf_footprint,
             compact_top,
         };

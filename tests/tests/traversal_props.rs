@@ -3,7 +3,7 @@
 //! force loop over every micro-triangle find the same closest hit; and both walks of a grid
 //! hierarchy find the same, bit for bit, wherever both apply.
 
-use gridrt::grid::{self, GridOptions};
+use gridrt::grid::{self, GridOptions, RadiusFormat};
 use gridrt::mesh::Mesh;
 use gridrt::scene::{closest_hit_slack, hit_uncertainty, hits_only_by_rounding, Scene};
 use gridrt::subdiv::{subdivide, Scheme};
@@ -57,19 +57,19 @@ fn build() -> impl Strategy<Value = Build> {
         any::<bool>(),
         any::<bool>(),
         1u32..4,
-        any::<bool>(),
+        0u32..3,
         any::<bool>(),
         any::<bool>(),
     )
         .prop_map(
-            |(levels, lod, flat, quantized, excluded_levels, half_radii, leaf_footprint, compact_top)| Build {
+            |(levels, lod, flat, quantized, excluded_levels, radii, leaf_footprint, compact_top)| Build {
                 levels,
                 lod: lod.min(levels),
                 flat,
                 quantized,
                 options: GridOptions {
                     excluded_levels,
-                    half_radii,
+                    radii: [RadiusFormat::F32, RadiusFormat::Half, RadiusFormat::Relative][radii as usize],
                     leaf_footprint,
                     compact_top,
                 },

@@ -197,13 +197,11 @@ pub struct BuildArgs {
     /// Levels at the bottom of each grid's sphere hierarchy that get no spheres.
     #[arg(long, default_value_t = grid::DEFAULT_EXCLUDED_LEVELS, value_parser = clap::value_parser!(u32).range(1..=3))]
     pub excluded_levels: u32,
-    /// Store sphere radii as half floats (rounded up) instead of 32-bit floats (always so for
-    /// displaced micro-meshes, unless --f32-radii).
-    #[arg(long)]
-    pub half_radii: bool,
-    /// Store a displaced micro-mesh's sphere radii as 32-bit floats.
-    #[arg(long, conflicts_with = "half_radii")]
-    pub f32_radii: bool,
+    /// How sphere radii are stored, each rounded up so spheres only grow: 32-bit floats
+    /// (the default for subdivided meshes), half floats, or a byte in 255ths of the grid's
+    /// root radius (the default for displaced micro-meshes).
+    #[arg(long, value_enum)]
+    pub radii: Option<RadiiArg>,
     /// Store the top-level BVH in compact 16-byte nodes, boxes as 15-bit codes of the scene's
     /// box rounded outwards (always so for displaced micro-meshes, unless --full-top).
     #[arg(long)]
@@ -260,6 +258,23 @@ pub fn compress_values(input: &mut Input, build: &BuildArgs) -> Result<()> {
 }
 
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RadiiArg {
+    F32,
+    Half,
+    Relative,
+}
+
+impl RadiiArg {
+    fn format(self) -> grid::RadiusFormat {
+        match self {
+            RadiiArg::F32 => grid::RadiusFormat::F32,
+            RadiiArg::Half => grid::RadiusFormat::Half,
+            RadiiArg::Relative => grid::RadiusFormat::Relative,
+        }
+    }
+}
+
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum InnerVertices {
     Quantized,
     F32,
@@ -296,20 +311,20 @@ impl BuildArgs {
     pub fn grid_options(&self) -> grid::GridOptions {
         grid::GridOptions {
             excluded_levels: self.excluded_levels,
-            half_radii: self.half_radii,
+            radii: self.radii.unwrap_or(RadiiArg::F32).format(),
             leaf_footprint: !self.no_leaf_footprint,
             compact_top: self.compact_top,
         }
     }
 
     /// These arguments for a displaced micro-mesh of `level` built as displaced grids: its own
-    /// level, no subdivision, half-float radii unless `--f32-radii`, a compact top level
-    /// unless `--full-top`.
+    /// level, no subdivision, radii relative to each grid's root unless `--radii` says
+    /// otherwise, a compact top level unless `--full-top`.
     pub fn as_displaced(&self, level: u32) -> BuildArgs {
         BuildArgs {
             levels: level,
             subdivision: SubdivisionArg::Flat,
-            half_radii: !self.f32_radii,
+            radii: Some(self.radii.unwrap_or(RadiiArg::Relative)),
             compact_top: !self.full_top,
             ..self.clone()
         }

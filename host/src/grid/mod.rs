@@ -16,6 +16,7 @@ use gridrt_shared::layout::{
     BvhNode, GridHeader, GridIds, GridParams, DISPLACED_COMPRESSED, DISPLACED_PLAIN, MAX_HEADER_ID,
 };
 use gridrt_shared::quantize;
+use gridrt_shared::sphere::relative_radius_words;
 use gridrt_shared::top_nodes::{TopNodes, COMPACT};
 use rayon::prelude::*;
 
@@ -33,7 +34,8 @@ use crate::mesh::Mesh;
 use crate::subdiv::Subdivided;
 pub use lean::{build_lean, build_lean_reporting, lean_build_applies, GridBuild};
 pub use spheres::encode_radius;
-use spheres::{grid_bounds_and_radii, radius_scale, SphereTable};
+pub use spheres::RadiusFormat;
+use spheres::{encode_relative_radii, grid_bounds_and_radii, radius_scale, rescale_thickness, SphereTable};
 
 /// Sphere levels left out at the bottom by default: leaves of 16 micro-triangles.
 pub const DEFAULT_EXCLUDED_LEVELS: u32 = 2;
@@ -43,8 +45,8 @@ pub const DEFAULT_EXCLUDED_LEVELS: u32 = 2;
 pub struct GridOptions {
     /// Levels at the bottom of the sphere hierarchy that get no spheres.
     pub excluded_levels: u32,
-    /// Store radii as half floats (rounded up, so spheres only grow) instead of `f32`.
-    pub half_radii: bool,
+    /// How sphere radii are stored (every format rounds up, so spheres only grow).
+    pub radii: RadiusFormat,
     /// Store each leaf's thickness, so the traversal can cull leaves by their footprint
     /// (see `gridrt_shared::footprint`) before loading their vertices.
     pub leaf_footprint: bool,
@@ -57,7 +59,7 @@ impl Default for GridOptions {
     fn default() -> Self {
         GridOptions {
             excluded_levels: DEFAULT_EXCLUDED_LEVELS,
-            half_radii: false,
+            radii: RadiusFormat::F32,
             leaf_footprint: true,
             compact_top: false,
         }
@@ -65,12 +67,13 @@ impl Default for GridOptions {
 }
 
 impl GridOptions {
-    /// The defaults for displaced grids: radii as half floats and a compact top-level BVH.
-    /// Their values already hold 11 bits, so `f32` radii buy them no speed; and the top level
-    /// is the largest part left (docs/RESULTS.md, "Displaced micro-meshes", measures both).
+    /// The defaults for displaced grids: radii relative to their grid's root and a compact
+    /// top-level BVH. Their values already hold 11 bits, so `f32` radii buy them no speed;
+    /// and the top level is the largest part left (docs/RESULTS.md, "Displaced
+    /// micro-meshes", measures both).
     pub fn for_displaced() -> GridOptions {
         GridOptions {
-            half_radii: true,
+            radii: RadiusFormat::Relative,
             compact_top: true,
             ..GridOptions::default()
         }
@@ -86,8 +89,7 @@ pub struct GridScene {
     /// Words: each grid's inner area (`f32` triples or 16-bit codes), then the edge and corner
     /// areas as `f32` triples (see `gridrt_shared::grid_traverse::GridScene`).
     pub vertices: Vec<u32>,
-    /// Sphere radii: `f32` bits, or half floats two per word (see `GridParams::half_radii`);
-    /// then the leaves' thickness codes (see `GridParams::thickness_word`).
+    /// Sphere radii (see `GridParams::radius_format`); then the leaves' thickness codes (see `GridParams::thickness_word`).
     pub radii: Vec<u32>,
     pub params: GridParams,
     /// `base_triangle[slot]`: which base triangle the grid stored at `slot` is.
@@ -223,7 +225,7 @@ pub fn top_level_params() -> BuildParams {
 pub struct GridShape {
     pub levels: u32,
     pub leaf_level: u32,
-    pub half_radii: bool,
+    pub radii: RadiusFormat,
     pub compact_top: bool,
     pub leaf_footprint: bool,
     pub edge_offset: u32,
@@ -251,7 +253,7 @@ impl GridShape {
         GridShape {
             levels,
             leaf_level: levels.saturating_sub(options.excluded_levels),
-            half_radii: options.half_radii,
+            radii: options.radii,
             compact_top: options.compact_top,
             leaf_footprint: options.leaf_footprint,
             edge_offset,
@@ -379,9 +381,10 @@ fn least_buffer_sizes(base: &Mesh, edges: u64, build: &GridBuild) -> Vec<BufferS
     } else {
         0
     };
-    let radius_words = match shape.half_radii {
-        true => (grids * spheres).div_ceil(2),
-        false => grids * spheres,
+    let radius_words = match shape.radii {
+        RadiusFormat::F32 => grids * spheres,
+        RadiusFormat::Half => (grids * spheres).div_ceil(2),
+        RadiusFormat::Relative => grids * relative_radius_words(spheres as u32) as u64,
     };
     let size = |name, bytes| BufferSize {
         name,
@@ -648,7 +651,11 @@ fn assemble(shape: &GridShape, ids: &[GridIds], per_grid: &PerGrid, mut vertices
 
     let spheres = per_grid.spheres;
     let leaf_words = per_grid.leaves.div_ceil(4);
-    let sphere_words = if shape.half_radii { 0 } else { spheres };
+    let sphere_words = match shape.radii {
+        RadiusFormat::F32 => spheres,
+        RadiusFormat::Half => 0,
+        RadiusFormat::Relative => relative_radius_words(spheres as u32) as usize,
+    };
     let header_stride = if shape.wide_headers { 2 } else { 1 };
     let mut leaf_headers = vec![GridHeader::default(); grids * header_stride];
     let mut radii = vec![0u32; grids * (sphere_words + leaf_words)];
@@ -667,11 +674,12 @@ fn assemble(shape: &GridShape, ids: &[GridIds], per_grid: &PerGrid, mut vertices
                 true => into[2 * i..][..2].copy_from_slice(&ids[g].pack_wide()),
                 false => into[i] = ids[g].pack(),
             }
-            for (r, &from) in radii[i * sphere_words..][..sphere_words]
-                .iter_mut()
-                .zip(&per_grid.radii[g * spheres..][..sphere_words])
-            {
-                *r = from.to_bits();
+            let from = &per_grid.radii[g * spheres..][..spheres];
+            let into = &mut radii[i * sphere_words..][..sphere_words];
+            match shape.radii {
+                RadiusFormat::F32 => into.iter_mut().zip(from).for_each(|(r, &f)| *r = f.to_bits()),
+                RadiusFormat::Half => {}
+                RadiusFormat::Relative => encode_relative_radii(from, into),
             }
             let bytes = &per_grid.thickness[g * per_grid.leaf_bytes..][..leaf_words * 4];
             for (w, b) in thickness[i * leaf_words..][..leaf_words]
@@ -680,10 +688,14 @@ fn assemble(shape: &GridShape, ids: &[GridIds], per_grid: &PerGrid, mut vertices
             {
                 *w = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
             }
+            if shape.radii == RadiusFormat::Relative {
+                let leaves = &from[spheres - per_grid.leaves..];
+                rescale_thickness(into, leaves, &mut thickness[i * leaf_words..][..leaf_words]);
+            }
         }
     });
     let radius_scale = radius_scale(per_grid.radii.iter().fold(0f32, |m, &r| m.max(r)));
-    if shape.half_radii {
+    if shape.radii == RadiusFormat::Half {
         // Two radii to a word, across grid boundaries: packed in one go, in leaf order.
         let half: Vec<u32> = top
             .order
@@ -720,7 +732,7 @@ fn assemble(shape: &GridShape, ids: &[GridIds], per_grid: &PerGrid, mut vertices
             quantized_inner: shape.quantized_inner as u32,
             inner_words: shape.inner_words,
             edge_word: (grids * words) as u32,
-            half_radii: shape.half_radii as u32,
+            radius_format: shape.radii.code(),
             leaf_footprint: shape.leaf_footprint as u32,
             radius_scale,
             thickness_word,

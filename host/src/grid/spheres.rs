@@ -1,12 +1,15 @@
 //! The bottom level's sphere radii: for each sub-triangle down to the leaf level, the largest
 //! distance from the mean of its corners (computed exactly as the traversal does) to any
-//! micro-vertex inside it. Also the half-float encoding of radii.
+//! micro-vertex inside it. Also the encodings of radii: half floats, or bytes relative to the
+//! grid's root.
 
 use gridrt_shared::glam::{Vec3, Vec3A};
 use gridrt_shared::grid_index::{
     grid_size, inner_points, lattice_index, lattice_points, sub_triangle, triangle_count, Lattice,
 };
 use gridrt_shared::grid_traverse::sphere_center;
+use gridrt_shared::layout::{RADII_F32, RADII_HALF, RADII_RELATIVE};
+use gridrt_shared::sphere::relative_radius;
 
 use super::GridLayout;
 use crate::bvh::Aabb;
@@ -167,6 +170,83 @@ pub fn thickness_code(d: f32, r: f32) -> u8 {
     }
 }
 
+/// How a grid scene stores its sphere radii (see `GridParams::radius_format`).
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum RadiusFormat {
+    /// One `f32` per radius.
+    F32,
+    /// Half floats in units of a power of two per scene, two to a word.
+    Half,
+    /// Per grid, the root's `f32`, then a byte per sphere below it in 255ths of the root's
+    /// radius: a quarter of `f32` radii, and a visit reads four children in one load.
+    Relative,
+}
+
+impl RadiusFormat {
+    /// Its `GridParams::radius_format`.
+    pub fn code(self) -> u32 {
+        match self {
+            RadiusFormat::F32 => RADII_F32,
+            RadiusFormat::Half => RADII_HALF,
+            RadiusFormat::Relative => RADII_RELATIVE,
+        }
+    }
+}
+
+/// One grid's radii `radii` (breadth-first, each the least the sphere needs) into `into`,
+/// [`relative_radius_words`] words: the root's radius, then each other radius's byte, the
+/// smallest whose decoded radius is not below the radius it stands for. Where a sphere needs
+/// more than the root (possible, as its centre is not the root's), the root's stored radius
+/// grows to it: each byte can then code it, and the root's sphere only grows.
+pub(super) fn encode_relative_radii(radii: &[f32], into: &mut [u32]) {
+    let root = radii.iter().fold(0f32, |m, &r| m.max(r));
+    into.fill(0);
+    into[0] = root.to_bits();
+    for (k, &r) in radii.iter().enumerate().skip(1) {
+        let code = relative_code(r, root);
+        into[1 + (k - 1) / 4] |= code << (8 * ((k - 1) % 4));
+    }
+}
+
+/// One grid's thickness codes (`words`, a byte per leaf), made against the radii its leaves
+/// need (`leaves`, the last spheres), recoded against the radii `radius_words` decode to:
+/// thickness is decoded as a fraction of the decoded radius, which may be larger.
+pub(super) fn rescale_thickness(radius_words: &[u32], leaves: &[f32], words: &mut [u32]) {
+    let root = f32::from_bits(radius_words[0]);
+    let first = relative_radius_words_spheres(radius_words) - leaves.len();
+    for (l, &needed) in leaves.iter().enumerate() {
+        let s = first + l;
+        let decoded = match s {
+            0 => root,
+            _ => relative_radius(root, radius_words[1 + (s - 1) / 4], ((s - 1) % 4) as u32),
+        };
+        let (word, shift) = (&mut words[l / 4], 8 * (l % 4));
+        let code = (*word >> shift) & 0xff;
+        // The thickness the code stood for, and its code against the decoded radius.
+        let thickness = needed * (code as f32 / 255.0) * (1.0 + 1e-6);
+        let recoded = thickness_code(thickness, decoded) as u32;
+        *word = (*word & !(0xff << shift)) | (recoded.min(code) << shift);
+    }
+}
+
+/// Spheres a grid's relative radius words can hold.
+fn relative_radius_words_spheres(radius_words: &[u32]) -> usize {
+    1 + 4 * (radius_words.len() - 1)
+}
+
+/// The smallest byte whose [`relative_radius`] of `root` is not below `r` (`r <= root`).
+fn relative_code(r: f32, root: f32) -> u32 {
+    if r <= 0.0 || root <= 0.0 {
+        return 0;
+    }
+    let mut code = ((r as f64 / root as f64 * 255.0).ceil() as u32).min(255);
+    // The decode's own f32 rounding may land just below `r`.
+    while code < 255 && relative_radius(root, code, 0) < r {
+        code += 1;
+    }
+    code
+}
+
 /// The power of two that brings the largest radius to about 2^14 in half-float units: far
 /// from overflow (65504) and with the smallest radii still well above the subnormal range.
 pub(super) fn radius_scale(max_radius: f32) -> f32 {
@@ -197,6 +277,30 @@ pub fn encode_radius(r: f32, scale: f32) -> u16 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use gridrt_shared::sphere::relative_radius_words;
+
+    /// Every decoded radius holds the radius it stands for, within a code step of the root's.
+    #[test]
+    fn relative_radii_round_up() {
+        let radii: Vec<f32> = (0..21)
+            .map(|k| {
+                if k == 0 {
+                    2.5
+                } else {
+                    2.6 * ((k * 37 % 21) as f32 / 21.0).powi(2)
+                }
+            })
+            .collect();
+        let words = relative_radius_words(radii.len() as u32) as usize;
+        let mut into = vec![0; words];
+        encode_relative_radii(&radii, &mut into);
+        let root = f32::from_bits(into[0]);
+        assert!(radii.iter().all(|&r| r <= root), "the root grows to the largest radius");
+        for (k, &r) in radii.iter().enumerate().skip(1) {
+            let back = relative_radius(root, into[1 + (k - 1) / 4], ((k - 1) % 4) as u32);
+            assert!(back >= r && back <= r + root / 255.0 * 1.001, "{r} decoded as {back}");
+        }
+    }
 
     #[test]
     fn half_radii_round_up() {

@@ -47,11 +47,11 @@ fn every_grid_reads_back_its_vertices() {
 }
 
 /// `mesh` Loop-subdivided `levels` times, as grids with `excluded` sphere levels left out.
-fn loop_grids(mesh: &Mesh, levels: u32, excluded: u32, half_radii: bool) -> GridScene {
+fn loop_grids(mesh: &Mesh, levels: u32, excluded: u32, radii: RadiusFormat) -> GridScene {
     let sub = subdivide(mesh, levels, Scheme::Loop);
     let options = GridOptions {
         excluded_levels: excluded,
-        half_radii,
+        radii,
         ..Default::default()
     };
     build(mesh, &sub, &options).unwrap()
@@ -61,15 +61,19 @@ fn loop_grids(mesh: &Mesh, levels: u32, excluded: u32, half_radii: bool) -> Grid
 /// the centre computed as the traversal computes it.
 #[test]
 fn spheres_are_conservative() {
-    for (mesh, levels, excluded, half_radii) in [
-        (default_scene(), 3, 2, false),
-        (default_scene(), 3, 2, true),
-        (cube(), 5, 2, true),
-        (cube(), 4, 1, false),
-        (cube(), 4, 2, true),
-        (cube(), 3, 3, true),
+    use RadiusFormat::{Half, Relative, F32};
+    for (mesh, levels, excluded, radii) in [
+        (default_scene(), 3, 2, F32),
+        (default_scene(), 3, 2, Half),
+        (default_scene(), 3, 2, Relative),
+        (cube(), 5, 2, Half),
+        (cube(), 5, 2, Relative),
+        (cube(), 4, 1, F32),
+        (cube(), 4, 1, Relative),
+        (cube(), 4, 2, Half),
+        (cube(), 3, 3, Half),
     ] {
-        let scene = loop_grids(&mesh, levels, excluded, half_radii);
+        let scene = loop_grids(&mesh, levels, excluded, radii);
         let n = grid_size(levels);
         let g = &scene.params;
         for slot in 0..scene.grid_count() {
@@ -98,12 +102,13 @@ fn spheres_are_conservative() {
 /// triangle; and the thickness is no larger than it has to be.
 #[test]
 fn leaf_thickness_is_conservative() {
-    for (mesh, levels, excluded, half_radii) in [
-        (default_scene(), 3, 2, false),
-        (cube(), 4, 1, true),
-        (cube(), 3, 3, false),
+    for (mesh, levels, excluded, radii) in [
+        (default_scene(), 3, 2, RadiusFormat::F32),
+        (cube(), 4, 1, RadiusFormat::Half),
+        (cube(), 5, 1, RadiusFormat::Relative),
+        (cube(), 3, 3, RadiusFormat::F32),
     ] {
-        let scene = loop_grids(&mesh, levels, excluded, half_radii);
+        let scene = loop_grids(&mesh, levels, excluded, radii);
         let n = grid_size(levels);
         let leaf_level = scene.params.leaf_level;
         let m = (n >> leaf_level) as i32;
@@ -158,12 +163,23 @@ fn sizes_follow_the_layout() {
         &mesh,
         &sub,
         &GridOptions {
-            half_radii: true,
+            radii: RadiusFormat::Half,
             ..Default::default()
         },
     )
     .unwrap();
     assert_eq!(half.radii.len(), 12 * 5 / 2 + 12);
+    // The root's radius, then four bytes in one word.
+    let relative = build(
+        &mesh,
+        &sub,
+        &GridOptions {
+            radii: RadiusFormat::Relative,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(relative.radii.len(), 12 * 2 + 12);
     let bare = build(
         &mesh,
         &sub,
@@ -211,7 +227,7 @@ fn meshes_beyond_grid_addresses_are_refused_up_front() {
 #[test]
 fn buffer_sizes_are_known_before_the_build() {
     let half = GridOptions {
-        half_radii: true,
+        radii: RadiusFormat::Half,
         leaf_footprint: false,
         excluded_levels: 1,
         compact_top: true,
@@ -222,6 +238,7 @@ fn buffer_sizes_are_known_before_the_build() {
             (2, GridOptions::default(), false),
             (3, half, true),
             (4, GridOptions::default(), true),
+            (4, GridOptions::for_displaced(), true),
         ] {
             let build = GridBuild {
                 options,
@@ -323,10 +340,11 @@ fn the_lean_build_equals_the_whole_mesh_build() {
         GridOptions::default(),
         GridOptions {
             excluded_levels: 1,
-            half_radii: true,
+            radii: RadiusFormat::Half,
             leaf_footprint: false,
             compact_top: true,
         },
+        GridOptions::for_displaced(),
     ];
     for (name, mesh) in [
         ("default scene", default_scene()),
