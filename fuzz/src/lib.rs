@@ -158,6 +158,8 @@ fn decode(data: &[u8]) -> (Plan, Mesh, Bytes<'_>) {
             leaf_footprint: flags & 32 == 0,
             excluded_levels: 1 + (flags >> 6) as u32 % 3,
             compact_top: detail & 8 != 0,
+            // Displaced grids' storage: relative radii and tight headers together.
+            tight_headers: flags & 16 != 0,
         },
     };
     let vertices = 3 + b.u8() as usize % 13;

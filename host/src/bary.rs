@@ -18,6 +18,7 @@
 //! offset, count and level in a file is checked against the bytes there are before anything
 //! is read, so a damaged file gives a one-line error, never a panic or a huge allocation.
 
+use crate::bit_writer::BitWriter;
 use crate::error::{error, fail, Result};
 
 /// The version identifier every file starts with: "«BARY 00100»\r\n\x1A\n".
@@ -435,14 +436,9 @@ fn triangle_values(packed: bool, group: &[u8], offset: usize, level: u32) -> Res
 
 /// Packs values 11 bits each, LSB first, into little-endian words: [`packed_bytes`] bytes.
 fn pack(values: &[u16], out: &mut Vec<u8>) {
-    let mut words = vec![0u32; (values.len() * 11).div_ceil(32)];
-    for (i, &v) in values.iter().enumerate() {
-        let (bit, v) = (11 * i, u32::from(v.min(UNORM11_MAX)));
-        words[bit / 32] |= v << (bit % 32);
-        if bit % 32 > 21 {
-            words[bit / 32 + 1] |= v >> (32 - bit % 32);
-        }
-    }
+    let values = values.iter().map(|&v| u32::from(v.min(UNORM11_MAX)));
+    let mut words = BitWriter::packed(values.clone(), 11);
+    words.resize((values.len() * 11).div_ceil(32), 0);
     out.extend(words.iter().flat_map(|w| w.to_le_bytes()));
 }
 

@@ -37,6 +37,7 @@
 pub mod backend;
 pub mod bake;
 pub mod bary;
+pub mod bit_writer;
 pub mod bvh;
 pub mod camera;
 pub mod displaced;

@@ -46,6 +46,17 @@ pub struct GridScene<'a, H, W> {
     pub params: GridParams,
 }
 
+/// The `width`-bit field (`width < 32`) at bit `bit` of `words`, lowest bit first; a field
+/// starting in the last word but one may not run past it (the last word pads).
+#[inline]
+fn window_bits(words: &[u32; 9], bit: u32, width: u32) -> u32 {
+    let (i, shift) = ((bit >> 5) as usize, bit & 31);
+    // Shifted in two steps, as in `read_bits`.
+    let low = words[i] >> shift;
+    let high = (words[i + 1] << 1) << (31 - shift);
+    (low | high) & ((1 << width) - 1)
+}
+
 /// A grid resolved for reading by [`GridScene::open`].
 #[derive(Copy, Clone)]
 pub struct OpenGrid {
@@ -130,6 +141,9 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     /// The base edge and corner ids of grid `grid`, from its packed or wide header.
     #[inline]
     pub fn ids(&self, grid: u32) -> GridIds {
+        if self.params.header_bits != 0 {
+            return self.tight_ids(grid);
+        }
         // The same two reads either way (the second is the first again for packed headers):
         // SIMD hardware that runs both sides of a branch would otherwise pay three.
         let wide = (self.params.wide_headers != 0) as u32;
@@ -139,6 +153,41 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             GridIds::from_wide(first, second)
         } else {
             first.ids()
+        }
+    }
+
+    /// The ids of a tight header (see `GridParams::header_bits`). A grid's six fields span
+    /// at most 126 bits, so they lie in the element holding their first bit and the next
+    /// one: two loads, then shifts.
+    #[inline]
+    fn tight_ids(&self, grid: u32) -> GridIds {
+        let (edge_bits, corner_bits) = (self.params.header_bits & 0xff, self.params.header_bits >> 8);
+        let first = 3 * grid * (edge_bits + corner_bits);
+        let (a, b) = (self.headers.load(first >> 7), self.headers.load((first >> 7) + 1));
+        let words = [
+            a.edges[0],
+            a.edges[1],
+            a.corners[0],
+            a.corners[1],
+            b.edges[0],
+            b.edges[1],
+            b.corners[0],
+            b.corners[1],
+            0,
+        ];
+        let bit = first & 127;
+        let corner = bit + 3 * edge_bits;
+        GridIds {
+            edges: [
+                window_bits(&words, bit, edge_bits),
+                window_bits(&words, bit + edge_bits, edge_bits),
+                window_bits(&words, bit + 2 * edge_bits, edge_bits),
+            ],
+            corners: [
+                window_bits(&words, corner, corner_bits),
+                window_bits(&words, corner + corner_bits, corner_bits),
+                window_bits(&words, corner + 2 * corner_bits, corner_bits),
+            ],
         }
     }
 

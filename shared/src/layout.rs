@@ -225,6 +225,11 @@ pub struct GridParams {
     /// Whether each grid's ids take two wide headers rather than one packed header (see
     /// [`GridHeader`]).
     pub wide_headers: u32,
+    /// Nonzero for tight headers: each grid's six ids in as many bits as the counts need,
+    /// `edge_bits | corner_bits << 8`, grids end to end in the header buffer's words (its
+    /// elements' four words in order): grid `g`'s three edge ids, then its three corner ids,
+    /// from bit `3 g (edge_bits + corner_bits)`, each field least significant bit first.
+    pub header_bits: u32,
     /// Whether each grid chooses its own depth from its size on screen (see
     /// [`crate::lod::grid_level`]) rather than every grid rendering depth `lod`.
     pub lod_auto: u32,

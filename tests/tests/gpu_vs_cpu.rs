@@ -83,6 +83,7 @@ fn stacked_options() -> gridrt::grid::GridOptions {
         radii: gridrt::grid::RadiusFormat::Half,
         leaf_footprint: true,
         compact_top: true,
+        tight_headers: true,
     }
 }
 

@@ -157,6 +157,7 @@ fn default_scene_grid_variants() {
             radii,
             leaf_footprint,
             compact_top,
+            tight_headers: compact_top,
         };
         let a = compare_with(
             &default_scene(),

@@ -35,6 +35,7 @@ fn stacked_grids() -> Scene {
     let options = GridOptions {
         excluded_levels: 0,
         compact_top: true,
+        tight_headers: true,
         ..GridOptions::default()
     };
     build_pair_with(&default_scene(), 2, 2, Scheme::Loop, &options).grids

@@ -59,10 +59,10 @@ fn build() -> impl Strategy<Value = Build> {
         1u32..4,
         0u32..3,
         any::<bool>(),
-        any::<bool>(),
+        0u32..4,
     )
         .prop_map(
-            |(levels, lod, flat, quantized, excluded_levels, radii, leaf_footprint, compact_top)| Build {
+            |(levels, lod, flat, quantized, excluded_levels, radii, leaf_footprint, top_and_headers)| Build {
                 levels,
                 lod: lod.min(levels),
                 flat,
@@ -71,7 +71,8 @@ fn build() -> impl Strategy<Value = Build> {
                     excluded_levels,
                     radii: [RadiusFormat::F32, RadiusFormat::Half, RadiusFormat::Relative][radii as usize],
                     leaf_footprint,
-                    compact_top,
+                    compact_top: top_and_headers & 1 != 0,
+                    tight_headers: top_and_headers & 2 != 0,
                 },
             },
         )

@@ -209,6 +209,10 @@ pub struct BuildArgs {
     /// Store a displaced micro-mesh's top-level BVH in full 32-byte nodes.
     #[arg(long, conflicts_with = "compact_top")]
     pub full_top: bool,
+    /// Store each grid's six ids in as many bits as the mesh's counts need rather than in a
+    /// 16-byte header (always so for displaced micro-meshes).
+    #[arg(long)]
+    pub tight_headers: bool,
     /// Store no leaf thicknesses and cull leaves by their spheres alone (smaller, faster to
     /// build, slower to trace; see README).
     #[arg(long)]
@@ -314,18 +318,20 @@ impl BuildArgs {
             radii: self.radii.unwrap_or(RadiiArg::F32).format(),
             leaf_footprint: !self.no_leaf_footprint,
             compact_top: self.compact_top,
+            tight_headers: self.tight_headers,
         }
     }
 
     /// These arguments for a displaced micro-mesh of `level` built as displaced grids: its own
     /// level, no subdivision, radii relative to each grid's root unless `--radii` says
-    /// otherwise, a compact top level unless `--full-top`.
+    /// otherwise, a compact top level unless `--full-top`, tight headers.
     pub fn as_displaced(&self, level: u32) -> BuildArgs {
         BuildArgs {
             levels: level,
             subdivision: SubdivisionArg::Flat,
             radii: Some(self.radii.unwrap_or(RadiiArg::Relative)),
             compact_top: !self.full_top,
+            tight_headers: true,
             ..self.clone()
         }
     }

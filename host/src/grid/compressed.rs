@@ -14,6 +14,7 @@
 //! - A base edge's values are encoded once, from its lower base vertex id, and both grids that
 //!   share the edge read that one block: the surface stays watertight.
 
+use crate::bit_writer::BitWriter;
 use gridrt_shared::compressed_values::{inner_new_count, ValueCode, SHIFT_BITS, VALUE_BITS, VALUE_MAX, WIDTH_BITS};
 use gridrt_shared::displacement::{interpolated, u_major_index};
 use gridrt_shared::grid_index::{grid_size, Lattice};
@@ -382,30 +383,6 @@ impl Target {
         let (_, q) = self.encode(width, shift);
         let d = (q as f64 - self.truth as f64) * self.unit as f64;
         d * d
-    }
-}
-
-/// Fields written end to end from bit 0 of word 0, each in the lowest bits first.
-#[derive(Default)]
-struct BitWriter {
-    words: Vec<u32>,
-    bits: usize,
-}
-
-impl BitWriter {
-    fn push(&mut self, field: u32, width: u32) {
-        if width == 0 {
-            return;
-        }
-        let (word, shift) = (self.bits / 32, self.bits % 32);
-        self.words
-            .resize((self.bits + width as usize).div_ceil(32).max(word + 1), 0);
-        let field = (field as u64 & ((1u64 << width) - 1)) << shift;
-        self.words[word] |= field as u32;
-        if shift + width as usize > 32 {
-            self.words[word + 1] |= (field >> 32) as u32;
-        }
-        self.bits += width as usize;
     }
 }
 

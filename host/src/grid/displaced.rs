@@ -19,6 +19,7 @@
 //! consistent micromap (gridrt's, or any tool's that keeps edges watertight) every grid holds
 //! the same value there.
 
+use crate::bit_writer::BitWriter;
 use gridrt_shared::displacement::{displaced_point, u_major_index, unorm11_displacement, DisplacedTriangle};
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::grid_index::{edge_vertex_count, grid_size, inner_points, inner_vertex_count, Lattice};
@@ -162,16 +163,8 @@ fn packed_words(values: u64) -> u64 {
 
 /// `values` (each below `2^11`) as 11-bit fields end to end, the first in the lowest bits.
 fn pack(values: &[u16]) -> Vec<u32> {
-    let mut words = vec![0u32; packed_words(values.len() as u64) as usize];
-    for (k, &q) in values.iter().enumerate() {
-        let bit = k * DISPLACEMENT_BITS as usize;
-        let (word, shift) = (bit / 32, bit % 32);
-        let field = (q as u64 & ((1 << DISPLACEMENT_BITS) - 1)) << shift;
-        words[word] |= field as u32;
-        if shift + DISPLACEMENT_BITS as usize > 32 {
-            words[word + 1] |= (field >> 32) as u32;
-        }
-    }
+    let mut words = BitWriter::packed(values.iter().map(|&q| q as u32), DISPLACEMENT_BITS);
+    words.resize(packed_words(values.len() as u64) as usize, 0);
     words
 }
 

@@ -4,6 +4,7 @@
 
 use std::collections::HashMap;
 
+use crate::bit_writer::BitWriter;
 use crate::error::{fail, Result};
 use gridrt_shared::buffer::Buffer;
 use gridrt_shared::compressed_values::ValueCode;
@@ -53,6 +54,9 @@ pub struct GridOptions {
     /// Store the top-level BVH in compact 16-byte nodes where it fits them (see
     /// [`compact_top`]) rather than 32-byte ones.
     pub compact_top: bool,
+    /// Store each grid's ids in as many bits as the mesh's counts need (see
+    /// `GridParams::header_bits`) rather than in a 16-byte header.
+    pub tight_headers: bool,
 }
 
 impl Default for GridOptions {
@@ -62,19 +66,21 @@ impl Default for GridOptions {
             radii: RadiusFormat::F32,
             leaf_footprint: true,
             compact_top: false,
+            tight_headers: false,
         }
     }
 }
 
 impl GridOptions {
-    /// The defaults for displaced grids: radii relative to their grid's root and a compact
-    /// top-level BVH. Their values already hold 11 bits, so `f32` radii buy them no speed;
+    /// The defaults for displaced grids: radii relative to their grid's root, a compact
+    /// top-level BVH and tight headers. Their values already hold 11 bits, so `f32` radii buy them no speed;
     /// and the top level is the largest part left (docs/RESULTS.md, "Displaced
     /// micro-meshes", measures both).
     pub fn for_displaced() -> GridOptions {
         GridOptions {
             radii: RadiusFormat::Relative,
             compact_top: true,
+            tight_headers: true,
             ..GridOptions::default()
         }
     }
@@ -146,8 +152,12 @@ impl GridScene {
     /// `2^21` base edges or vertices gets: for trying that form on small meshes.
     pub fn with_wide_headers(mut self) -> GridScene {
         if self.params.wide_headers == 0 {
-            self.headers = self.headers.iter().flat_map(|h| h.ids().pack_wide()).collect();
+            let view = self.view();
+            self.headers = (0..self.grid_count() as u32)
+                .flat_map(|g| view.ids(g).pack_wide())
+                .collect();
             self.params.wide_headers = 1;
+            self.params.header_bits = 0;
         }
         self
     }
@@ -237,6 +247,8 @@ pub struct GridShape {
     /// Ids stored as plain words, two headers per grid (more than `2^21` base edges or
     /// vertices), rather than packed in one.
     pub wide_headers: bool,
+    /// `GridParams::header_bits`: nonzero for tight headers.
+    pub header_bits: u32,
     /// Word of the base vertex records of displaced grids (see [`displaced`]); 0 otherwise.
     pub base_word: u32,
     /// For displaced grids of compressed values: their code and the bit where the corner
@@ -250,6 +262,7 @@ impl GridShape {
         let grids = base.triangles.len();
         let inner_count = inner_vertex_count(levels);
         let edge_offset = grids as u32 * inner_count;
+        let wide_headers = needs_wide_headers(edges as u64, base.positions.len() as u64);
         GridShape {
             levels,
             leaf_level: levels.saturating_sub(options.excluded_levels),
@@ -263,7 +276,11 @@ impl GridShape {
                 true => quantize::inner_words(inner_count),
                 false => 3 * inner_count,
             },
-            wide_headers: needs_wide_headers(edges as u64, base.positions.len() as u64),
+            wide_headers,
+            header_bits: match options.tight_headers && !wide_headers {
+                true => id_bits(edges as u64) | id_bits(base.positions.len() as u64) << 8,
+                false => 0,
+            },
             base_word: 0,
             value_code: None,
             corner_bit: 0,
@@ -352,6 +369,38 @@ impl BaseEdges {
     }
 }
 
+/// Bits an id below `count` needs (at least one).
+fn id_bits(count: u64) -> u32 {
+    u64::BITS - (count.max(2) - 1).leading_zeros()
+}
+
+/// Header elements of `grids` tight headers of `header_bits` (see `GridParams::header_bits`),
+/// including the element after the last grid's first, which its read also loads.
+fn tight_header_elements(grids: u64, header_bits: u32) -> u64 {
+    let bits = grids * 3 * ((header_bits & 0xff) + (header_bits >> 8)) as u64;
+    bits.div_ceil(128) + 1
+}
+
+/// The ids of the grids `order` names, in that order, as tight headers.
+fn tight_headers(ids: &[GridIds], order: &[u32], header_bits: u32) -> Vec<GridHeader> {
+    let (edge_bits, corner_bits) = (header_bits & 0xff, header_bits >> 8);
+    let mut out = BitWriter::default();
+    for &g in order {
+        let grid = &ids[g as usize];
+        grid.edges.iter().for_each(|&e| out.push(e, edge_bits));
+        grid.corners.iter().for_each(|&c| out.push(c, corner_bits));
+    }
+    let mut words = out.words;
+    words.resize(4 * tight_header_elements(order.len() as u64, header_bits) as usize, 0);
+    words
+        .chunks(4)
+        .map(|w| GridHeader {
+            edges: [w[0], w[1]],
+            corners: [w[2], w[3]],
+        })
+        .collect()
+}
+
 /// Whether a mesh's grid ids need wide headers: packed ones hold `2^21` edges and vertices.
 pub fn needs_wide_headers(edges: u64, vertices: u64) -> bool {
     let packed = MAX_HEADER_ID as u64 + 1;
@@ -399,7 +448,13 @@ fn least_buffer_sizes(base: &Mesh, edges: u64, build: &GridBuild) -> Vec<BufferS
                 top_level_bytes(bvh::least_node_count(grids, &top_level_params()), &shape),
             )
         },
-        size("grid header", grids * if shape.wide_headers { 32 } else { 16 }),
+        size(
+            "grid header",
+            match (shape.header_bits, shape.wide_headers) {
+                (0, wide) => grids * if wide { 32 } else { 16 },
+                (bits, _) => 16 * tight_header_elements(grids, bits),
+            },
+        ),
         size(
             "grid vertex",
             4 * shape.buffer_words(grids as usize, base.positions.len()) as u64,
@@ -712,6 +767,9 @@ fn assemble(shape: &GridShape, ids: &[GridIds], per_grid: &PerGrid, mut vertices
         radii.splice(0..0, half);
     }
     let thickness_word = (radii.len() - grids * leaf_words) as u32;
+    if shape.header_bits != 0 {
+        leaf_headers = tight_headers(ids, &top.order, shape.header_bits);
+    }
     let nodes = match shape.compact_top {
         true => compact_top::pack(&top.nodes).unwrap_or(top.nodes),
         false => top.nodes,
@@ -737,6 +795,7 @@ fn assemble(shape: &GridShape, ids: &[GridIds], per_grid: &PerGrid, mut vertices
             radius_scale,
             thickness_word,
             wide_headers: shape.wide_headers as u32,
+            header_bits: shape.header_bits,
             displaced: match (shape.base_word, shape.value_code) {
                 (0, _) => 0,
                 (_, None) => DISPLACED_PLAIN,

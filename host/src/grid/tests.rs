@@ -231,6 +231,7 @@ fn buffer_sizes_are_known_before_the_build() {
         leaf_footprint: false,
         excluded_levels: 1,
         compact_top: true,
+        tight_headers: true,
     };
     for mesh in [default_scene(), fins(), cube()] {
         for (levels, options, quantized) in [
@@ -277,6 +278,36 @@ fn strip(triangles: u32) -> Mesh {
                 }
             })
             .collect(),
+    }
+}
+
+/// Tight headers hold the ids packed headers hold, each in as many bits as its count needs.
+#[test]
+fn tight_headers_hold_the_same_ids() {
+    for mesh in [default_scene(), cube(), fins()] {
+        let sub = subdivide(&mesh, 2, Scheme::Loop);
+        let packed = build(&mesh, &sub, &GridOptions::default()).unwrap();
+        let options = GridOptions {
+            tight_headers: true,
+            ..Default::default()
+        };
+        let tight = build(&mesh, &sub, &options).unwrap();
+        let edges = BaseEdges::new(&mesh).owner.len() as u32;
+        let bits = |count: u32| 32 - (count.max(2) - 1).leading_zeros();
+        assert_eq!(
+            tight.params.header_bits,
+            bits(edges) | bits(mesh.positions.len() as u32) << 8
+        );
+        assert!(tight.headers.len() < packed.headers.len());
+        let (a, b) = (packed.view(), tight.view());
+        for g in 0..packed.grid_count() as u32 {
+            assert_eq!(a.ids(g), b.ids(g), "grid {g}");
+        }
+        // And back to wide headers, as a mesh past 2^21 ids gets them.
+        let wide = tight.with_wide_headers();
+        for g in 0..packed.grid_count() as u32 {
+            assert_eq!(a.ids(g), wide.view().ids(g), "grid {g}");
+        }
     }
 }
 
@@ -343,6 +374,7 @@ fn the_lean_build_equals_the_whole_mesh_build() {
             radii: RadiusFormat::Half,
             leaf_footprint: false,
             compact_top: true,
+            tight_headers: true,
         },
         GridOptions::for_displaced(),
     ];
