@@ -48,6 +48,19 @@ impl<T: Copy> Buffer<T> for &[T] {
     }
 }
 
+/// A few words held in registers (e.g. a grid's header fields once loaded).
+impl<T: Copy, const N: usize> Buffer<T> for &[T; N] {
+    #[inline(always)]
+    fn load(self, index: u32) -> T {
+        self[index as usize]
+    }
+
+    #[inline(always)]
+    fn is_empty(self) -> bool {
+        N == 0
+    }
+}
+
 /// Most chunks a split scene may use. Their bindings come after a kernel's own (parameters,
 /// static list, rays and hits, or image), in a set of their own: lavapipe allows 32 storage
 /// buffers per stage, and a ray-list kernel over grids binds four others.

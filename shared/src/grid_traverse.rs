@@ -19,7 +19,9 @@ use crate::layout::{
 use crate::lod::grid_level;
 use crate::quantize::{dequantize, halves_from_words, read_half, unit_from_exponent};
 use crate::ray::{Ray, T_FAR};
-use crate::sphere::{decode_radius, intersect_sphere_scaled, relative_radius, relative_radius_words};
+use crate::sphere::{
+    decode_radius, intersect_sphere_scaled, relative_radius, relative_radius_at, relative_radius_words,
+};
 use crate::traverse::{load_vec3_bits, record_hit, trace, LeafPrimitives};
 use crate::triangle::{intersect_sheared, shear};
 
@@ -44,17 +46,6 @@ pub struct GridScene<'a, H, W> {
     /// private words.
     pub micro_triangles: &'a [u32],
     pub params: GridParams,
-}
-
-/// The `width`-bit field (`width < 32`) at bit `bit` of `words`, lowest bit first; a field
-/// starting in the last word but one may not run past it (the last word pads).
-#[inline]
-fn window_bits(words: &[u32; 9], bit: u32, width: u32) -> u32 {
-    let (i, shift) = ((bit >> 5) as usize, bit & 31);
-    // Shifted in two steps, as in `read_bits`.
-    let low = words[i] >> shift;
-    let high = (words[i + 1] << 1) << (31 - shift);
-    (low | high) & ((1 << width) - 1)
 }
 
 /// A grid resolved for reading by [`GridScene::open`].
@@ -164,6 +155,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         let (edge_bits, corner_bits) = (self.params.header_bits & 0xff, self.params.header_bits >> 8);
         let first = 3 * grid * (edge_bits + corner_bits);
         let (a, b) = (self.headers.load(first >> 7), self.headers.load((first >> 7) + 1));
+        // The last word pads: `read_bits` also loads the word after a field's first.
         let words = [
             a.edges[0],
             a.edges[1],
@@ -179,14 +171,14 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         let corner = bit + 3 * edge_bits;
         GridIds {
             edges: [
-                window_bits(&words, bit, edge_bits),
-                window_bits(&words, bit + edge_bits, edge_bits),
-                window_bits(&words, bit + 2 * edge_bits, edge_bits),
+                read_bits(&words, bit, edge_bits),
+                read_bits(&words, bit + edge_bits, edge_bits),
+                read_bits(&words, bit + 2 * edge_bits, edge_bits),
             ],
             corners: [
-                window_bits(&words, corner, corner_bits),
-                window_bits(&words, corner + corner_bits, corner_bits),
-                window_bits(&words, corner + 2 * corner_bits, corner_bits),
+                read_bits(&words, corner, corner_bits),
+                read_bits(&words, corner + corner_bits, corner_bits),
+                read_bits(&words, corner + 2 * corner_bits, corner_bits),
             ],
         }
     }
@@ -367,12 +359,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     pub fn radius(&self, grid: u32, node: u32) -> f32 {
         if self.params.radius_format == RADII_RELATIVE {
             let first = grid * relative_radius_words(self.params.sphere_count);
-            let root = f32::from_bits(self.radii.load(first));
-            if node == 0 {
-                return root;
-            }
-            let word = self.radii.load(first + 1 + (node - 1) / 4);
-            return relative_radius(root, word, (node - 1) & 3);
+            return relative_radius_at(self.radii, first, node);
         }
         let k = grid * self.params.sphere_count + node;
         // One read either way (see `ids`).

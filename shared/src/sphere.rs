@@ -1,3 +1,4 @@
+use crate::buffer::Buffer;
 use crate::glam::Vec3;
 use crate::ray::{Ray, T_FAR};
 // On the GPU, float methods come from a trait (GLSL.std.450 underneath); natively from core.
@@ -30,6 +31,17 @@ pub fn relative_radius_words(sphere_count: u32) -> u32 {
 pub fn relative_radius(root: f32, word: u32, k: u32) -> f32 {
     let code = (word >> (8 * k)) & 0xff;
     root * (code as f32 * (1.0 / 255.0))
+}
+
+/// Radius of sphere `node` (breadth-first id) of the grid whose relative radius words start
+/// at word `first` of `radii`.
+#[inline]
+pub fn relative_radius_at<B: Buffer<u32>>(radii: B, first: u32, node: u32) -> f32 {
+    let root = f32::from_bits(radii.load(first));
+    if node == 0 {
+        return root;
+    }
+    relative_radius(root, radii.load(first + 1 + (node - 1) / 4), (node - 1) & 3)
 }
 
 /// Ray against a bounding sphere. Returns the entry distance (clamped to 0 when the origin is

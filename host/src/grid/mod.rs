@@ -73,9 +73,9 @@ impl Default for GridOptions {
 
 impl GridOptions {
     /// The defaults for displaced grids: radii relative to their grid's root, a compact
-    /// top-level BVH and tight headers. Their values already hold 11 bits, so `f32` radii buy them no speed;
-    /// and the top level is the largest part left (docs/RESULTS.md, "Displaced
-    /// micro-meshes", measures both).
+    /// top-level BVH and tight headers. Their values already hold 11 bits, so `f32` radii buy
+    /// them no speed; and the top level is the largest part left (docs/RESULTS.md,
+    /// "Displaced micro-meshes", measures each).
     pub fn for_displaced() -> GridOptions {
         GridOptions {
             radii: RadiusFormat::Relative,
@@ -95,7 +95,8 @@ pub struct GridScene {
     /// Words: each grid's inner area (`f32` triples or 16-bit codes), then the edge and corner
     /// areas as `f32` triples (see `gridrt_shared::grid_traverse::GridScene`).
     pub vertices: Vec<u32>,
-    /// Sphere radii (see `GridParams::radius_format`); then the leaves' thickness codes (see `GridParams::thickness_word`).
+    /// Sphere radii (see `GridParams::radius_format`); then the leaves' thickness codes (see
+    /// `GridParams::thickness_word`).
     pub radii: Vec<u32>,
     pub params: GridParams,
     /// `base_triangle[slot]`: which base triangle the grid stored at `slot` is.
@@ -725,9 +726,11 @@ fn assemble(shape: &GridShape, ids: &[GridIds], per_grid: &PerGrid, mut vertices
     tasks.into_par_iter().for_each(|(((order, into), radii), thickness)| {
         for (i, &g) in order.iter().enumerate() {
             let g = g as usize;
-            match shape.wide_headers {
-                true => into[2 * i..][..2].copy_from_slice(&ids[g].pack_wide()),
-                false => into[i] = ids[g].pack(),
+            // Tight headers are packed after, end to end across grids.
+            match (shape.header_bits, shape.wide_headers) {
+                (0, true) => into[2 * i..][..2].copy_from_slice(&ids[g].pack_wide()),
+                (0, false) => into[i] = ids[g].pack(),
+                _ => {}
             }
             let from = &per_grid.radii[g * spheres..][..spheres];
             let into = &mut radii[i * sphere_words..][..sphere_words];
@@ -744,8 +747,12 @@ fn assemble(shape: &GridShape, ids: &[GridIds], per_grid: &PerGrid, mut vertices
                 *w = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
             }
             if shape.radii == RadiusFormat::Relative {
-                let leaves = &from[spheres - per_grid.leaves..];
-                rescale_thickness(into, leaves, &mut thickness[i * leaf_words..][..leaf_words]);
+                rescale_thickness(
+                    into,
+                    from,
+                    per_grid.leaves,
+                    &mut thickness[i * leaf_words..][..leaf_words],
+                );
             }
         }
     });

@@ -9,7 +9,7 @@ use gridrt_shared::grid_index::{
 };
 use gridrt_shared::grid_traverse::sphere_center;
 use gridrt_shared::layout::{RADII_F32, RADII_HALF, RADII_RELATIVE};
-use gridrt_shared::sphere::relative_radius;
+use gridrt_shared::sphere::{relative_radius, relative_radius_at};
 
 use super::GridLayout;
 use crate::bvh::Aabb;
@@ -208,18 +208,13 @@ pub(super) fn encode_relative_radii(radii: &[f32], into: &mut [u32]) {
     }
 }
 
-/// One grid's thickness codes (`words`, a byte per leaf), made against the radii its leaves
-/// need (`leaves`, the last spheres), recoded against the radii `radius_words` decode to:
-/// thickness is decoded as a fraction of the decoded radius, which may be larger.
-pub(super) fn rescale_thickness(radius_words: &[u32], leaves: &[f32], words: &mut [u32]) {
-    let root = f32::from_bits(radius_words[0]);
-    let first = relative_radius_words_spheres(radius_words) - leaves.len();
-    for (l, &needed) in leaves.iter().enumerate() {
-        let s = first + l;
-        let decoded = match s {
-            0 => root,
-            _ => relative_radius(root, radius_words[1 + (s - 1) / 4], ((s - 1) % 4) as u32),
-        };
+/// One grid's thickness codes (`words`, a byte per leaf), made against the radii its spheres
+/// need (`radii`, breadth-first, the leaves last), recoded against the radii `radius_words`
+/// decode to: thickness is decoded as a fraction of the decoded radius, which may be larger.
+pub(super) fn rescale_thickness(radius_words: &[u32], radii: &[f32], leaves: usize, words: &mut [u32]) {
+    let first = radii.len() - leaves;
+    for (l, &needed) in radii[first..].iter().enumerate() {
+        let decoded = relative_radius_at(radius_words, 0, (first + l) as u32);
         let (word, shift) = (&mut words[l / 4], 8 * (l % 4));
         let code = (*word >> shift) & 0xff;
         // The thickness the code stood for, and its code against the decoded radius.
@@ -227,11 +222,6 @@ pub(super) fn rescale_thickness(radius_words: &[u32], leaves: &[f32], words: &mu
         let recoded = thickness_code(thickness, decoded) as u32;
         *word = (*word & !(0xff << shift)) | (recoded.min(code) << shift);
     }
-}
-
-/// Spheres a grid's relative radius words can hold.
-fn relative_radius_words_spheres(radius_words: &[u32]) -> usize {
-    1 + 4 * (radius_words.len() - 1)
 }
 
 /// The smallest byte whose [`relative_radius`] of `root` is not below `r` (`r <= root`).
@@ -297,7 +287,7 @@ mod tests {
         let root = f32::from_bits(into[0]);
         assert!(radii.iter().all(|&r| r <= root), "the root grows to the largest radius");
         for (k, &r) in radii.iter().enumerate().skip(1) {
-            let back = relative_radius(root, into[1 + (k - 1) / 4], ((k - 1) % 4) as u32);
+            let back = relative_radius_at(into.as_slice(), 0, k as u32);
             assert!(back >= r && back <= r + root / 255.0 * 1.001, "{r} decoded as {back}");
         }
     }
