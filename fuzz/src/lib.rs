@@ -154,7 +154,11 @@ fn decode(data: &[u8]) -> (Plan, Mesh, Bytes<'_>) {
         crease_angle: (detail >> 4 != 0).then_some((detail >> 4) as f32 * 12.0 - 6.0),
         quantized: flags & 8 != 0,
         options: GridOptions {
-            radii: if flags & 16 != 0 { RadiusFormat::Relative } else { RadiusFormat::Half },
+            radii: if flags & 16 != 0 {
+                RadiusFormat::Relative
+            } else {
+                RadiusFormat::Half
+            },
             leaf_footprint: flags & 32 == 0,
             excluded_levels: 1 + (flags >> 6) as u32 % 3,
             compact_top: detail & 8 != 0,
