@@ -3,10 +3,12 @@
 //!
 //! Every kernel exists twice: reading each scene buffer from one binding, and reading a scene
 //! split into chunks (descriptor set 1, see `gridrt_shared::buffer`) when a buffer is larger
-//! than one binding may be. Both run the same traversal.
+//! than one binding may be. Both run the same traversal. Grids of compressed displacement
+//! values have kernels of their own, the only ones that carry their decoder, and are never
+//! split.
 #![cfg_attr(target_arch = "spirv", no_std)]
 
-use gridrt_shared::buffer::{Buffer, Chunks, Split};
+use gridrt_shared::buffer::{Buffer, Chunks, CompressedWords, Split};
 use gridrt_shared::cost::Uncounted;
 use gridrt_shared::glam::{UVec3, Vec3};
 use gridrt_shared::grid_traverse::{leaf_test_class, GridScene, OneVisitGrids};
@@ -147,11 +149,11 @@ macro_rules! triangle_image_kernels {
     };
 }
 
-/// Declares the two kernels that colour a frame's pixels of grid primitives by `$pixel`, each
-/// grid walked as `$walk` wraps the scene (see [`stacked`]), reading whole buffers and a split
-/// scene.
-macro_rules! grid_image_kernels {
-    ($pixel:path, $walk:path: $name:ident, $split:ident) => {
+/// Declares a kernel that colours a frame's pixels of grid primitives by `$pixel`, each grid
+/// walked as `$walk` wraps the scene (see [`stacked`]), its words read as `$words` wraps them
+/// (see [`whole`]), each buffer from one binding.
+macro_rules! grid_image_kernel {
+    ($pixel:path, $walk:path, $words:path: $name:ident) => {
         /// Grid primitives: top-level BVH over grids, sphere hierarchy inside each.
         #[allow(clippy::too_many_arguments)] // one per binding
         #[spirv(compute(threads(8, 8, 1)))]
@@ -168,8 +170,8 @@ macro_rules! grid_image_kernels {
             if let Some(i) = tile_index(id, frame) {
                 let scene = GridScene {
                     headers,
-                    vertices,
-                    radii,
+                    vertices: $words(vertices),
+                    radii: $words(radii),
                     micro_triangles,
                     params: frame.grid,
                 };
@@ -182,6 +184,14 @@ macro_rules! grid_image_kernels {
                 );
             }
         }
+    };
+}
+
+/// Declares the two kernels that colour a frame's pixels of grid primitives by `$pixel`, each
+/// grid walked as `$walk` wraps the scene, reading whole buffers and a split scene.
+macro_rules! grid_image_kernels {
+    ($pixel:path, $walk:path: $name:ident, $split:ident) => {
+        grid_image_kernel!($pixel, $walk, whole: $name);
 
         split_kernel! {
             /// Grid primitives over a split scene.
@@ -207,6 +217,12 @@ fn stacked<S>(scene: S) -> S {
     scene
 }
 
+/// A scene's words read as they are: every format but compressed values, whose kernels read
+/// them as [`CompressedWords`] and so carry the decoder (split scenes never hold them).
+fn whole(words: &[u32]) -> &[u32] {
+    words
+}
+
 // Pictures, and the cost heat map's counts (packed `Costs` per pixel, coloured on the host).
 // Grids whose hierarchies one visit walks (`GridParams::one_visit`) have kernels of their
 // own, without the stack; the heat map's counts are the same either way.
@@ -215,6 +231,9 @@ grid_image_kernels!(render_pixel, stacked: render_grids, render_grids_split);
 grid_image_kernels!(render_pixel, OneVisitGrids: render_grids_one_visit, render_grids_one_visit_split);
 triangle_image_kernels!(cost_pixel: cost_triangles, cost_triangles_split);
 grid_image_kernels!(cost_pixel, stacked: cost_grids, cost_grids_split);
+grid_image_kernel!(render_pixel, stacked, CompressedWords: render_grids_compressed);
+grid_image_kernel!(render_pixel, OneVisitGrids, CompressedWords: render_grids_one_visit_compressed);
+grid_image_kernel!(cost_pixel, stacked, CompressedWords: cost_grids_compressed);
 
 /// A list of rays against the baseline (benchmarks, and anything that brings its own rays).
 #[spirv(compute(threads(64, 1, 1)))]
@@ -250,10 +269,10 @@ split_kernel! {
     }
 }
 
-/// Declares the two kernels that trace a list of rays against grid primitives, each grid
-/// walked as `$walk` wraps the scene, reading whole buffers and a split scene.
-macro_rules! grid_ray_kernels {
-    ($walk:path: $name:ident, $split:ident) => {
+/// Declares a kernel that traces a list of rays against grid primitives, each grid walked as
+/// `$walk` wraps the scene, its words read as `$words` wraps them, each buffer from one binding.
+macro_rules! grid_ray_kernel {
+    ($walk:path, $words:path: $name:ident) => {
         /// A list of rays against grid primitives.
         #[allow(clippy::too_many_arguments)] // one per binding
         #[spirv(compute(threads(64, 1, 1)))]
@@ -271,14 +290,22 @@ macro_rules! grid_ray_kernels {
             if let Some(i) = ray_index(id, params) {
                 let scene = GridScene {
                     headers,
-                    vertices,
-                    radii,
+                    vertices: $words(vertices),
+                    radii: $words(radii),
                     micro_triangles,
                     params: params.grid,
                 };
                 hits[i] = trace_record(TopNodes::new(nodes), &$walk(scene), &rays[i]);
             }
         }
+    };
+}
+
+/// Declares the two kernels that trace a list of rays against grid primitives, each grid
+/// walked as `$walk` wraps the scene, reading whole buffers and a split scene.
+macro_rules! grid_ray_kernels {
+    ($walk:path: $name:ident, $split:ident) => {
+        grid_ray_kernel!($walk, whole: $name);
 
         split_kernel! {
             /// A list of rays against grid primitives over a split scene.
@@ -302,6 +329,8 @@ macro_rules! grid_ray_kernels {
 
 grid_ray_kernels!(stacked: trace_grids_rays, trace_grids_rays_split);
 grid_ray_kernels!(OneVisitGrids: trace_grids_rays_one_visit, trace_grids_rays_one_visit_split);
+grid_ray_kernel!(stacked, CompressedWords: trace_grids_rays_compressed);
+grid_ray_kernel!(OneVisitGrids, CompressedWords: trace_grids_rays_one_visit_compressed);
 
 // The workgroup sizes are literals because attribute arguments cannot name constants; one
 // group of `order_leaf_classes` covers every class.

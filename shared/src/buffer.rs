@@ -19,6 +19,12 @@ pub trait Buffer<T>: Copy {
     /// grids) is left out of their kernels at compile time.
     const SPLIT: bool = false;
 
+    /// Whether code reading this buffer carries the decoder of compressed displacement values
+    /// (see `crate::compressed_values`). Natively always; a GPU kernel only when it reads its
+    /// words as [`CompressedWords`], since a decoder that no ray of a kernel runs still costs
+    /// SIMD hardware that runs both sides of a branch.
+    const DECODES_COMPRESSED: bool = !cfg!(target_arch = "spirv");
+
     fn load(self, index: u32) -> T;
     fn is_empty(self) -> bool;
 
@@ -58,6 +64,30 @@ impl<T: Copy, const N: usize> Buffer<T> for &[T; N] {
     #[inline(always)]
     fn is_empty(self) -> bool {
         N == 0
+    }
+}
+
+/// The words of a scene of compressed displacement values, each buffer whole: a GPU kernel
+/// that reads its scene through this type decodes them (see [`Buffer::DECODES_COMPRESSED`]).
+#[derive(Copy, Clone)]
+pub struct CompressedWords<'a>(pub &'a [u32]);
+
+impl Buffer<u32> for CompressedWords<'_> {
+    const DECODES_COMPRESSED: bool = true;
+
+    #[inline(always)]
+    fn load(self, index: u32) -> u32 {
+        self.0.load(index)
+    }
+
+    #[inline(always)]
+    fn load3(self, first: u32) -> [u32; 3] {
+        self.0.load3(first)
+    }
+
+    #[inline(always)]
+    fn is_empty(self) -> bool {
+        self.0.is_empty()
     }
 }
 

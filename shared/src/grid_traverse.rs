@@ -287,12 +287,12 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     }
 
     /// Whether the grids hold compressed values, which the traversal decodes a sub-triangle
-    /// at a time rather than a point at a time (on the CPU only, for now).
+    /// at a time rather than a point at a time. Only kernels built for them carry the decoder
+    /// (see `Buffer::DECODES_COMPRESSED`): lavapipe runs the code of a branch that none of its
+    /// rays takes, so the decoder's loops at every vertex read slowed every grid kernel.
     #[inline(always)]
     fn compressed(&self) -> bool {
-        // Left out of the GPU kernels for now: lavapipe runs the code of a branch that none of
-        // its rays takes, so the decoder's loops at every vertex read slowed every grid kernel.
-        !W::SPLIT && !cfg!(target_arch = "spirv") && self.params.displaced == DISPLACED_COMPRESSED
+        !W::SPLIT && W::DECODES_COMPRESSED && self.params.displaced == DISPLACED_COMPRESSED
     }
 
     /// Position of lattice point `p` of an opened grid whose vertices or values are stored

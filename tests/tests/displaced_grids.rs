@@ -12,7 +12,7 @@ use gridrt::image_io::fraction_within;
 use gridrt::pipeline::{BuildOptions, Representation};
 use gridrt::scene::{render_cpu, Scene};
 use gridrt_shared::glam::Vec3;
-use gridrt_shared::layout::SHADE_EYE_LIGHT;
+use gridrt_shared::layout::{RayRecord, NO_HIT, SHADE_EYE_LIGHT};
 use gridrt_shared::ray::{Ray, T_FAR};
 use gridrt_tests::{bumpy_ball, gpu_or_skip, Rng};
 
@@ -135,8 +135,7 @@ fn shared_edges_of_displaced_grids_do_not_leak() {
 }
 
 /// The GPU decodes what the CPU does: the pictures agree (see gpu_vs_cpu.rs for the
-/// tolerance), at the full depth and a coarser level of detail. Grids of compressed values
-/// are refused by the GPU backend, on one line, for now.
+/// tolerance), at the full depth and a coarser level of detail, in every value format.
 #[test]
 fn displaced_grids_gpu_equals_cpu() {
     let Some(gpu) = gpu_or_skip("displaced_grids_gpu_equals_cpu") else {
@@ -146,14 +145,6 @@ fn displaced_grids_gpu_equals_cpu() {
         let grids = build(&mesh, Representation::Grids, Some(lod));
         let frame = grids.frame(camera::frame(&grids.bounds(), 256, 192), SHADE_EYE_LIGHT);
         let cpu = render_cpu(&grids, &frame);
-        if variant == "compressed" {
-            let refused = gpu.render(&grids, &frame).unwrap_err().to_string();
-            assert!(
-                refused.contains("CPU backend only") && !refused.contains('\n'),
-                "{refused}"
-            );
-            continue;
-        }
         let on_gpu = gpu.render(&grids, &frame).expect("GPU render");
         let within = fraction_within(&cpu, &on_gpu, 2);
         eprintln!(
@@ -161,5 +152,65 @@ fn displaced_grids_gpu_equals_cpu() {
             100.0 * within
         );
         assert!(within >= 0.995, "{variant} lod {lod}: {within}");
+    }
+}
+
+/// The ray-list kernels find the hits the CPU does, in every value format, walked by the
+/// root's visit alone (L = 3) and with the stack (L = 4). The two-phase schedule, whose
+/// kernels leave the decoder of compressed values out, refuses them on one line.
+#[test]
+fn displaced_ray_lists_gpu_equal_cpu() {
+    let Some(gpu) = gpu_or_skip("displaced_ray_lists_gpu_equal_cpu") else {
+        return;
+    };
+    use gridrt::rays::{primary_rays, trace_cpu};
+    for (variant, mesh) in [3, 4].into_iter().flat_map(variants) {
+        let levels = mesh.uniform_level().unwrap();
+        let grids = build(&mesh, Representation::Grids, None);
+        let primary = primary_rays(&grids.bounds(), 2, 96, 64);
+        // From all around the ball, at points in its box (a convex ball's own occlusion rays
+        // would hit nothing).
+        let mut rng = Rng::new(levels as u64);
+        let b = grids.bounds();
+        let around: Vec<RayRecord> = (0..4096)
+            .map(|_| {
+                let origin = (b.min + b.max) * 0.5 + rng.direction() * (b.max - b.min).length();
+                let dir = (rng.point_in(&b) - origin).normalize();
+                RayRecord {
+                    origin: origin.to_array(),
+                    t_max: T_FAR,
+                    dir: dir.to_array(),
+                    _pad: 0,
+                }
+            })
+            .collect();
+        let uploaded = gpu.upload(&grids).unwrap();
+        if variant == "compressed" && levels == 3 {
+            let refused = gpu
+                .time_trace_two_phase(&uploaded, &primary, 1)
+                .unwrap_err()
+                .to_string();
+            assert!(
+                refused.contains("compressed values") && !refused.contains('\n'),
+                "{refused}"
+            );
+        }
+        for (kind, rays) in [("primary", &primary), ("around", &around)] {
+            let cpu = trace_cpu(&grids, rays);
+            let on_gpu = gpu.trace(&uploaded, rays).unwrap();
+            let same = (cpu.iter().zip(&on_gpu))
+                .filter(|(a, b)| a.prim == b.prim && (a.t - b.t).abs() <= 1e-4 * a.t.abs().max(1e-6))
+                .count();
+            let hits = cpu.iter().filter(|h| h.prim != NO_HIT).count();
+            eprintln!(
+                "{variant} L{levels} {kind}: {} rays, {hits} hits, {same} the same on the GPU",
+                rays.len()
+            );
+            assert!(hits > rays.len() / 10, "{variant} L{levels} {kind}: {hits} hits");
+            assert!(
+                same * 1000 >= rays.len() * 999,
+                "{variant} L{levels} {kind}: {same} the same"
+            );
+        }
     }
 }

@@ -56,10 +56,10 @@ pub struct Gpu {
     pub adapter: wgpu::AdapterInfo,
     module: wgpu::ShaderModule,
     whole: Kernels,
-    /// The kernels for split scenes and the heat map's, each made the first time it runs: the
-    /// split ones bind more buffers than some adapters allow, and all take drivers long to
-    /// compile.
-    on_demand: [std::sync::OnceLock<wgpu::ComputePipeline>; 10],
+    /// The kernels for split scenes, grids of compressed values and the heat map's, each made
+    /// the first time it runs: the split ones bind more buffers than some adapters allow, and
+    /// all take drivers long to compile.
+    on_demand: [std::sync::OnceLock<wgpu::ComputePipeline>; 15],
     /// The two-phase schedule's kernels, made on first use.
     two_phase: std::sync::OnceLock<two_phase::Kernels>,
     /// Most workgroups the two-phase schedule's finish launches (see
@@ -237,10 +237,20 @@ impl Gpu {
         Ok(())
     }
 
-    /// A kernel made on first use: any for a split scene, or the heat map's.
+    /// A kernel made on first use: any for a split scene or grids of compressed values, or
+    /// the heat map's.
     fn on_demand_pipeline(&self, scene: &Scene, job: Job, split: bool) -> Result<&wgpu::ComputePipeline> {
         let one_visit = matches!(scene, Scene::Grids(s) if s.params.one_visit());
+        let compressed = is_compressed(scene);
         let (index, entry) = match (scene, job, split) {
+            // Never split: `crate::split` refuses displaced grids that need it.
+            (Scene::Grids(_), Job::Render, _) if compressed && one_visit => (10, "render_grids_one_visit_compressed"),
+            (Scene::Grids(_), Job::Trace, _) if compressed && one_visit => {
+                (11, "trace_grids_rays_one_visit_compressed")
+            }
+            (Scene::Grids(_), Job::Render, _) if compressed => (12, "render_grids_compressed"),
+            (Scene::Grids(_), Job::Trace, _) if compressed => (13, "trace_grids_rays_compressed"),
+            (Scene::Grids(_), Job::Cost, _) if compressed => (14, "cost_grids_compressed"),
             (Scene::Triangles(_), Job::Render, _) => (0, "render_triangles_split"),
             (Scene::Triangles(_), Job::Trace, _) => (1, "trace_triangles_rays_split"),
             (Scene::Grids(_), Job::Render, _) if one_visit => (8, "render_grids_one_visit_split"),
@@ -328,14 +338,6 @@ impl Gpu {
     /// all of them in chunks (see [`crate::split`]). What cannot be bound is refused, naming
     /// the buffers and this adapter's limits, before anything is uploaded.
     pub fn upload<'a>(&self, scene: &'a Scene) -> Result<GpuScene<'a>> {
-        if let Scene::Grids(grids) = scene {
-            if grids.params.displaced == DISPLACED_COMPRESSED {
-                fail!(
-                    Options,
-                    "grids of compressed values are traced on the CPU backend only (--backend cpu), for now"
-                );
-            }
-        }
         let buffers = scene_buffers(scene);
         let statics = match scene {
             Scene::Triangles(_) => vec![],
@@ -376,6 +378,7 @@ impl Gpu {
         };
         Ok(match job {
             _ if scene.is_split() => self.on_demand_pipeline(scene.scene, job, true)?,
+            _ if is_compressed(scene.scene) => self.on_demand_pipeline(scene.scene, job, false)?,
             Job::Render => &kernels.render,
             Job::Trace => &kernels.trace,
             Job::Cost => self.on_demand_pipeline(scene.scene, job, false)?,
@@ -619,6 +622,11 @@ struct Queries {
     set: wgpu::QuerySet,
     resolve: wgpu::Buffer,
     readback: wgpu::Buffer,
+}
+
+/// Whether `scene` is of grids of compressed values, which only kernels of their own decode.
+fn is_compressed(scene: &Scene) -> bool {
+    matches!(scene, Scene::Grids(g) if g.params.displaced == DISPLACED_COMPRESSED)
 }
 
 /// The pipeline of kernel `entry`, its layout taken from the shader.
