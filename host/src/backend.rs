@@ -5,7 +5,7 @@
 use std::time::Instant;
 
 use crate::error::Result;
-use gridrt_shared::layout::{Camera, FrameParams, HitRecord, RayRecord};
+use gridrt_shared::layout::{Camera, FrameParams, HitRecord, RayRecord, DISPLACED_COMPRESSED};
 use gridrt_shared::shade::{ao_accumulate, ao_pixel};
 use rayon::prelude::*;
 
@@ -19,6 +19,19 @@ use crate::scene::{render_cpu, Scene};
 
 /// Most ambient-occlusion samples per pixel one render pass casts.
 pub const AO_SAMPLES_PER_PASS: u32 = 8;
+
+/// [`AO_SAMPLES_PER_PASS`] for grids of compressed values. Lavapipe ends a kernel's loops once
+/// all of them together have run 65535 times in one invocation, silently; decoding values
+/// runs loops of its own, and a pixel of deep grids that casts eight rays can reach that.
+pub const AO_SAMPLES_PER_PASS_COMPRESSED: u32 = 2;
+
+/// Most ambient-occlusion samples per pixel one render pass of `scene` casts.
+pub fn ao_samples_per_pass(scene: &Scene) -> u32 {
+    match scene {
+        Scene::Grids(g) if g.params.displaced == DISPLACED_COMPRESSED => AO_SAMPLES_PER_PASS_COMPRESSED,
+        _ => AO_SAMPLES_PER_PASS,
+    }
+}
 
 /// Which backend to open.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -182,7 +195,7 @@ impl Backend {
 
     /// [`Backend::render`], calling `progress(samples)` with the ambient-occlusion samples per
     /// pixel cast so far after each pass (ambient occlusion is rendered progressively, at most
-    /// [`AO_SAMPLES_PER_PASS`] samples a pass, so no one dispatch runs long).
+    /// [`ao_samples_per_pass`] samples a pass, so no one dispatch runs long).
     pub fn render_reporting(
         &self,
         scene: &Scene,
@@ -209,16 +222,17 @@ impl Backend {
         })
     }
 
-    /// Ambient occlusion in passes of at most [`AO_SAMPLES_PER_PASS`] samples per pixel, the
+    /// Ambient occlusion in passes of at most [`ao_samples_per_pass`] samples per pixel, the
     /// open rays of each pixel added up over them, then coloured.
     fn render_ambient_occlusion(&self, scene: &Scene, frame: &FrameParams, progress: &dyn Fn(u32)) -> Result<Vec<u32>> {
         let samples = frame.ao_samples;
-        let passes: Vec<FrameParams> = (0..samples.div_ceil(AO_SAMPLES_PER_PASS).max(1))
+        let per_pass = ao_samples_per_pass(scene);
+        let passes: Vec<FrameParams> = (0..samples.div_ceil(per_pass).max(1))
             .map(|k| {
-                let first = k * AO_SAMPLES_PER_PASS;
+                let first = k * per_pass;
                 FrameParams {
                     ao_first_sample: first,
-                    ao_samples: AO_SAMPLES_PER_PASS.min(samples - first),
+                    ao_samples: per_pass.min(samples - first),
                     ..*frame
                 }
             })

@@ -33,6 +33,8 @@ use crate::layout::GridIds;
 pub const SHIFT_BITS: u32 = 4;
 /// Bits of a correction's width for one level, in [`ValueCode::widths`].
 pub const WIDTH_BITS: u32 = 4;
+/// The deepest level a code describes.
+pub const MAX_LEVELS: u32 = 6;
 /// Bits of a plain value (a corner).
 pub const VALUE_BITS: u32 = 11;
 /// The largest value.
@@ -108,14 +110,18 @@ impl ValueCode {
     /// begin: after the shifts and the coarser levels.
     #[inline]
     fn level_bit(&self, l: u32, edge: bool) -> u32 {
-        let mut bit = self.shift_bits();
-        let mut k = 1;
-        while k < l {
+        // Unrolled over the [`MAX_LEVELS`] levels a code may have, rather than a loop up to `l`: every decoded
+        // value asks for it, and lavapipe ends a kernel's loops once all of them together
+        // have run 65535 times in one invocation, which a loop here used up on deep grids.
+        let term = |k: u32| {
             let count = if edge { edge_new_count(k) } else { inner_new_count(k) };
-            bit += count * self.width(k);
-            k += 1;
-        }
-        bit
+            if k < l {
+                count * self.width(k)
+            } else {
+                0
+            }
+        };
+        self.shift_bits() + term(1) + term(2) + term(3) + term(4) + term(5) + term(6)
     }
 
     /// Bits of a grid's block.

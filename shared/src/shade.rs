@@ -1,6 +1,6 @@
 use crate::buffer::Buffer;
 use crate::camera::primary_ray;
-use crate::cost::Costs;
+use crate::cost::{Costs, Uncounted};
 use crate::glam::Vec3;
 use crate::layout::{
     BvhNode, Camera, FrameParams, Hit, AO_MISS, AO_OPEN_MASK, SHADE_AMBIENT_OCCLUSION, SHADE_DEPTH, SHADE_LEVEL,
@@ -8,7 +8,7 @@ use crate::layout::{
 };
 use crate::ray::{Ray, T_FAR};
 use crate::sample::{cosine_direction, hash, orthonormal_basis, unit_float};
-use crate::traverse::{trace, trace_tallied, LeafPrimitives};
+use crate::traverse::{closest_hit, trace_tallied, with_normal, LeafPrimitives};
 // On the GPU, float methods come from a trait (GLSL.std.450 underneath); natively from core.
 #[cfg(target_arch = "spirv")]
 use spirv_std::num_traits::Float;
@@ -155,8 +155,10 @@ pub fn render_pixel<N: Buffer<BvhNode>, P: LeafPrimitives>(
     // the same ones.
     let mut k = 0u32;
     loop {
-        let hit = trace(nodes, prims, &ray, t_max);
+        // Occlusion rays ask only whether they hit: no normal.
+        let mut hit = closest_hit(nodes, prims, &ray, t_max, &mut Uncounted);
         if k == 0 {
+            hit = with_normal(prims, hit);
             // One call site of the smooth normal, whatever the mode: a shader inlines each.
             let mut lit = hit;
             if frame.smooth_normals != 0 && hit.is_hit() {

@@ -53,7 +53,12 @@ pub fn trace_tallied<N: Buffer<BvhNode>, P: LeafPrimitives, T: Tally>(
     t_max: f32,
     tally: &mut T,
 ) -> Hit {
-    let mut hit = closest_hit(nodes, prims, ray, t_max, tally);
+    with_normal(prims, closest_hit(nodes, prims, ray, t_max, tally))
+}
+
+/// `hit` with its triangle's normal, if it is a hit.
+#[inline]
+pub fn with_normal<P: LeafPrimitives>(prims: &P, mut hit: Hit) -> Hit {
     if hit.is_hit() {
         let [a, b, c] = prims.triangle(hit.prim, hit.level);
         hit.normal = triangle_normal(a, b, c).to_array();

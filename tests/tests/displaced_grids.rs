@@ -3,13 +3,14 @@
 //! closest hits, no leaks at shared edges and corners, and the same pictures on the GPU and
 //! the CPU.
 
+use gridrt::backend::Backend;
 use gridrt::bake::{bake, BakeOptions, Base};
 use gridrt::bvh::Aabb;
 use gridrt::camera;
 use gridrt::displaced::DisplacedMesh;
 use gridrt::grid::compressed::{compress, ValueCompression};
 use gridrt::image_io::fraction_within;
-use gridrt::pipeline::{BuildOptions, Representation};
+use gridrt::pipeline::{BuildOptions, RenderOptions, Representation, Shading};
 use gridrt::scene::{render_cpu, Scene};
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::layout::{RayRecord, NO_HIT, SHADE_EYE_LIGHT};
@@ -163,7 +164,7 @@ fn displaced_ray_lists_gpu_equal_cpu() {
     let Some(gpu) = gpu_or_skip("displaced_ray_lists_gpu_equal_cpu") else {
         return;
     };
-    use gridrt::rays::{primary_rays, trace_cpu};
+    use gridrt::rays::{ao_rays, primary_rays, trace_cpu};
     for (variant, mesh) in [3, 4].into_iter().flat_map(variants) {
         let levels = mesh.uniform_level().unwrap();
         let grids = build(&mesh, Representation::Grids, None);
@@ -184,6 +185,8 @@ fn displaced_ray_lists_gpu_equal_cpu() {
                 }
             })
             .collect();
+        let first = trace_cpu(&grids, &primary);
+        let ao = ao_rays(&primary, &first, 4, &b, |p| grids.normal(p));
         let uploaded = gpu.upload(&grids).unwrap();
         if variant == "compressed" && levels == 3 {
             let refused = gpu
@@ -195,7 +198,7 @@ fn displaced_ray_lists_gpu_equal_cpu() {
                 "{refused}"
             );
         }
-        for (kind, rays) in [("primary", &primary), ("around", &around)] {
+        for (kind, rays) in [("primary", &primary), ("around", &around), ("ao", &ao)] {
             let cpu = trace_cpu(&grids, rays);
             let on_gpu = gpu.trace(&uploaded, rays).unwrap();
             let same = (cpu.iter().zip(&on_gpu))
@@ -206,11 +209,38 @@ fn displaced_ray_lists_gpu_equal_cpu() {
                 "{variant} L{levels} {kind}: {} rays, {hits} hits, {same} the same on the GPU",
                 rays.len()
             );
-            assert!(hits > rays.len() / 10, "{variant} L{levels} {kind}: {hits} hits");
+            assert!(
+                kind == "ao" || hits > rays.len() / 10,
+                "{variant} L{levels} {kind}: {hits} hits"
+            );
             assert!(
                 same * 1000 >= rays.len() * 999,
                 "{variant} L{levels} {kind}: {same} the same"
             );
         }
+    }
+}
+
+/// Lit pictures (sixteen occlusion rays a pixel, in passes) agree on the GPU and the CPU in
+/// every value format, on grids deep enough that a pixel's decoding runs long loops.
+#[test]
+fn displaced_occlusion_gpu_equals_cpu() {
+    let Some(gpu) = gpu_or_skip("displaced_occlusion_gpu_equals_cpu") else {
+        return;
+    };
+    let gpu = Backend::Gpu(Box::new(gpu));
+    for (variant, mesh) in variants(4) {
+        let grids = build(&mesh, Representation::Grids, None);
+        let view = camera::frame(&grids.bounds(), 96, 72);
+        let options = RenderOptions {
+            shading: Shading::Lit,
+            ao_samples: 16,
+            ..RenderOptions::default()
+        };
+        let cpu = Backend::CPU.render(&grids, &view, &options).unwrap();
+        let on_gpu = gpu.render(&grids, &view, &options).unwrap();
+        let within = fraction_within(&cpu.pixels, &on_gpu.pixels, 2);
+        eprintln!("{variant} L4 lit: {:.3}% of pixels within 2/255", 100.0 * within);
+        assert!(within >= 0.995, "{variant}: {within}");
     }
 }
