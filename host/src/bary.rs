@@ -7,7 +7,10 @@
 //! are mandatory: the values (a `ValuesInfo` header then the values), the groups (triangle and
 //! value ranges, the subdivision levels used, and the bias and scale that map a stored value
 //! to a displacement) and the triangles (each its values' offset within its group, its
-//! subdivision level and a block format). Other properties are skipped when reading.
+//! subdivision level and a block format). Other properties are skipped when reading, except
+//! gridrt's own value code (see [`Micromap::value_code`]): the widths of the compressed code
+//! whose decoder gives exactly these values, so that a reader that knows the code traces them
+//! compressed, while any other reads the same values plain.
 //!
 //! What is supported: per-vertex scalar displacements as 11-bit unorm values, packed
 //! (`eR11_unorm_packed_align32`: each triangle's values one LSB-first bit stream over
@@ -20,6 +23,7 @@
 
 use crate::bit_writer::BitWriter;
 use crate::error::{error, fail, Result};
+use gridrt_shared::compressed_values::{ValueCode, MAX_LEVELS, VALUE_BITS, WIDTH_BITS};
 
 /// The version identifier every file starts with: "«BARY 00100»\r\n\x1A\n".
 pub const MAGIC: [u8; 16] = *b"\xABBARY 00100\xBB\r\n\x1A\n";
@@ -36,6 +40,10 @@ const TRIANGLE_BYTES: usize = 8;
 const VALUES_ID: [u32; 4] = [0xb44d_aa04, 0xc9e0_44d5, 0x9a94_4de0, 0xcfd8_fe35];
 const GROUPS_ID: [u32; 4] = [0x39ee_40d0, 0x9dc4_4517, 0x8e5a_b15d, 0xb09c_74bc];
 const TRIANGLES_ID: [u32; 4] = [0x0045_8e68, 0xee59_426c, 0xb3bf_1b7f, 0x749d_eb8e];
+/// gridrt's own property: a version word, then a [`ValueCode`]'s levels and widths.
+const VALUE_CODE_ID: [u32; 4] = [0x6772_6964, 0x7274_2d76, 0x616c_7565, 0x636f_6465];
+const VALUE_CODE_VERSION: u32 = 1;
+const VALUE_CODE_BYTES: usize = 12;
 
 const FORMAT_DISP_C1_BLOCK: u32 = 1_000_397_000;
 const FORMAT_R11_PACK16: u32 = 1_000_397_001;
@@ -54,6 +62,9 @@ pub struct Micromap {
     pub triangles: Vec<MicromapTriangle>,
     /// Every triangle's values, each triangle's in u-major order, back to back.
     pub values: Vec<u16>,
+    /// Set when the values are exactly those a compressed code of these widths decodes to
+    /// (see `crate::grid::compressed`): displaced grids then store them compressed.
+    pub value_code: Option<ValueCode>,
 }
 
 /// Consecutive triangles sharing one mapping of stored values to displacements.
@@ -92,8 +103,13 @@ impl Micromap {
         &self.values[first..first + values_per_triangle(triangle.level)]
     }
 
-    /// Appends `other`'s groups, triangles and values after this micromap's.
+    /// Appends `other`'s groups, triangles and values after this micromap's. The values keep
+    /// a compressed code only where both parts had the same one.
     pub fn append(&mut self, other: &Micromap) {
+        self.value_code = match self.triangles.is_empty() {
+            true => other.value_code,
+            false => self.value_code.filter(|_| self.value_code == other.value_code),
+        };
         let (triangles, values) = (self.triangles.len() as u32, self.values.len() as u32);
         self.groups.extend(other.groups.iter().map(|g| MicromapGroup {
             triangle_first: g.triangle_first + triangles,
@@ -204,13 +220,14 @@ pub fn read(bytes: &[u8]) -> Result<Micromap> {
             table.start
         );
     }
-    let (mut values, mut groups, mut triangles) = (None, None, None);
+    let (mut values, mut groups, mut triangles, mut code) = (None, None, None, None);
     for at in table.clone().step_by(PROPERTY_INFO_BYTES) {
         let id = [0, 4, 8, 12].map(|k| file.u32(at + k).unwrap_or(0));
         let slot = match id {
             VALUES_ID => &mut values,
             GROUPS_ID => &mut groups,
             TRIANGLES_ID => &mut triangles,
+            VALUE_CODE_ID => &mut code,
             _ => continue,
         };
         let name = property_name(id);
@@ -230,15 +247,59 @@ pub fn read(bytes: &[u8]) -> Result<Micromap> {
     let groups = groups.ok_or_else(|| missing("groups"))?;
     let triangles = triangles.ok_or_else(|| missing("triangles"))?;
     let stream = value_stream(&file, values)?;
-    decode(&file, &stream, groups, triangles)
+    let mut map = decode(&file, &stream, groups, triangles)?;
+    if let Some(code) = code {
+        map.value_code = value_code(&file, code, &map.triangles)?;
+    }
+    Ok(map)
 }
 
 fn property_name(id: [u32; 4]) -> &'static str {
     match id {
         VALUES_ID => "values",
         GROUPS_ID => "groups",
-        _ => "triangles",
+        TRIANGLES_ID => "triangles",
+        _ => "gridrt value code",
     }
+}
+
+/// gridrt's value code property, checked against the triangles' levels. A code of another
+/// version is skipped (the values read plain).
+fn value_code(
+    file: &Reader,
+    bytes: std::ops::Range<usize>,
+    triangles: &[MicromapTriangle],
+) -> Result<Option<ValueCode>> {
+    if bytes.len() < VALUE_CODE_BYTES {
+        fail!(Input, "its gridrt value code property has {} bytes", bytes.len());
+    }
+    if file.u32(bytes.start)? != VALUE_CODE_VERSION {
+        return Ok(None);
+    }
+    let code = ValueCode {
+        levels: file.u32(bytes.start + 4)?,
+        widths: file.u32(bytes.start + 8)?,
+    };
+    let fits = (0..=MAX_LEVELS).contains(&code.levels)
+        && code.widths >> (WIDTH_BITS * code.levels) == 0
+        && (1..=code.levels).all(|l| code.width(l) <= VALUE_BITS);
+    if !fits {
+        fail!(
+            Input,
+            "its gridrt value code property is damaged: levels {}, widths {:#x}",
+            code.levels,
+            code.widths
+        );
+    }
+    if let Some(t) = triangles.iter().position(|t| t.level != code.levels) {
+        fail!(
+            Input,
+            "its gridrt value code is for level {}, and triangle {t} is at level {}",
+            code.levels,
+            triangles[t].level
+        );
+    }
+    Ok(Some(code))
 }
 
 /// How the values are stored, and their bytes.
@@ -443,7 +504,7 @@ fn pack(values: &[u16], out: &mut Vec<u8>) {
 }
 
 /// The bytes of a `.bary` file holding `map`: packed 11-bit values (`eR11_unorm_packed_align32`),
-/// u-major, per vertex, its groups and triangles; no optional property.
+/// u-major, per vertex, its groups and triangles, and its value code if it has one.
 pub fn write(map: &Micromap) -> Vec<u8> {
     let mut values = Vec::new();
     let mut triangles = Vec::with_capacity(map.triangles.len() * TRIANGLE_BYTES);
@@ -481,7 +542,11 @@ pub fn write(map: &Micromap) -> Vec<u8> {
         4,
     ];
     let values: Vec<u8> = info.iter().flat_map(|w| w.to_le_bytes()).chain(values).collect();
-    let properties = [(VALUES_ID, values), (GROUPS_ID, groups), (TRIANGLES_ID, triangles)];
+    let mut properties = vec![(VALUES_ID, values), (GROUPS_ID, groups), (TRIANGLES_ID, triangles)];
+    if let Some(code) = map.value_code {
+        let words = [VALUE_CODE_VERSION, code.levels, code.widths];
+        properties.push((VALUE_CODE_ID, words.iter().flat_map(|w| w.to_le_bytes()).collect()));
+    }
     container(&properties)
 }
 
@@ -548,6 +613,40 @@ mod tests {
         let map = sample_map();
         let bytes = write(&map);
         assert_eq!(read(&bytes).unwrap(), map);
+    }
+
+    /// The value code travels in a property of its own, which leaves the standard ones as
+    /// they were: a reader that skips it reads the same values.
+    #[test]
+    fn a_value_code_reads_back_beside_the_same_values() {
+        let plain = Micromap::from_triangles(0.0, 1.0, &[(3, vec![5; 45]), (3, vec![9; 45])]);
+        let coded = Micromap {
+            value_code: Some(ValueCode {
+                levels: 3,
+                widths: 0x453,
+            }),
+            ..plain.clone()
+        };
+        let bytes = write(&coded);
+        assert_eq!(read(&bytes).unwrap(), coded);
+        let plain_bytes = write(&plain);
+        assert!(bytes.len() <= plain_bytes.len() + PROPERTY_INFO_BYTES + 8 + VALUE_CODE_BYTES);
+        // The code's property id changed: skipped like any unknown property.
+        let table = HEADER_BYTES + 3 * PROPERTY_INFO_BYTES;
+        let mut unknown = bytes.clone();
+        unknown[table] ^= 1;
+        assert_eq!(read(&unknown).unwrap(), plain);
+        let damaged = |at: usize, word: u32| {
+            let offset = u64::from_le_bytes(bytes[table + 16..table + 24].try_into().unwrap()) as usize;
+            let mut bytes = bytes.clone();
+            bytes[offset + at..offset + at + 4].copy_from_slice(&word.to_le_bytes());
+            read(&bytes).map_err(|e| e.to_string())
+        };
+        let e = damaged(4, 4).unwrap_err();
+        assert!(e.contains("value code is for level 4") && !e.contains('\n'), "{e}");
+        let e = damaged(8, 0xc00).unwrap_err();
+        assert!(e.contains("value code property is damaged"), "{e}");
+        assert_eq!(damaged(0, 2).unwrap(), plain, "a later version is skipped");
     }
 
     /// A file laid out by hand from the format's description, independently of `write`: one

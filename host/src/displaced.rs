@@ -10,7 +10,6 @@
 use crate::bary::Micromap;
 use crate::error::{fail, Result};
 use crate::mesh::Mesh;
-use gridrt_shared::compressed_values::ValueCode;
 use gridrt_shared::displacement::{displaced_point, u_major_index, unorm11_displacement, DisplacedTriangle};
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::grid_index::{grid_size, lattice_points, sub_triangle, triangle_count};
@@ -23,9 +22,6 @@ pub struct DisplacedMesh {
     pub directions: Vec<Vec3>,
     pub triangles: Vec<[u32; 3]>,
     pub micromap: Micromap,
-    /// Set when the values are exactly those a compressed code of these widths decodes to
-    /// (see [`crate::grid::compressed`]): displaced grids then store them compressed.
-    pub value_code: Option<ValueCode>,
 }
 
 /// The deepest subdivision level decoded.
@@ -126,7 +122,6 @@ impl DisplacedMesh {
                 }],
                 ..self.micromap.clone()
             },
-            value_code: self.value_code,
             ..Default::default()
         };
         // (vertex, bias bits, scale bits) -> folded vertex id
@@ -234,7 +229,6 @@ mod tests {
             directions,
             triangles,
             micromap: Micromap::from_triangles(-0.05, 0.2, &[(level, first), (level, second)]),
-            value_code: None,
         }
     }
 

@@ -132,7 +132,6 @@ mod tests {
             directions: vec![Vec3::Z, Vec3::new(0.0, 0.1, 1.0), Vec3::new(0.1, 0.0, 1.0)],
             triangles: vec![[0, 1, 2]],
             micromap: Micromap::from_triangles(-0.01, 0.02, &[(level, values)]),
-            value_code: None,
         }
     }
 

@@ -18,6 +18,10 @@ fn write_obj(path: &Path, mesh: &Mesh, offset: f64) {
     std::fs::write(path, text).unwrap();
 }
 
+fn o_str(path: &Path) -> &str {
+    path.to_str().unwrap()
+}
+
 fn json(args: &[&str]) -> serde_json::Value {
     let o = gridrt(args);
     assert!(o.status.success(), "gridrt {args:?}: {}", stderr(&o));
@@ -40,6 +44,11 @@ fn a_mesh_bakes_into_files_the_other_commands_read() {
     assert_eq!(report["reference_triangles"].as_u64().unwrap(), 8192);
     let rms = report["symmetric"]["rms"].as_f64().unwrap();
     assert!(rms < 1e-3, "{report}");
+    // Compressed by default, within a quarter more distance than the plain bake.
+    let compression = &report["compression"];
+    let plain_rms = compression["uncompressed_symmetric"]["rms"].as_f64().unwrap();
+    assert!(rms <= 1.25 * plain_rms, "{report}");
+    assert_eq!(compression["widths"].as_array().map(Vec::len), Some(3), "{report}");
     // The files as written: the distance `compare` measures is the one `bake` reported.
     for file in ["ball.gltf", "ball.bin", "ball.bary"] {
         assert!(dir.join(file).is_file(), "{file}");
@@ -87,6 +96,34 @@ fn a_mesh_bakes_into_files_the_other_commands_read() {
         "{bench}"
     );
     assert!(String::from_utf8_lossy(&o.stdout).contains("Against the mesh it was baked from, ball.obj"));
+
+    // The file says how its values compress: `stats` builds them compressed, and plain when
+    // asked, from the same values.
+    let grid_bytes = |extra: &[&str]| {
+        let mut args = vec!["stats", o_str(&out), "--json"];
+        args.extend(extra);
+        json(&args)["grid"]["bytes"].as_u64().unwrap()
+    };
+    assert_eq!(Some(grid_bytes(&[])), report["grid_bytes"].as_u64());
+    assert!(grid_bytes(&["--plain-values"]) > grid_bytes(&[]) * 11 / 10, "{report}");
+    let plain = dir.join("plain.gltf");
+    let plain_report = json(&[
+        "bake",
+        r,
+        "-L",
+        "3",
+        "-o",
+        o_str(&plain),
+        "--samples",
+        "20000",
+        "--plain-values",
+        "--json",
+    ]);
+    assert!(plain_report["compression"].is_null(), "{plain_report}");
+    assert_eq!(
+        plain_report["grid_bytes"].as_u64(),
+        Some(grid_bytes(&["--plain-values"]))
+    );
 
     // Onto a base the user made: the same ball, coarse.
     let base = dir.join("base.obj");

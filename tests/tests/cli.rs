@@ -1006,7 +1006,6 @@ fn displaced_micro_meshes_are_decoded_not_subdivided() {
         directions: vec![Vec3::Z; 4],
         triangles: vec![[0, 1, 2], [3, 2, 1]],
         micromap: Micromap::from_triangles(-0.1, 0.2, &[(level, first), (level, second)]),
-        value_code: None,
     };
     let gltf = dir.join("baked.gltf");
     gridrt::micromesh_gltf::write(&gltf, &mesh, &LocalFrame::IDENTITY).unwrap();

@@ -10,11 +10,13 @@ use super::progress::Stages;
 use super::BakeArgs;
 use gridrt::bake::refine::Refinement;
 use gridrt::bake::{self, BakeOptions, BakeReport, Base};
+use gridrt::displaced::DisplacedMesh;
+use gridrt::grid::compressed::{compress, ValueCompression};
 use gridrt::grid::{self, GridOptions};
 use gridrt::image_io;
 use gridrt::mesh;
 use gridrt::micromesh_gltf;
-use gridrt::surface_distance::{self, DistanceSummary, Sampling};
+use gridrt::surface_distance::{self, DistanceSummary, Sampling, SurfaceDistance};
 
 #[derive(Serialize)]
 struct Report {
@@ -32,11 +34,25 @@ struct Report {
     /// `None` where the micro-mesh is too large for displaced grids (rendered as triangles).
     grid_bytes: Option<u64>,
     bake_seconds: f64,
-    /// Distances between the decoded micro-mesh and the reference, as fractions of the
-    /// reference's bounding-box diagonal.
+    /// How the values were compressed; `None` where they were left plain.
+    compression: Option<CompressionReport>,
+    /// Distances between the decoded micro-mesh written and the reference, as fractions of
+    /// the reference's bounding-box diagonal.
     reference_to_baked: DistanceSummary,
     baked_to_reference: DistanceSummary,
     symmetric: DistanceSummary,
+}
+
+#[derive(Serialize)]
+struct CompressionReport {
+    /// Bits of a correction at each level, coarse to fine.
+    widths: Vec<u32>,
+    /// The bound asked for and the RMS error added over every value, as fractions of the
+    /// base mesh's bounding-box diagonal.
+    max_added_error: f32,
+    added_error: f32,
+    /// The symmetric distance before compression, as `symmetric` is given.
+    uncompressed_symmetric: DistanceSummary,
 }
 
 pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
@@ -72,19 +88,36 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
     let started = std::time::Instant::now();
     let baked = stages.run("bake", || bake::bake(&reference_mesh, &options))?;
     let bake_seconds = started.elapsed().as_secs_f64();
-    stages.run("write", || micromesh_gltf::write(&args.output, &baked.mesh, &frame))?;
-    let grids = grid::displaced::build(&baked.mesh, &GridOptions::for_displaced());
-    let grid_bytes = grids
-        .ok()
-        .map(|g| g.memory().iter().map(|&(_, bytes)| bytes as u64).sum());
     let sampling = Sampling {
         samples: args.samples,
         ..Sampling::default()
     };
-    let decoded = baked.mesh.decoded();
-    let d = stages.run("measure", || {
-        surface_distance::measure(&reference_mesh, &decoded, &sampling)
-    });
+    let measure = |stages: &mut Stages, mesh: &DisplacedMesh| {
+        let decoded = mesh.decoded();
+        stages.run("measure", || {
+            surface_distance::measure(&reference_mesh, &decoded, &sampling)
+        })
+    };
+    let plain = measure(stages, &baked.mesh);
+    let (mesh, compression, d) = match compression_bound(args, &baked.mesh, &plain) {
+        None => (baked.mesh, None, plain),
+        Some(options) => {
+            let compressed = stages.run("compress", || compress(&baked.mesh, &options))?;
+            let d = measure(stages, &compressed.mesh);
+            let report = CompressionReport {
+                widths: (1..=compressed.code.levels).map(|l| compressed.code.width(l)).collect(),
+                max_added_error: options.max_added_error,
+                added_error: compressed.added_error,
+                uncompressed_symmetric: plain.symmetric.relative_to(plain.a_diagonal),
+            };
+            (compressed.mesh, Some(report), d)
+        }
+    };
+    stages.run("write", || micromesh_gltf::write(&args.output, &mesh, &frame))?;
+    let grids = grid::displaced::build(&mesh, &GridOptions::for_displaced());
+    let grid_bytes = grids
+        .ok()
+        .map(|g| g.memory().iter().map(|&(_, bytes)| bytes as u64).sum());
     let bytes = |p: &Path| std::fs::metadata(p).map_or(0, |m| m.len());
     let report = Report {
         reference: args.reference.display().to_string(),
@@ -95,6 +128,7 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
         micromap_bytes: bytes(&outputs[2]),
         grid_bytes,
         bake_seconds,
+        compression,
         reference_to_baked: d.a_to_b.relative_to(d.a_diagonal),
         baked_to_reference: d.b_to_a.relative_to(d.a_diagonal),
         symmetric: d.symmetric.relative_to(d.a_diagonal),
@@ -106,6 +140,19 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
     }
     stages.report();
     Ok(())
+}
+
+/// How to compress the baked values: `None` to leave them plain (as asked, or at level 0,
+/// where a base triangle has its corners alone). The bound is the one asked for, or by
+/// default a share of the uncompressed bake's own distance from the reference.
+fn compression_bound(args: &BakeArgs, mesh: &DisplacedMesh, plain: &SurfaceDistance) -> Option<ValueCompression> {
+    if args.plain_values || args.levels == 0 {
+        return None;
+    }
+    Some(match args.compress_values {
+        Some(bound) => ValueCompression { max_added_error: bound },
+        None => ValueCompression::within(mesh, bake::COMPRESSION_ERROR_SHARE * plain.symmetric.rms as f32),
+    })
 }
 
 /// The glTF, its buffer and its micromap, checked before any work: writable, none of them an
@@ -139,9 +186,10 @@ fn summary(r: &Report) -> String {
          base: {} triangles, {} vertices; level {}: {} micro-triangles ({:.1} per reference triangle)\n\
          files: {} bytes, {:.2} B per micro-triangle (micromap {:.2} B)\n\
          displaced grids, all the GPU gets: {}\n\
-         bake: {:.2} s; {} of {} values ({:.3}%) met no surface within reach, {} ({:.3}%) were clamped\n\n\
+         bake: {:.2} s; {} of {} values ({:.3}%) met no surface within reach, {} ({:.3}%) were clamped\n\
+         {}\n\
          Distance to the reference, as fractions of its bounding-box diagonal:\n\n\
-         | from | RMS | 99th percentile | max |\n|---|---:|---:|---:|\n{}{}{}",
+         | from | RMS | 99th percentile | max |\n|---|---:|---:|---:|\n{}{}{}{}",
         r.reference,
         r.reference_triangles,
         r.output,
@@ -163,8 +211,20 @@ fn summary(r: &Report) -> String {
         share(b.misses),
         b.clamped,
         share(b.clamped),
+        match &r.compression {
+            Some(c) => format!(
+                "values: compressed to widths {:?} bits per level, adding {:.3e} of the base's diagonal (RMS, \
+                 bound {:.3e})\n",
+                c.widths, c.added_error, c.max_added_error
+            ),
+            None => "values: plain, 11 bits each\n".into(),
+        },
         row("reference to baked", &r.reference_to_baked),
         row("baked to reference", &r.baked_to_reference),
         row("both (symmetric)", &r.symmetric),
+        match &r.compression {
+            Some(c) => row("both, before compression", &c.uncompressed_symmetric),
+            None => String::new(),
+        },
     )
 }

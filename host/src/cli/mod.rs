@@ -225,8 +225,13 @@ pub struct BuildArgs {
     /// A displaced micro-mesh's values compressed (corrections to midpoint predictions, a
     /// width per level), adding at most this RMS error, as a fraction of the bounding-box
     /// diagonal. Grids and the triangles they are compared with both get the compressed values.
+    /// A micro-mesh baked by gridrt comes with its values compressed already.
     #[arg(long, value_name = "MAX_ADDED_ERROR", value_parser = parse_value_error)]
     pub compress_values: Option<f32>,
+    /// Store a displaced micro-mesh's values plain (11 bits each) in the grids, even where its
+    /// file says how to compress them.
+    #[arg(long, conflicts_with = "compress_values")]
+    pub plain_values: bool,
 }
 
 fn parse_value_error(s: &str) -> std::result::Result<f32, String> {
@@ -239,8 +244,12 @@ fn parse_value_error(s: &str) -> std::result::Result<f32, String> {
 }
 
 /// Compresses the values of `input`'s displaced micro-mesh when `build` asks for it, so
-/// everything after (grids, the baseline's triangles) traces the compressed surface.
+/// everything after (grids, the baseline's triangles) traces the compressed surface, or
+/// drops their code when it asks for them plain.
 pub fn compress_values(input: &mut Input, build: &BuildArgs) -> Result<()> {
+    if let (true, Some(micromesh)) = (build.plain_values, &mut input.micromesh) {
+        micromesh.micromap.value_code = None;
+    }
     let (Some(bound), Some(micromesh)) = (build.compress_values, &input.micromesh) else {
         return Ok(());
     };
@@ -618,6 +627,15 @@ pub struct BakeArgs {
     /// The glTF to write; its buffer (.bin) and micromap (.bary) go beside it.
     #[arg(long, short, default_value = "baked.gltf")]
     pub output: PathBuf,
+    /// Compress the values adding at most this RMS error, as a fraction of the base mesh's
+    /// bounding-box diagonal [default: half the uncompressed bake's own RMS distance from the
+    /// reference].
+    #[arg(long, value_name = "MAX_ADDED_ERROR", value_parser = parse_value_error, conflicts_with = "plain_values")]
+    pub compress_values: Option<f32>,
+    /// Leave the values uncompressed: 11 bits each in the displaced grids, and no value code
+    /// in the .bary (which holds the values plain either way, for any reader).
+    #[arg(long)]
+    pub plain_values: bool,
     /// Points sampled on each surface, by area, to measure the baked mesh's distance from
     /// the reference.
     #[arg(long, default_value_t = 1_000_000, value_parser = at_least_one())]

@@ -15,7 +15,9 @@
 //!   share the edge read that one block: the surface stays watertight.
 
 use crate::bit_writer::BitWriter;
-use gridrt_shared::compressed_values::{inner_new_count, ValueCode, SHIFT_BITS, VALUE_BITS, VALUE_MAX, WIDTH_BITS};
+use gridrt_shared::compressed_values::{
+    inner_new_count, ValueCode, MAX_LEVELS, SHIFT_BITS, VALUE_BITS, VALUE_MAX, WIDTH_BITS,
+};
 use gridrt_shared::displacement::{interpolated, u_major_index};
 use gridrt_shared::grid_index::{grid_size, Lattice};
 
@@ -43,6 +45,21 @@ impl Default for ValueCompression {
     }
 }
 
+impl ValueCompression {
+    /// A bound of `distance` in `mesh`'s own units.
+    pub fn within(mesh: &DisplacedMesh, distance: f32) -> ValueCompression {
+        ValueCompression {
+            max_added_error: distance / diagonal(&mesh.with_ranges_folded()),
+        }
+    }
+}
+
+/// The bounding-box diagonal of a folded micro-mesh's base, which bounds are relative to.
+fn diagonal(folded: &DisplacedMesh) -> f32 {
+    let (lo, hi) = folded.base_mesh().bounds();
+    (hi - lo).length().max(f32::MIN_POSITIVE)
+}
+
 /// A micro-mesh's values, compressed.
 #[derive(Clone, Debug)]
 pub struct CompressedMesh {
@@ -62,20 +79,17 @@ pub fn compress(mesh: &DisplacedMesh, options: &ValueCompression) -> Result<Comp
     };
     let folded = mesh.with_ranges_folded();
     let edges = BaseEdges::new(&folded.base_mesh());
-    let diagonal = {
-        let (lo, hi) = folded.base_mesh().bounds();
-        (hi - lo).length().max(f32::MIN_POSITIVE)
-    };
+    let diagonal = diagonal(&folded);
     let bound = options.max_added_error as f64 * diagonal as f64;
-    let mut widths = [MAX_WIDTH; 6];
-    let code = |w: &[u32; 6]| ValueCode {
+    let mut widths = [MAX_WIDTH; MAX_LEVELS as usize];
+    let code = |w: &[u32; MAX_LEVELS as usize]| ValueCode {
         levels,
         widths: (0..levels as usize).fold(0, |acc, l| acc | w[l] << (WIDTH_BITS * l as u32)),
     };
     let mut best = encode(&folded, &edges, code(&widths));
     loop {
         // The level whose narrower corrections add the least error per bit saved.
-        let mut choice: Option<(f64, [u32; 6], Encoded)> = None;
+        let mut choice: Option<(f64, [u32; MAX_LEVELS as usize], Encoded)> = None;
         for l in 0..levels as usize {
             if widths[l] == 0 {
                 continue;
@@ -105,7 +119,7 @@ pub fn compress(mesh: &DisplacedMesh, options: &ValueCompression) -> Result<Comp
             first_value: t * per_triangle,
         })
         .collect();
-    mesh.value_code = Some(code(&widths));
+    mesh.micromap.value_code = Some(code(&widths));
     Ok(CompressedMesh {
         added_error: (best.rms() / diagonal as f64) as f32,
         bits: best.bits,

@@ -11,7 +11,7 @@
 //! spheres enclose exactly the points the traversal computes. The micromap's ranges are
 //! folded into the base mesh first (see [`DisplacedMesh::with_ranges_folded`]).
 //!
-//! A micro-mesh whose values carry a compressed code ([`DisplacedMesh::value_code`]) is laid
+//! A micro-mesh whose values carry a compressed code ([`crate::bary::Micromap::value_code`]) is laid
 //! out the same way with blocks for values: each grid's block in whole words, then the base
 //! edges' blocks end to end and the corners' 11-bit values (see [`super::compressed`]).
 //!
@@ -94,7 +94,7 @@ pub fn layout(mesh: &DisplacedMesh, options: &GridOptions) -> Result<GridLayout>
         vertices.push(p.unwrap_or(Vec3::ZERO));
     }
 
-    let (inner_by_grid, shared) = match mesh.value_code {
+    let (inner_by_grid, shared) = match mesh.micromap.value_code {
         None => {
             let inner = grids * inner_count;
             let inner_by_grid = (0..grids)

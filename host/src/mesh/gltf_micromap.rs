@@ -64,7 +64,6 @@ impl DisplacedWorld {
             directions: directions.iter().map(|d| (*d * frame.scale).as_vec3()).collect(),
             triangles: base.triangles,
             micromap,
-            value_code: None,
         };
         (mesh, frame)
     }
@@ -251,6 +250,12 @@ impl Primitive<'_> {
         if mapping.as_ref().is_some_and(|m| m.len() < count) {
             fail!(Input, "its mapIndices hold fewer than its {count} triangles");
         }
+        // A compressed code describes each triangle's values on their own (the grids'
+        // layout checks them against it), so it holds for any selection of them.
+        out.value_code = match out.triangles.is_empty() {
+            true => map.value_code,
+            false => out.value_code.filter(|_| out.value_code == map.value_code),
+        };
         out.groups.push(MicromapGroup {
             triangle_first: out.triangles.len() as u32,
             triangle_count: count as u32,
@@ -302,7 +307,6 @@ mod tests {
             directions: vec![Vec3::Z, Vec3::new(0.0, 0.1, 1.0), Vec3::new(0.1, 0.0, 1.0), Vec3::Z],
             triangles: vec![[0, 1, 2], [1, 3, 2]],
             micromap: Micromap::from_triangles(-0.01, 0.02, &[(2, values(0, 2)), (1, values(7, 1))]),
-            value_code: None,
         }
     }
 
@@ -325,6 +329,33 @@ mod tests {
         let (local, _) = read.into_local();
         local.check().unwrap();
         assert_eq!(local.decoded().triangles.len(), 16 + 4);
+    }
+
+    /// A micro-mesh of compressed values reads back with their code, so its grids store them
+    /// compressed; read twice side by side it keeps the code, beside a plain copy it does not.
+    #[test]
+    fn a_value_code_reads_back() {
+        let mut mesh = sample();
+        let values = mesh.micromap.triangle_values(0).to_vec();
+        mesh.micromap = Micromap::from_triangles(-0.01, 0.02, &[(2, values.clone()), (2, values)]);
+        let options = crate::grid::compressed::ValueCompression { max_added_error: 1e-2 };
+        let compressed = crate::grid::compressed::compress(&mesh, &options).unwrap();
+        let (path, _) = crate::micromesh_gltf::write_far_from_origin(&compressed.mesh, "gltf-value-code");
+        let bytes = std::fs::read(&path).unwrap();
+        let read = parse_displaced(&bytes, path.parent()).unwrap().unwrap();
+        assert_eq!(read.micromap, compressed.mesh.micromap);
+        assert_eq!(read.micromap.value_code, Some(compressed.code));
+        let mut twice = read.clone();
+        twice.append(&read);
+        assert_eq!(twice.micromap.value_code, Some(compressed.code));
+        let (local, _) = twice.into_local();
+        let grids = crate::grid::displaced::build(&local, &crate::grid::GridOptions::for_displaced()).unwrap();
+        assert_eq!(grids.params.displaced, gridrt_shared::layout::DISPLACED_COMPRESSED);
+        let mut plain = read.clone();
+        plain.micromap.value_code = None;
+        let mut mixed = read.clone();
+        mixed.append(&plain);
+        assert_eq!(mixed.micromap.value_code, None);
     }
 
     /// A GLB laid out by hand: the micromap in a bufferView, its triangles taken in reverse
