@@ -701,6 +701,7 @@ mod tests {
             ("packed_levels_0_to_3.bary", vec![0, 1, 2, 3]),
             ("pack16_levels_1_2.bary", vec![1, 2]),
             ("uniform_level_3.bary", vec![3; 4]),
+            ("uniform_level_3_value_code.bary", vec![3; 4]),
         ] {
             let map = read(&std::fs::read(seeds.join(name)).unwrap()).unwrap_or_else(|e| panic!("{name}: {e}"));
             let read_levels: Vec<u32> = map.triangles.iter().map(|t| t.level).collect();
@@ -713,6 +714,8 @@ mod tests {
                 assert_eq!(map.triangle_values(k), expected, "{name} triangle {k}");
             }
             assert_eq!((map.groups[0].bias, map.groups[0].scale), (0.0, 1.0));
+            let code = map.value_code.map(|c| (c.levels, c.widths));
+            assert_eq!(code, name.contains("value_code").then_some((3, 0x456)), "{name}");
         }
     }
 
