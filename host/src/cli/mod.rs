@@ -740,8 +740,13 @@ pub fn load_all(paths: &[&Path]) -> Result<Input> {
             true => format!("level {}", d.max_level),
             false => format!("levels {} to {}", d.min_level, d.max_level),
         };
+        let code = input.micromesh.as_ref().and_then(|m| m.micromap.value_code);
+        let values = code.map_or(String::new(), |c| {
+            let widths: Vec<String> = (1..=c.levels).map(|l| c.width(l).to_string()).collect();
+            format!("; its values compress to widths [{}] bits per level", widths.join(", "))
+        });
         eprintln!(
-            "note: {}: a displaced micro-mesh of {} base triangles at {levels}, {} micro-triangles",
+            "note: {}: a displaced micro-mesh of {} base triangles at {levels}, {} micro-triangles{values}",
             input.name,
             d.base_triangles,
             input.mesh.triangles.len()
