@@ -5,7 +5,7 @@
 use std::time::Instant;
 
 use crate::error::Result;
-use gridrt_shared::layout::{Camera, FrameParams, HitRecord, RayRecord, DISPLACED_COMPRESSED};
+use gridrt_shared::layout::{Camera, FrameParams, HitRecord, RayRecord};
 use gridrt_shared::shade::{ao_accumulate, ao_pixel};
 use rayon::prelude::*;
 
@@ -27,9 +27,9 @@ pub const AO_SAMPLES_PER_PASS_COMPRESSED: u32 = 2;
 
 /// Most ambient-occlusion samples per pixel one render pass of `scene` casts.
 pub fn ao_samples_per_pass(scene: &Scene) -> u32 {
-    match scene {
-        Scene::Grids(g) if g.params.displaced == DISPLACED_COMPRESSED => AO_SAMPLES_PER_PASS_COMPRESSED,
-        _ => AO_SAMPLES_PER_PASS,
+    match scene.has_compressed_values() {
+        true => AO_SAMPLES_PER_PASS_COMPRESSED,
+        false => AO_SAMPLES_PER_PASS,
     }
 }
 

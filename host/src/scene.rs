@@ -3,7 +3,9 @@
 use gridrt_shared::buffer::Buffer;
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::grid_traverse::{self, trace_grids, OneVisitGrids};
-use gridrt_shared::layout::{BvhNode, Camera, FrameParams, GridHeader, GridParams, Hit, SHADE_COST};
+use gridrt_shared::layout::{
+    BvhNode, Camera, FrameParams, GridHeader, GridParams, Hit, DISPLACED_COMPRESSED, SHADE_COST,
+};
 use gridrt_shared::ray::{Ray, T_FAR};
 use gridrt_shared::shade::{cost_pixel, render_pixel};
 use gridrt_shared::traverse::trace_triangles;
@@ -42,6 +44,12 @@ impl Scene {
             tile_height: camera.height,
             ..Default::default()
         }
+    }
+
+    /// Whether the scene is of grids of compressed values, which only kernels of their own
+    /// decode on the GPU.
+    pub fn has_compressed_values(&self) -> bool {
+        matches!(self, Scene::Grids(g) if g.params.displaced == DISPLACED_COMPRESSED)
     }
 
     /// Bytes of everything the traversal reads.

@@ -105,7 +105,7 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
             let compressed = stages.run("compress", || compress(&baked.mesh, &options))?;
             let d = measure(stages, &compressed.mesh);
             let report = CompressionReport {
-                widths: (1..=compressed.code.levels).map(|l| compressed.code.width(l)).collect(),
+                widths: grid::compressed::level_widths(&compressed.code),
                 max_added_error: options.max_added_error,
                 added_error: compressed.added_error,
                 uncompressed_symmetric: plain.symmetric.relative_to(plain.a_diagonal),

@@ -253,16 +253,15 @@ pub fn compress_values(input: &mut Input, build: &BuildArgs) -> Result<()> {
     let (Some(bound), Some(micromesh)) = (build.compress_values, &input.micromesh) else {
         return Ok(());
     };
-    let Some(level) = micromesh.uniform_level() else {
+    if micromesh.uniform_level().is_none() {
         return Ok(());
-    };
+    }
     let options = grid::compressed::ValueCompression { max_added_error: bound };
     let compressed = grid::compressed::compress(micromesh, &options).map_err(|e| e.prefixed(&input.name))?;
-    let widths: Vec<String> = (1..=level).map(|l| compressed.code.width(l).to_string()).collect();
     eprintln!(
-        "note: {}: values compressed to widths [{}] bits per level, adding {:.3e} of the diagonal (RMS)",
+        "note: {}: values compressed to widths {:?} bits per level, adding {:.3e} of the diagonal (RMS)",
         input.name,
-        widths.join(", "),
+        grid::compressed::level_widths(&compressed.code),
         compressed.added_error
     );
     input.mesh = compressed.mesh.decoded_welded();
@@ -742,8 +741,8 @@ pub fn load_all(paths: &[&Path]) -> Result<Input> {
         };
         let code = input.micromesh.as_ref().and_then(|m| m.micromap.value_code);
         let values = code.map_or(String::new(), |c| {
-            let widths: Vec<String> = (1..=c.levels).map(|l| c.width(l).to_string()).collect();
-            format!("; its values compress to widths [{}] bits per level", widths.join(", "))
+            let widths = grid::compressed::level_widths(&c);
+            format!("; its values compress to widths {widths:?} bits per level")
         });
         eprintln!(
             "note: {}: a displaced micro-mesh of {} base triangles at {levels}, {} micro-triangles{values}",

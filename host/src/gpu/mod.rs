@@ -10,8 +10,7 @@ use crate::error::{error, fail, Result};
 use gridrt_shared::buffer::SPLIT_CHUNKS;
 use gridrt_shared::grid_index::MICRO_TRIANGLES;
 use gridrt_shared::layout::{
-    FrameParams, HitRecord, RayRecord, SplitParams, TraceParams, DISPLACED_COMPRESSED, SHADE_COST,
-    TRACE_WORKGROUP_SIZE, WORKGROUP_SIZE,
+    FrameParams, HitRecord, RayRecord, SplitParams, TraceParams, SHADE_COST, TRACE_WORKGROUP_SIZE, WORKGROUP_SIZE,
 };
 use wgpu::util::DeviceExt;
 
@@ -241,7 +240,7 @@ impl Gpu {
     /// the heat map's.
     fn on_demand_pipeline(&self, scene: &Scene, job: Job, split: bool) -> Result<&wgpu::ComputePipeline> {
         let one_visit = matches!(scene, Scene::Grids(s) if s.params.one_visit());
-        let compressed = is_compressed(scene);
+        let compressed = scene.has_compressed_values();
         let (index, entry) = match (scene, job, split) {
             // Never split: `crate::split` refuses displaced grids that need it.
             (Scene::Grids(_), Job::Render, _) if compressed && one_visit => (10, "render_grids_one_visit_compressed"),
@@ -378,7 +377,7 @@ impl Gpu {
         };
         Ok(match job {
             _ if scene.is_split() => self.on_demand_pipeline(scene.scene, job, true)?,
-            _ if is_compressed(scene.scene) => self.on_demand_pipeline(scene.scene, job, false)?,
+            _ if scene.scene.has_compressed_values() => self.on_demand_pipeline(scene.scene, job, false)?,
             Job::Render => &kernels.render,
             Job::Trace => &kernels.trace,
             Job::Cost => self.on_demand_pipeline(scene.scene, job, false)?,
@@ -622,11 +621,6 @@ struct Queries {
     set: wgpu::QuerySet,
     resolve: wgpu::Buffer,
     readback: wgpu::Buffer,
-}
-
-/// Whether `scene` is of grids of compressed values, which only kernels of their own decode.
-fn is_compressed(scene: &Scene) -> bool {
-    matches!(scene, Scene::Grids(g) if g.params.displaced == DISPLACED_COMPRESSED)
 }
 
 /// The pipeline of kernel `entry`, its layout taken from the shader.

@@ -14,8 +14,8 @@
 //! takes scenes whose grids are walked by their root's visit alone, bound whole.
 
 use gridrt_shared::layout::{
-    HitRecord, LeafEntry, QueueEntry, RayRecord, WalkState, DISPLACED_COMPRESSED, FINISH_RAYS_PER_THREAD,
-    LEAF_TEST_CLASSES, TRACE_WORKGROUP_SIZE,
+    HitRecord, LeafEntry, QueueEntry, RayRecord, WalkState, FINISH_RAYS_PER_THREAD, LEAF_TEST_CLASSES,
+    TRACE_WORKGROUP_SIZE,
 };
 use gridrt_shared::traverse::MAX_BVH_DEPTH;
 use std::time::Instant;
@@ -79,8 +79,8 @@ impl GpuScene<'_> {
     /// Whether the two-phase schedule takes this scene: grids walked by their root's visit
     /// alone, bound whole, and not of compressed values (whose decoder its kernels leave out).
     pub fn takes_two_phase(&self) -> bool {
-        matches!(self.scene, Scene::Grids(g)
-            if g.params.one_visit() && !self.is_split() && g.params.displaced != DISPLACED_COMPRESSED)
+        matches!(self.scene, Scene::Grids(g) if g.params.one_visit() && !self.is_split())
+            && !self.scene.has_compressed_values()
     }
 }
 

@@ -54,6 +54,11 @@ impl ValueCompression {
     }
 }
 
+/// A code's correction widths, in bits, level 1 (the coarsest) first.
+pub fn level_widths(code: &ValueCode) -> Vec<u32> {
+    (1..=code.levels).map(|l| code.width(l)).collect()
+}
+
 /// The bounding-box diagonal of a folded micro-mesh's base, which bounds are relative to.
 fn diagonal(folded: &DisplacedMesh) -> f32 {
     let (lo, hi) = folded.base_mesh().bounds();

@@ -252,10 +252,7 @@ impl Primitive<'_> {
         }
         // A compressed code describes each triangle's values on their own (the grids'
         // layout checks them against it), so it holds for any selection of them.
-        out.value_code = match out.triangles.is_empty() {
-            true => map.value_code,
-            false => out.value_code.filter(|_| out.value_code == map.value_code),
-        };
+        out.join_value_code(map.value_code);
         out.groups.push(MicromapGroup {
             triangle_first: out.triangles.len() as u32,
             triangle_count: count as u32,
