@@ -2,7 +2,7 @@
 //! same checks can run over the committed corpus without libFuzzer.
 
 use gridrt::error::{Error, ErrorKind, Result};
-use gridrt::grid::{self, GridOptions, RadiusFormat};
+use gridrt::grid::{self, GridOptions, RadiusFormat, TopFormat};
 use gridrt::mesh::{Mesh, WorldMesh};
 use gridrt::scene::{closest_hit_slack, hit_uncertainty, hits_only_by_rounding, Scene};
 use gridrt::subdiv::{subdivide_creased, Scheme};
@@ -144,8 +144,8 @@ fn decode(data: &[u8]) -> (Plan, Mesh, Bytes<'_>) {
     let mut b = Bytes(data);
     let flags = b.u8();
     let levels = (flags & 3) as u32;
-    // The second byte: the depth rendered (low three bits), a compact top level (the fourth),
-    // the crease angle (high half, 0: none).
+    // The second byte: the depth rendered (low three bits), a binary compact or wide top level
+    // (the fourth, with the fifth saying which), the crease angle (high half, 0: none).
     let detail = b.u8();
     let plan = Plan {
         levels,
@@ -161,7 +161,11 @@ fn decode(data: &[u8]) -> (Plan, Mesh, Bytes<'_>) {
             },
             leaf_footprint: flags & 32 == 0,
             excluded_levels: 1 + (flags >> 6) as u32 % 3,
-            compact_top: detail & 8 != 0,
+            top: match (detail & 8 != 0, detail & 16 != 0) {
+                (false, _) => TopFormat::Full,
+                (true, false) => TopFormat::Compact,
+                (true, true) => TopFormat::Wide,
+            },
             // Displaced grids' storage: relative radii and tight headers together.
             tight_headers: flags & 16 != 0,
         },

@@ -3,13 +3,11 @@
 use gridrt_shared::buffer::Buffer;
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::grid_traverse::{self, trace_grids, OneVisitGrids};
-use gridrt_shared::layout::{
-    BvhNode, Camera, FrameParams, GridHeader, GridParams, Hit, DISPLACED_COMPRESSED, SHADE_COST,
-};
+use gridrt_shared::layout::{Camera, FrameParams, GridHeader, GridParams, Hit, DISPLACED_COMPRESSED, SHADE_COST};
 use gridrt_shared::ray::{Ray, T_FAR};
 use gridrt_shared::shade::{cost_pixel, render_pixel};
 use gridrt_shared::traverse::trace_triangles;
-use gridrt_shared::traverse::LeafPrimitives;
+use gridrt_shared::traverse::{Hierarchy, LeafPrimitives};
 use gridrt_shared::triangle::{intersect_triangle, triangle_normal};
 use rayon::prelude::*;
 
@@ -63,13 +61,12 @@ impl Scene {
 
     /// The box around every micro-triangle: the root of the scene's BVH.
     pub fn bounds(&self) -> Aabb {
-        let root = match self {
-            Scene::Triangles(s) => s.nodes[0],
-            Scene::Grids(s) => s.top().load(0),
-        };
-        Aabb {
-            min: root.min.into(),
-            max: root.max.into(),
+        match self {
+            Scene::Triangles(s) => Aabb {
+                min: s.nodes[0].min.into(),
+                max: s.nodes[0].max.into(),
+            },
+            Scene::Grids(s) => s.bounds(),
         }
     }
 
@@ -170,7 +167,7 @@ pub fn render_cpu(scene: &Scene, frame: &FrameParams) -> Vec<u32> {
 
 /// [`render_pixels`] for grids, each walked as the kernels walk it: by one visit where the
 /// scene allows (see `GridParams::one_visit`), with the stack otherwise.
-pub(crate) fn render_grid_pixels<N: Buffer<BvhNode> + Sync, H: Buffer<GridHeader> + Sync, W: Buffer<u32> + Sync>(
+pub(crate) fn render_grid_pixels<N: Hierarchy + Sync, H: Buffer<GridHeader> + Sync, W: Buffer<u32> + Sync>(
     frame: &FrameParams,
     nodes: N,
     grids: grid_traverse::GridScene<H, W>,
@@ -184,7 +181,7 @@ pub(crate) fn render_grid_pixels<N: Buffer<BvhNode> + Sync, H: Buffer<GridHeader
 
 /// Every pixel of the frame as the kernels make it: coloured, or its ray's packed costs for
 /// the heat map.
-pub(crate) fn render_pixels<N: Buffer<BvhNode> + Sync, P: LeafPrimitives + Sync>(
+pub(crate) fn render_pixels<N: Hierarchy + Sync, P: LeafPrimitives + Sync>(
     frame: &FrameParams,
     nodes: N,
     prims: &P,

@@ -123,6 +123,17 @@ pub fn split<'a>(scene: &'a Scene, chunk_words: u32, device: &str) -> Result<Spl
             crate::limits::human(largest.bytes)
         );
     }
+    if matches!(scene, Scene::Grids(g) if g.has_wide_top()) {
+        // The split kernels leave the wide walk out, for the same reason.
+        let largest = sizes.iter().max_by_key(|b| b.bytes).expect("a scene has buffers");
+        fail!(
+            Limits,
+            "a wide top level (--wide-top) is read from one binding per buffer, and this scene's {} buffer ({}) \
+             is larger than {device} binds at once; use --compact-top",
+            largest.name,
+            crate::limits::human(largest.bytes)
+        );
+    }
     check_chunks(&sizes, chunk_words, device)?;
     let mut params = SplitParams {
         chunk_shift: chunk_words.trailing_zeros(),

@@ -8,7 +8,7 @@
 //! split.
 #![cfg_attr(target_arch = "spirv", no_std)]
 
-use gridrt_shared::buffer::{Buffer, Chunks, CompressedWords, Split};
+use gridrt_shared::buffer::{Chunks, CompressedWords, Split};
 use gridrt_shared::cost::Uncounted;
 use gridrt_shared::glam::{UVec3, Vec3};
 use gridrt_shared::grid_traverse::{leaf_test_class, GridScene, OneVisitGrids};
@@ -20,7 +20,9 @@ use gridrt_shared::layout::{
 use gridrt_shared::ray::Ray;
 use gridrt_shared::shade::{cost_pixel, render_pixel};
 use gridrt_shared::top_nodes::TopNodes;
-use gridrt_shared::traverse::{closest_hit, walk_first_round, walk_round, BufferStack, LeafPrimitives, TriangleMesh};
+use gridrt_shared::traverse::{
+    closest_hit, walk_first_round, walk_round, BufferStack, Hierarchy, LeafPrimitives, TriangleMesh,
+};
 use spirv_std::spirv;
 
 /// Where this thread's pixel goes in the tile's image buffer, or `None` outside the tile.
@@ -57,7 +59,7 @@ fn record(hit: &Hit) -> HitRecord {
 
 /// The closest hit of ray `r` as the ray-list kernels record it: distance and triangle, so the
 /// walk stops there (no normal, see `closest_hit`).
-fn trace_record<N: Buffer<BvhNode>, P: LeafPrimitives>(nodes: N, prims: &P, r: &RayRecord) -> HitRecord {
+fn trace_record<N: Hierarchy, P: LeafPrimitives>(nodes: N, prims: &P, r: &RayRecord) -> HitRecord {
     record(&closest_hit(nodes, prims, &ray_of(r), r.t_max, &mut Uncounted))
 }
 

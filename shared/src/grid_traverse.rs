@@ -13,8 +13,8 @@ use crate::grid_index::{
     MAX_LEAF_DEPTH,
 };
 use crate::layout::{
-    BvhNode, GridHeader, GridIds, GridParams, Hit, SplitParams, DISPLACED_COMPRESSED, GRID_HEADERS, GRID_RADII,
-    GRID_VERTICES, LEAF_TEST_CLASSES, RADII_HALF, RADII_RELATIVE,
+    GridHeader, GridIds, GridParams, Hit, SplitParams, DISPLACED_COMPRESSED, GRID_HEADERS, GRID_RADII, GRID_VERTICES,
+    LEAF_TEST_CLASSES, RADII_HALF, RADII_RELATIVE,
 };
 use crate::lod::grid_level;
 use crate::quantize::{dequantize, halves_from_words, read_half, unit_from_exponent};
@@ -22,7 +22,7 @@ use crate::ray::{Ray, T_FAR};
 use crate::sphere::{
     decode_radius, intersect_sphere_scaled, relative_radius, relative_radius_at, relative_radius_words,
 };
-use crate::traverse::{load_vec3_bits, record_hit, trace, LeafPrimitives};
+use crate::traverse::{load_vec3_bits, record_hit, trace, Hierarchy, LeafPrimitives};
 use crate::triangle::{intersect_sheared, shear};
 
 /// Most spheres a grid hierarchy may be deep: levels `0 ..= MAX_SPHERE_LEVEL`.
@@ -1155,7 +1155,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> LeafPrimitives for OneVisitGrids<'_,
 
 /// Closest hit among grid primitives under a top-level BVH, each grid walked the cheapest way
 /// its hierarchy allows.
-pub fn trace_grids<N: Buffer<BvhNode>, H: Buffer<GridHeader>, W: Buffer<u32>>(
+pub fn trace_grids<N: Hierarchy, H: Buffer<GridHeader>, W: Buffer<u32>>(
     nodes: N,
     scene: &GridScene<H, W>,
     ray: &Ray,

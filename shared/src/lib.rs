@@ -27,3 +27,4 @@ pub mod sphere;
 pub mod top_nodes;
 pub mod traverse;
 pub mod triangle;
+pub mod wide_nodes;

@@ -1,14 +1,13 @@
-use crate::buffer::Buffer;
 use crate::camera::primary_ray;
 use crate::cost::{Costs, Uncounted};
 use crate::glam::Vec3;
 use crate::layout::{
-    BvhNode, Camera, FrameParams, Hit, AO_MISS, AO_OPEN_MASK, SHADE_AMBIENT_OCCLUSION, SHADE_DEPTH, SHADE_LEVEL,
-    SHADE_LIT, SHADE_NORMAL, SHADE_PRIMITIVE,
+    Camera, FrameParams, Hit, AO_MISS, AO_OPEN_MASK, SHADE_AMBIENT_OCCLUSION, SHADE_DEPTH, SHADE_LEVEL, SHADE_LIT,
+    SHADE_NORMAL, SHADE_PRIMITIVE,
 };
 use crate::ray::{Ray, T_FAR};
 use crate::sample::{cosine_direction, hash, orthonormal_basis, unit_float};
-use crate::traverse::{closest_hit, trace_tallied, with_normal, LeafPrimitives};
+use crate::traverse::{closest_hit, trace_tallied, with_normal, Hierarchy, LeafPrimitives};
 // On the GPU, float methods come from a trait (GLSL.std.450 underneath); natively from core.
 #[cfg(target_arch = "spirv")]
 use spirv_std::num_traits::Float;
@@ -134,13 +133,7 @@ pub fn pack_rgba8(color: Vec3) -> u32 {
 /// call whole, and two copies of it make a kernel that lavapipe takes minutes to compile when
 /// the scene is split over bindings.
 #[inline]
-pub fn render_pixel<N: Buffer<BvhNode>, P: LeafPrimitives>(
-    frame: &FrameParams,
-    nodes: N,
-    prims: &P,
-    x: u32,
-    y: u32,
-) -> u32 {
+pub fn render_pixel<N: Hierarchy, P: LeafPrimitives>(frame: &FrameParams, nodes: N, prims: &P, x: u32, y: u32) -> u32 {
     let primary = primary_ray(&frame.camera, x, y);
     let pixel = y * frame.camera.width + x;
     let mut ray = primary;
@@ -273,13 +266,7 @@ fn unpack_unorm(packed: u32, bits: u32) -> f32 {
 /// The tests pixel `(x, y)`'s primary ray makes, packed (see [`Costs::pack`]): what the cost
 /// heat map's kernels and CPU loop run instead of [`render_pixel`].
 #[inline]
-pub fn cost_pixel<N: Buffer<BvhNode>, P: LeafPrimitives>(
-    frame: &FrameParams,
-    nodes: N,
-    prims: &P,
-    x: u32,
-    y: u32,
-) -> u32 {
+pub fn cost_pixel<N: Hierarchy, P: LeafPrimitives>(frame: &FrameParams, nodes: N, prims: &P, x: u32, y: u32) -> u32 {
     let ray = primary_ray(&frame.camera, x, y);
     let mut costs = Costs::default();
     trace_tallied(nodes, prims, &ray, T_FAR, &mut costs);

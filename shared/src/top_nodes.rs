@@ -1,6 +1,7 @@
-//! The grids' top-level BVH in either of two forms, read through one [`Buffer`]: full nodes
-//! (32 bytes, `f32` boxes), or compact nodes (16 bytes) whose boxes are 15-bit fractions of
-//! the scene's box, rounded outwards.
+//! The grids' top-level BVH in any of three forms, searched through one [`Hierarchy`]: full
+//! binary nodes (32 bytes, `f32` boxes), compact binary nodes (16 bytes) whose boxes are 15-bit
+//! fractions of the scene's box, rounded outwards, or wide nodes ([`crate::wide_nodes`]). The
+//! binary forms are also read node by node through [`Buffer`] (the two-phase schedule's walk).
 //!
 //! A compact hierarchy is stored in the same `BvhNode`-typed buffer, so every kernel binds it
 //! as before: element 0 is a header (the quantization frame: origin in `min`, the step per
@@ -17,8 +18,12 @@
 //! leaf ranges) is the full hierarchy's, so both forms visit the same nodes.
 
 use crate::buffer::Buffer;
+use crate::cost::Tally;
 use crate::glam::Vec3;
-use crate::layout::BvhNode;
+use crate::layout::{BvhNode, Hit};
+use crate::ray::Ray;
+use crate::traverse::{traverse_bvh, Hierarchy, LeafPrimitives};
+use crate::wide_nodes::{traverse_wide, WIDE};
 
 /// `count` of the header element of a compact hierarchy (never a node's count).
 pub const COMPACT: u32 = u32::MAX;
@@ -29,11 +34,12 @@ pub const CODE_MAX: u32 = 0x7f7f;
 /// Bits of a link word that hold a leaf's count.
 pub const COUNT_BITS: u32 = 3;
 
-/// The top-level nodes of a grid scene, full or compact (see the module docs).
+/// The top-level nodes of a grid scene, full, compact or wide (see the module docs).
 #[derive(Copy, Clone)]
 pub struct TopNodes<N> {
     nodes: N,
     compact: bool,
+    wide: bool,
     origin: Vec3,
     step: Vec3,
 }
@@ -50,12 +56,35 @@ impl<N: Buffer<BvhNode>> TopNodes<N> {
         TopNodes {
             nodes,
             compact: header.count == COMPACT,
+            wide: header.count == WIDE,
             origin: Vec3::from(header.min),
             step: Vec3::from(header.max),
         }
     }
 }
 
+impl<N: Buffer<BvhNode>> TopNodes<N> {
+    /// Whether the nodes are wide, which only [`Hierarchy::search`] reads.
+    #[inline]
+    pub fn is_wide(self) -> bool {
+        self.wide
+    }
+}
+
+impl<N: Buffer<BvhNode>> Hierarchy for TopNodes<N> {
+    #[inline(always)]
+    fn search<P: LeafPrimitives, T: Tally>(self, prims: &P, ray: &Ray, hit: &mut Hit, tally: &mut T) {
+        // Split kernels leave the wide walk out: with it their first compile takes far longer.
+        // Split scenes never hold a wide top level (the host refuses to split one).
+        if !N::SPLIT && self.wide {
+            traverse_wide(self.nodes, prims, ray, hit, tally)
+        } else {
+            traverse_bvh(self, prims, ray, hit, tally)
+        }
+    }
+}
+
+/// Binary nodes one by one (full or compact; not wide ones).
 impl<N: Buffer<BvhNode>> Buffer<BvhNode> for TopNodes<N> {
     const SPLIT: bool = N::SPLIT;
 

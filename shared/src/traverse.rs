@@ -39,14 +39,36 @@ pub trait LeafPrimitives {
     }
 }
 
+/// A hierarchy the closest-hit walk searches: a binary BVH read through a [`Buffer`], or the
+/// grids' top level in whichever form it is stored (`crate::top_nodes::TopNodes`).
+pub trait Hierarchy: Copy {
+    /// Takes the closest hit along `ray` closer than `hit.t` into `hit`, reporting every test
+    /// to `tally`.
+    fn search<P: LeafPrimitives, T: Tally>(self, prims: &P, ray: &Ray, hit: &mut Hit, tally: &mut T);
+}
+
+impl Hierarchy for &[BvhNode] {
+    #[inline(always)]
+    fn search<P: LeafPrimitives, T: Tally>(self, prims: &P, ray: &Ray, hit: &mut Hit, tally: &mut T) {
+        traverse_bvh(self, prims, ray, hit, tally)
+    }
+}
+
+impl Hierarchy for Split<'_, BvhNode> {
+    #[inline(always)]
+    fn search<P: LeafPrimitives, T: Tally>(self, prims: &P, ray: &Ray, hit: &mut Hit, tally: &mut T) {
+        traverse_bvh(self, prims, ray, hit, tally)
+    }
+}
+
 /// Closest hit along `ray` within `t_max`, with its triangle's normal: found once, after the
 /// traversal, from the closest triangle's corners loaded again.
-pub fn trace<N: Buffer<BvhNode>, P: LeafPrimitives>(nodes: N, prims: &P, ray: &Ray, t_max: f32) -> Hit {
+pub fn trace<N: Hierarchy, P: LeafPrimitives>(nodes: N, prims: &P, ray: &Ray, t_max: f32) -> Hit {
     trace_tallied(nodes, prims, ray, t_max, &mut Uncounted)
 }
 
 /// [`trace`], reporting every test it makes to `tally`.
-pub fn trace_tallied<N: Buffer<BvhNode>, P: LeafPrimitives, T: Tally>(
+pub fn trace_tallied<N: Hierarchy, P: LeafPrimitives, T: Tally>(
     nodes: N,
     prims: &P,
     ray: &Ray,
@@ -69,7 +91,7 @@ pub fn with_normal<P: LeafPrimitives>(prims: &P, mut hit: Hit) -> Hit {
 /// Closest hit along `ray` within `t_max`, without its normal: all a list of rays asks for.
 /// (On SIMD hardware the normal's loads cost every ray of a group, hit or not.)
 #[inline]
-pub fn closest_hit<N: Buffer<BvhNode>, P: LeafPrimitives, T: Tally>(
+pub fn closest_hit<N: Hierarchy, P: LeafPrimitives, T: Tally>(
     nodes: N,
     prims: &P,
     ray: &Ray,
@@ -77,12 +99,12 @@ pub fn closest_hit<N: Buffer<BvhNode>, P: LeafPrimitives, T: Tally>(
     tally: &mut T,
 ) -> Hit {
     let mut hit = Hit::miss(t_max);
-    traverse_bvh(nodes, prims, ray, &mut hit, tally);
+    nodes.search(prims, ray, &mut hit, tally);
     hit
 }
 
 /// No node: the stack is empty.
-const NO_NODE: u32 = u32::MAX;
+pub const NO_NODE: u32 = u32::MAX;
 
 /// Closest hit along `ray` closer than `hit.t`. A near-first, stack-based loop: descend into
 /// the nearer child while the farther one waits on the stack with its entry distance, so it can
@@ -110,10 +132,7 @@ pub fn traverse_bvh<N: Buffer<BvhNode>, P: LeafPrimitives, T: Tally>(
         // the box test.
         return;
     }
-    let mut stack = LocalStack {
-        nodes: [0u32; MAX_BVH_DEPTH],
-        t: [0f32; MAX_BVH_DEPTH],
-    };
+    let mut stack = LocalStack::new();
     let mut sp = 0usize;
     let mut scratch = prims.scratch(ray);
     let mut node = 0u32;
@@ -327,6 +346,22 @@ pub struct LocalStack {
     t: [f32; MAX_BVH_DEPTH],
 }
 
+impl LocalStack {
+    #[inline(always)]
+    pub fn new() -> Self {
+        LocalStack {
+            nodes: [0u32; MAX_BVH_DEPTH],
+            t: [0f32; MAX_BVH_DEPTH],
+        }
+    }
+}
+
+impl Default for LocalStack {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 impl WalkStack for LocalStack {
     #[inline(always)]
     fn push(&mut self, at: usize, node: u32, t: f32) {
@@ -434,7 +469,7 @@ impl<F: Buffer<f32>, I: Buffer<u32>> LeafPrimitives for TriangleMesh<F, I> {
 }
 
 /// Closest hit in a triangle mesh.
-pub fn trace_triangles<N: Buffer<BvhNode>, F: Buffer<f32>, I: Buffer<u32>>(
+pub fn trace_triangles<N: Hierarchy, F: Buffer<f32>, I: Buffer<u32>>(
     nodes: N,
     mesh: &TriangleMesh<F, I>,
     ray: &Ray,

@@ -75,14 +75,14 @@ fn both_modes(gpu: &gridrt::gpu::Gpu, name: &str, mesh: &Mesh, levels: u32) {
 }
 
 /// Grid options whose hierarchies at `L = 3` are deeper than one visit walks (see
-/// `GridParams::one_visit`): the kernels with the sub-triangle stack, here over a compact
-/// top level.
+/// `GridParams::one_visit`): the kernels with the sub-triangle stack, here over a wide top
+/// level.
 fn stacked_options() -> gridrt::grid::GridOptions {
     gridrt::grid::GridOptions {
         excluded_levels: 1,
         radii: gridrt::grid::RadiusFormat::Half,
         leaf_footprint: true,
-        compact_top: true,
+        top: gridrt::grid::TopFormat::Wide,
         tight_headers: true,
     }
 }

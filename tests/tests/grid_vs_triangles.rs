@@ -3,7 +3,7 @@
 
 use gridrt::bvh::Aabb;
 use gridrt::camera;
-use gridrt::grid::{GridOptions, RadiusFormat};
+use gridrt::grid::{GridOptions, RadiusFormat, TopFormat};
 use gridrt::image_io::fraction_within;
 use gridrt::mesh::{load_mesh, scene::default_scene, Mesh};
 use gridrt::scene::render_cpu;
@@ -141,23 +141,26 @@ fn default_scene_flat_and_other_depths() {
 #[test]
 fn default_scene_grid_variants() {
     use RadiusFormat::{Half, Relative, F32};
-    for (excluded_levels, radii, quantized, leaf_footprint, compact_top) in [
-        (2, Half, true, true, false),
-        (1, F32, true, true, false),
-        (3, Half, true, true, false),
-        (2, F32, false, true, false),
-        (2, F32, true, false, false),
-        (2, F32, true, true, true),
-        (1, Half, true, true, true),
-        (1, Relative, true, true, false),
-        (2, Relative, true, true, true),
+    use TopFormat::{Compact, Full, Wide};
+    for (excluded_levels, radii, quantized, leaf_footprint, top) in [
+        (2, Half, true, true, Full),
+        (1, F32, true, true, Full),
+        (3, Half, true, true, Full),
+        (2, F32, false, true, Full),
+        (2, F32, true, false, Full),
+        (2, F32, true, true, Compact),
+        (1, Half, true, true, Compact),
+        (1, Relative, true, true, Full),
+        (2, Relative, true, true, Compact),
+        (2, Relative, true, true, Wide),
+        (1, F32, true, true, Wide),
     ] {
         let options = GridOptions {
             excluded_levels,
             radii,
             leaf_footprint,
-            compact_top,
-            tight_headers: compact_top,
+            top,
+            tight_headers: top != Full,
         };
         let a = compare_with(
             &default_scene(),

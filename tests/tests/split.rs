@@ -4,7 +4,7 @@
 //! the CPU and on the GPU, and what cannot be bound must be refused with its sizes.
 
 use gridrt::camera;
-use gridrt::grid::GridOptions;
+use gridrt::grid::{GridOptions, TopFormat};
 use gridrt::image_io::fraction_within;
 use gridrt::mesh::scene::default_scene;
 use gridrt::rays::{primary_rays, trace_cpu};
@@ -34,7 +34,7 @@ fn pair() -> Pair {
 fn stacked_grids() -> Scene {
     let options = GridOptions {
         excluded_levels: 0,
-        compact_top: true,
+        top: TopFormat::Compact,
         tight_headers: true,
         ..GridOptions::default()
     };
@@ -85,6 +85,27 @@ fn too_many_chunks_are_refused_with_the_sizes() {
         "a small GPU",
         "--backend cpu",
     ] {
+        assert!(err.contains(part), "{err:?} lacks {part:?}");
+    }
+    assert!(!err.contains('\n'), "{err:?} is not one line");
+}
+
+/// A wide top level is never split (the split kernels leave its walk out): refused on one line
+/// that names the way out.
+#[test]
+fn wide_top_levels_are_refused() {
+    let options = GridOptions {
+        top: TopFormat::Wide,
+        ..GridOptions::default()
+    };
+    let grids = build_pair_with(&default_scene(), 2, 2, Scheme::Loop, &options).grids;
+    let Scene::Grids(g) = &grids else { panic!("grids") };
+    assert!(g.has_wide_top());
+    let err = split(&grids, 1 << 10, "a small GPU")
+        .err()
+        .expect("refused")
+        .to_string();
+    for part in ["wide top level", "a small GPU", "--compact-top"] {
         assert!(err.contains(part), "{err:?} lacks {part:?}");
     }
     assert!(!err.contains('\n'), "{err:?} is not one line");

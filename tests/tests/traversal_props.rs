@@ -3,7 +3,7 @@
 //! force loop over every micro-triangle find the same closest hit; and both walks of a grid
 //! hierarchy find the same, bit for bit, wherever both apply.
 
-use gridrt::grid::{self, GridOptions, RadiusFormat};
+use gridrt::grid::{self, GridOptions, RadiusFormat, TopFormat};
 use gridrt::mesh::Mesh;
 use gridrt::scene::{closest_hit_slack, hit_uncertainty, hits_only_by_rounding, Scene};
 use gridrt::subdiv::{subdivide, Scheme};
@@ -59,7 +59,7 @@ fn build() -> impl Strategy<Value = Build> {
         1u32..4,
         0u32..3,
         any::<bool>(),
-        0u32..4,
+        0u32..6,
     )
         .prop_map(
             |(levels, lod, flat, quantized, excluded_levels, radii, leaf_footprint, top_and_headers)| Build {
@@ -71,8 +71,8 @@ fn build() -> impl Strategy<Value = Build> {
                     excluded_levels,
                     radii: [RadiusFormat::F32, RadiusFormat::Half, RadiusFormat::Relative][radii as usize],
                     leaf_footprint,
-                    compact_top: top_and_headers & 1 != 0,
-                    tight_headers: top_and_headers & 2 != 0,
+                    top: [TopFormat::Full, TopFormat::Compact, TopFormat::Wide][top_and_headers as usize % 3],
+                    tight_headers: top_and_headers >= 3,
                 },
             },
         )

@@ -202,12 +202,17 @@ pub struct BuildArgs {
     /// root radius (the default for displaced micro-meshes).
     #[arg(long, value_enum)]
     pub radii: Option<RadiiArg>,
-    /// Store the top-level BVH in compact 16-byte nodes, boxes as 15-bit codes of the scene's
-    /// box rounded outwards (always so for displaced micro-meshes, unless --full-top).
+    /// Store the top-level BVH in wide 64-byte nodes of up to seven children, each child's box
+    /// as 8-bit codes in its node's frame, rounded outwards (the default for displaced
+    /// micro-meshes).
     #[arg(long)]
+    pub wide_top: bool,
+    /// Store the top-level BVH in compact binary 16-byte nodes, boxes as 15-bit codes of the
+    /// scene's box rounded outwards.
+    #[arg(long, conflicts_with = "wide_top")]
     pub compact_top: bool,
-    /// Store a displaced micro-mesh's top-level BVH in full 32-byte nodes.
-    #[arg(long, conflicts_with = "compact_top")]
+    /// Store a displaced micro-mesh's top-level BVH in full binary 32-byte nodes.
+    #[arg(long, conflicts_with_all = ["compact_top", "wide_top"])]
     pub full_top: bool,
     /// Store each grid's six ids in as many bits as the mesh's counts need rather than in a
     /// 16-byte header (always so for displaced micro-meshes).
@@ -325,20 +330,24 @@ impl BuildArgs {
             excluded_levels: self.excluded_levels,
             radii: self.radii.unwrap_or(RadiiArg::F32).format(),
             leaf_footprint: !self.no_leaf_footprint,
-            compact_top: self.compact_top,
+            top: match (self.wide_top, self.compact_top) {
+                (true, _) => grid::TopFormat::Wide,
+                (_, true) => grid::TopFormat::Compact,
+                _ => grid::TopFormat::Full,
+            },
             tight_headers: self.tight_headers,
         }
     }
 
     /// These arguments for a displaced micro-mesh of `level` built as displaced grids: its own
     /// level, no subdivision, radii relative to each grid's root unless `--radii` says
-    /// otherwise, a compact top level unless `--full-top`, tight headers.
+    /// otherwise, a wide top level unless `--compact-top` or `--full-top`, tight headers.
     pub fn as_displaced(&self, level: u32) -> BuildArgs {
         BuildArgs {
             levels: level,
             subdivision: SubdivisionArg::Flat,
             radii: Some(self.radii.unwrap_or(RadiiArg::Relative)),
-            compact_top: !self.full_top,
+            wide_top: !self.full_top && !self.compact_top,
             tight_headers: true,
             ..self.clone()
         }

@@ -77,9 +77,10 @@ pub(super) struct Batch {
 
 impl GpuScene<'_> {
     /// Whether the two-phase schedule takes this scene: grids walked by their root's visit
-    /// alone, bound whole, and not of compressed values (whose decoder its kernels leave out).
+    /// alone, bound whole, under a binary top level (its walk reads nodes one by one), and not
+    /// of compressed values (whose decoder its kernels leave out).
     pub fn takes_two_phase(&self) -> bool {
-        matches!(self.scene, Scene::Grids(g) if g.params.one_visit() && !self.is_split())
+        matches!(self.scene, Scene::Grids(g) if g.params.one_visit() && !self.is_split() && !g.has_wide_top())
             && !self.scene.has_compressed_values()
     }
 }
@@ -113,8 +114,8 @@ impl Gpu {
             _ => fail!(
                 Options,
                 "the two-phase schedule traces grids walked by their root's visit alone (sphere levels down to 1, \
-                 as at the default --levels 3), bound whole and not of compressed values; this scene is not, use \
-                 the one-pass schedule"
+                 as at the default --levels 3), bound whole, under a binary top level (--compact-top or \
+                 --full-top) and not of compressed values; this scene is not, use the one-pass schedule"
             ),
         }
     }

@@ -19,6 +19,7 @@ use gridrt_shared::layout::{
 use gridrt_shared::quantize;
 use gridrt_shared::sphere::relative_radius_words;
 use gridrt_shared::top_nodes::{TopNodes, COMPACT};
+use gridrt_shared::wide_nodes::{WIDE, WIDTH};
 use rayon::prelude::*;
 
 use crate::bvh::{self, Aabb, BuildParams};
@@ -31,6 +32,7 @@ mod lean;
 mod spheres;
 #[cfg(test)]
 mod tests;
+pub mod wide_top;
 use crate::mesh::Mesh;
 use crate::subdiv::Subdivided;
 pub use lean::{build_lean, build_lean_reporting, lean_build_applies, GridBuild};
@@ -40,6 +42,20 @@ use spheres::{encode_relative_radii, grid_bounds_and_radii, radius_scale, rescal
 
 /// Sphere levels left out at the bottom by default: leaves of 16 micro-triangles.
 pub const DEFAULT_EXCLUDED_LEVELS: u32 = 2;
+
+/// How the grids' top-level BVH is stored. Every form is built from the same binary
+/// hierarchy, and a form that cannot hold it (codes, links or stack out of range) falls back to
+/// the next larger one, so the traversal finds the same hits in each.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub enum TopFormat {
+    /// Binary, 32-byte nodes with `f32` boxes.
+    Full,
+    /// Binary, 16-byte nodes, boxes as codes of the scene's box (see [`compact_top`]).
+    Compact,
+    /// Up to seven children to a 64-byte node, each child's box as 8-bit codes in its node's
+    /// frame (see [`wide_top`]).
+    Wide,
+}
 
 /// Choices of the grid representation.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
@@ -51,9 +67,8 @@ pub struct GridOptions {
     /// Store each leaf's thickness, so the traversal can cull leaves by their footprint
     /// (see `gridrt_shared::footprint`) before loading their vertices.
     pub leaf_footprint: bool,
-    /// Store the top-level BVH in compact 16-byte nodes where it fits them (see
-    /// [`compact_top`]) rather than 32-byte ones.
-    pub compact_top: bool,
+    /// How the top-level BVH is stored.
+    pub top: TopFormat,
     /// Store each grid's ids in as many bits as the mesh's counts need (see
     /// `GridParams::header_bits`) rather than in a 16-byte header.
     pub tight_headers: bool,
@@ -65,21 +80,21 @@ impl Default for GridOptions {
             excluded_levels: DEFAULT_EXCLUDED_LEVELS,
             radii: RadiusFormat::F32,
             leaf_footprint: true,
-            compact_top: false,
+            top: TopFormat::Full,
             tight_headers: false,
         }
     }
 }
 
 impl GridOptions {
-    /// The defaults for displaced grids: radii relative to their grid's root, a compact
+    /// The defaults for displaced grids: radii relative to their grid's root, a wide
     /// top-level BVH and tight headers. Their values already hold 11 bits, so `f32` radii buy
     /// them no speed; and the top level is the largest part left (docs/RESULTS.md,
     /// "Displaced micro-meshes", measures each).
     pub fn for_displaced() -> GridOptions {
         GridOptions {
             radii: RadiusFormat::Relative,
-            compact_top: true,
+            top: TopFormat::Wide,
             tight_headers: true,
             ..GridOptions::default()
         }
@@ -109,16 +124,38 @@ impl GridScene {
         TopNodes::new(self.nodes.as_slice())
     }
 
-    /// Nodes of the top-level BVH (not elements of its buffer, which hold two compact ones).
+    /// Nodes of the top-level BVH (not elements of its buffer, which hold two compact ones, or
+    /// half a wide one).
     pub fn top_node_count(&self) -> u32 {
         match self.nodes.first() {
-            Some(header) if header.count == COMPACT => header.first,
+            Some(header) if header.count == COMPACT || header.count == WIDE => header.first,
             _ => self.nodes.len() as u32,
+        }
+    }
+
+    /// Whether the top-level BVH is wide (see [`wide_top`]), which the two-phase schedule's
+    /// binary walk cannot read.
+    pub fn has_wide_top(&self) -> bool {
+        self.nodes.first().is_some_and(|header| header.count == WIDE)
+    }
+
+    /// The box around every grid, as the top level's root holds it.
+    pub fn bounds(&self) -> Aabb {
+        if self.has_wide_top() {
+            return wide_top::bounds(&self.nodes);
+        }
+        let root = self.top().load(0);
+        Aabb {
+            min: root.min.into(),
+            max: root.max.into(),
         }
     }
 
     /// The most grids any leaf of the top-level BVH holds (at least 1).
     pub fn leaf_size(&self) -> u32 {
+        if self.has_wide_top() {
+            return wide_top::leaf_size(&self.nodes);
+        }
         let top = self.top();
         (0..self.top_node_count())
             .map(|i| top.load(i).count)
@@ -237,7 +274,7 @@ pub struct GridShape {
     pub levels: u32,
     pub leaf_level: u32,
     pub radii: RadiusFormat,
-    pub compact_top: bool,
+    pub top: TopFormat,
     pub leaf_footprint: bool,
     pub edge_offset: u32,
     pub corner_offset: u32,
@@ -268,7 +305,7 @@ impl GridShape {
             levels,
             leaf_level: levels.saturating_sub(options.excluded_levels),
             radii: options.radii,
-            compact_top: options.compact_top,
+            top: options.top,
             leaf_footprint: options.leaf_footprint,
             edge_offset,
             corner_offset: edge_offset + edges as u32 * edge_vertex_count(levels),
@@ -701,7 +738,14 @@ impl PerGridTask<'_> {
 /// `vertices` holds the inner areas in base-triangle order, reordered where they lie.
 fn assemble(shape: &GridShape, ids: &[GridIds], per_grid: &PerGrid, mut vertices: Vec<u32>) -> GridScene {
     let grids = ids.len();
-    let top = bvh::build(&per_grid.boxes, &top_level_params());
+    let mut top = bvh::build(&per_grid.boxes, &top_level_params());
+    let wide = match shape.top {
+        TopFormat::Wide => wide_top::pack(&top),
+        _ => None,
+    };
+    if let Some(wide) = &wide {
+        top.order = wide.order.iter().map(|&k| top.order[k as usize]).collect();
+    }
     let words = shape.inner_words as usize;
     reorder_records(&mut vertices[..grids * words], words, &top.order);
 
@@ -777,9 +821,10 @@ fn assemble(shape: &GridShape, ids: &[GridIds], per_grid: &PerGrid, mut vertices
     if shape.header_bits != 0 {
         leaf_headers = tight_headers(ids, &top.order, shape.header_bits);
     }
-    let nodes = match shape.compact_top {
-        true => compact_top::pack(&top.nodes).unwrap_or(top.nodes),
-        false => top.nodes,
+    let nodes = match (wide, shape.top) {
+        (Some(wide), _) => wide.nodes,
+        (None, TopFormat::Full) => top.nodes,
+        (None, _) => compact_top::pack(&top.nodes).unwrap_or(top.nodes),
     };
     GridScene {
         nodes,
@@ -818,12 +863,14 @@ fn assemble(shape: &GridShape, ids: &[GridIds], per_grid: &PerGrid, mut vertices
     }
 }
 
-/// Bytes of a top-level BVH of `nodes` nodes in the form `shape` asks for (compact: a
-/// header, then two nodes to 32 bytes).
+/// Bytes of a top-level BVH of `nodes` binary nodes in the form `shape` asks for (compact: a
+/// header, then two nodes to 32 bytes; wide: a header, then 64 bytes for each node, which
+/// holds at least two of the binary nodes' children).
 fn top_level_bytes(nodes: u64, shape: &GridShape) -> u64 {
-    match shape.compact_top {
-        true => 32 * (1 + nodes.div_ceil(2)),
-        false => 32 * nodes,
+    match shape.top {
+        TopFormat::Full => 32 * nodes,
+        TopFormat::Compact => 32 * (1 + nodes.div_ceil(2)),
+        TopFormat::Wide => 32 + 64 * nodes.div_ceil(2 * WIDTH as u64),
     }
 }
 

@@ -230,7 +230,7 @@ fn buffer_sizes_are_known_before_the_build() {
         radii: RadiusFormat::Half,
         leaf_footprint: false,
         excluded_levels: 1,
-        compact_top: true,
+        top: TopFormat::Compact,
         tight_headers: true,
     };
     for mesh in [default_scene(), fins(), cube()] {
@@ -373,7 +373,7 @@ fn the_lean_build_equals_the_whole_mesh_build() {
             excluded_levels: 1,
             radii: RadiusFormat::Half,
             leaf_footprint: false,
-            compact_top: true,
+            top: TopFormat::Wide,
             tight_headers: true,
         },
         GridOptions::for_displaced(),

@@ -1,0 +1,519 @@
+//! Packing the grids' top-level BVH into wide nodes (see `gridrt_shared::wide_nodes` for the
+//! layout and the walk).
+//!
+//! Collapse: sibling leaves of one grid each first become one leaf of two; then the fewest
+//! wide nodes that hold the binary hierarchy, each node's children a cut
+//! of its binary subtree (found by dynamic programming, see [`Plan`]). Nodes are numbered
+//! breadth first, so each node's inner children are consecutive, and the grids are reordered
+//! so that each node's leaf children name consecutive grids.
+//!
+//! Encoding: each node's frame origin is rounded down to the scene's code lattice, its step per
+//! axis is the smallest power of two that reaches the node's far corner in 255 codes, and each
+//! child's codes are rounded outwards; every decoded box is then checked, with the decoder the
+//! traversal runs, to hold its child. A hierarchy that fails anywhere (a code, the stack
+//! bound, the grid count) is left binary: wide packing is a saving, never a change of what
+//! the traversal finds.
+
+use gridrt_shared::glam::Vec3;
+use gridrt_shared::layout::BvhNode;
+use gridrt_shared::wide_nodes::{
+    child_box, child_kind, code_slot, load_node, node_frame, scene_frame, step_of, Frame, NodeWords, CODE_MAX, INNER,
+    MAX_EXPONENT, MAX_GRIDS, MAX_LEAF_GRIDS, MIN_EXPONENT, ORIGIN_CODE_MAX, STACK_ENTRIES, WIDE, WIDTH,
+};
+
+use crate::bvh::{Aabb, Bvh};
+
+/// A wide hierarchy and the grid order it needs: `order[slot]` is the position in the
+/// binary hierarchy's primitive order of the grid stored at `slot`.
+pub struct WideTop {
+    pub nodes: Vec<BvhNode>,
+    pub order: Vec<u32>,
+}
+
+/// `bvh` (binary, root first) packed wide, or `None` where it must stay binary.
+pub fn pack(bvh: &Bvh) -> Option<WideTop> {
+    let binary = &bvh.nodes;
+    let root = binary.first()?;
+    if bvh.order.len() as u64 >= MAX_GRIDS as u64 {
+        return None;
+    }
+    let merged = merge_sibling_leaves(binary);
+    let binary = merged.as_slice();
+    let groups = collapse(binary);
+    let scene = scene_frame_of(&aabb(root))?;
+    let mut nodes = vec![BvhNode {
+        min: scene.origin.to_array(),
+        first: groups.len() as u32,
+        max: scene.step.to_array(),
+        count: WIDE,
+    }];
+    let mut order = Vec::with_capacity(bvh.order.len());
+    let mut next_node = 1u32;
+    for children in &groups {
+        let first_grid = order.len() as u32;
+        for &c in children {
+            let n = &binary[c as usize];
+            if n.is_leaf() {
+                order.extend(n.first..n.first + n.count);
+            }
+        }
+        let first_node = next_node;
+        next_node += children.iter().filter(|&&c| !binary[c as usize].is_leaf()).count() as u32;
+        let words = encode(binary, children, &scene, [first_node, first_grid])?;
+        nodes.extend(elements(&words));
+    }
+    if stack_need(&groups, binary) > STACK_ENTRIES {
+        return None;
+    }
+    let wide = WideTop { nodes, order };
+    holds_every_child(&wide.nodes, &groups, binary).then_some(wide)
+}
+
+/// Most grids of the leaves [`merge_sibling_leaves`] makes.
+pub const MERGED_LEAF_GRIDS: u32 = 2;
+
+/// `binary` with every inner node whose two children are leaves of [`MERGED_LEAF_GRIDS`]
+/// grids or fewer in all made a leaf of them (their grids are consecutive). Why: a slot of a
+/// wide node then holds two grids, so fewer nodes hold them all, for one more root sphere
+/// tested where a ray enters the pair's box; the SAH alone keeps such pairs apart, having
+/// no cost for bytes. The merged children stay in the buffer, unreachable.
+fn merge_sibling_leaves(binary: &[BvhNode]) -> Vec<BvhNode> {
+    let mut merged = binary.to_vec();
+    // Children come after their parent (depth-first order), so backwards is bottom-up.
+    for n in (0..merged.len()).rev() {
+        let node = merged[n];
+        if node.is_leaf() {
+            continue;
+        }
+        let (l, r) = (merged[node.first as usize], merged[node.first as usize + 1]);
+        if l.is_leaf() && r.is_leaf() && l.count + r.count <= MERGED_LEAF_GRIDS && l.first + l.count == r.first {
+            merged[n].first = l.first;
+            merged[n].count = l.count + r.count;
+        }
+    }
+    merged
+}
+
+/// The wide nodes as lists of binary nodes (their children), breadth first from the root.
+fn collapse(binary: &[BvhNode]) -> Vec<Vec<u32>> {
+    let plan = Plan::new(binary);
+    let mut groups = vec![];
+    let mut queue = std::collections::VecDeque::from([0u32]);
+    while let Some(n) = queue.pop_front() {
+        let children = match binary[n as usize].is_leaf() {
+            true => vec![n],
+            false => plan.children(binary, n),
+        };
+        queue.extend(children.iter().filter(|&&c| !binary[c as usize].is_leaf()));
+        groups.push(children);
+    }
+    groups
+}
+
+/// Slots a subtree can fill in its wide parent: 1 (itself) to [`WIDTH`].
+const SLOTS: usize = WIDTH as usize + 1;
+
+/// Fewer nodes than any subtree can need.
+const UNREACHABLE: u32 = u32::MAX / 4;
+
+/// The collapse with the fewest wide nodes, by dynamic programming over the binary nodes: for
+/// each node and each number of slots `k` it may fill in its wide parent, the fewest wide
+/// nodes its subtree needs (`k = 1`: it is a leaf, or a wide node of its own; `k > 1`: it is
+/// opened into `k` slots, shared out between its two children).
+struct Plan {
+    /// For `k > 1`, the slots given to the left child; for `k = 1`, the slots of its own node.
+    choice: Vec<[u8; SLOTS]>,
+}
+
+impl Plan {
+    fn new(binary: &[BvhNode]) -> Plan {
+        let mut nodes = vec![[UNREACHABLE; SLOTS]; binary.len()];
+        let mut choice = vec![[0u8; SLOTS]; binary.len()];
+        // Children come after their parent (depth-first order), so backwards is bottom-up.
+        for n in (0..binary.len()).rev() {
+            let node = &binary[n];
+            if node.is_leaf() {
+                nodes[n][1] = 0;
+                continue;
+            }
+            let (l, r) = (node.first as usize, node.first as usize + 1);
+            for k in 2..SLOTS {
+                for left in 1..k {
+                    let cost = nodes[l][left] + nodes[r][k - left];
+                    if cost < nodes[n][k] {
+                        nodes[n][k] = cost;
+                        choice[n][k] = left as u8;
+                    }
+                }
+            }
+            // Of equally few nodes, the widest: fewer levels to walk.
+            for k in (2..SLOTS).rev() {
+                if nodes[n][k] + 1 < nodes[n][1] {
+                    nodes[n][1] = nodes[n][k] + 1;
+                    choice[n][1] = k as u8;
+                }
+            }
+        }
+        Plan { choice }
+    }
+
+    /// The children of inner node `n`'s wide node.
+    fn children(&self, binary: &[BvhNode], n: u32) -> Vec<u32> {
+        let mut children = vec![];
+        self.fill(binary, n, self.choice[n as usize][1] as usize, &mut children);
+        children
+    }
+
+    /// `n` opened into `k` slots (itself when `k` is 1), appended to `children`.
+    fn fill(&self, binary: &[BvhNode], n: u32, k: usize, children: &mut Vec<u32>) {
+        if k == 1 {
+            children.push(n);
+            return;
+        }
+        let left = self.choice[n as usize][k] as usize;
+        let first = binary[n as usize].first;
+        self.fill(binary, first, left, children);
+        self.fill(binary, first + 1, k - left, children);
+    }
+}
+
+fn aabb(n: &BvhNode) -> Aabb {
+    Aabb {
+        min: Vec3::from(n.min),
+        max: Vec3::from(n.max),
+    }
+}
+
+/// The scene's frame: a power-of-two step that spans the box in [`ORIGIN_CODE_MAX`] codes,
+/// its origin a step below the box.
+fn scene_frame_of(b: &Aabb) -> Option<Frame> {
+    let extent = b.max - b.min;
+    let step = Vec3::from_array(std::array::from_fn(|a| {
+        step_of(exponent_for(extent[a] as f64 / (ORIGIN_CODE_MAX - 2) as f64))
+    }));
+    let origin = b.min - step;
+    (origin.is_finite() && step.is_finite() && (b.max - origin).cmplt(step * ORIGIN_CODE_MAX as f32).all())
+        .then_some(Frame { origin, step })
+}
+
+/// The biased exponent of the smallest power of two at least `span` (clamped to the usable
+/// range).
+fn exponent_for(span: f64) -> u32 {
+    let e = if span > 0.0 {
+        span.log2().ceil() as i64
+    } else {
+        i64::MIN / 2
+    };
+    (e + 127).clamp(MIN_EXPONENT as i64, MAX_EXPONENT as i64) as u32
+}
+
+/// A node's sixteen words: frame, child boxes, kinds and links.
+fn encode(
+    binary: &[BvhNode],
+    children: &[u32],
+    scene: &Frame,
+    [first_node, first_grid]: [u32; 2],
+) -> Option<NodeWords> {
+    let boxes: Vec<Aabb> = children.iter().map(|&c| aabb(&binary[c as usize])).collect();
+    let bounds = boxes.iter().fold(boxes[0], |b, &c| b.union(c));
+    let origin_codes: [u32; 3] =
+        std::array::from_fn(|a| lower_code(bounds.min[a], scene.origin[a], scene.step[a], ORIGIN_CODE_MAX));
+    let mut w: NodeWords = [0; 16];
+    w[15] = origin_codes[0] | origin_codes[1] << 16;
+    w[13] = origin_codes[2] << 16;
+    let origin = node_frame(&w, scene).origin;
+    if (0..3).any(|a| origin[a] > bounds.min[a]) {
+        return None;
+    }
+    let mut exponents = [0u32; 3];
+    let mut codes = vec![[0u32; 6]; children.len()];
+    for a in 0..3 {
+        let mut e = exponent_for((bounds.max[a] as f64 - origin[a] as f64) / CODE_MAX as f64);
+        loop {
+            let step = step_of(e);
+            let fit: Option<Vec<[u32; 2]>> = boxes
+                .iter()
+                .map(|b| {
+                    let lo = lower_code(b.min[a], origin[a], step, CODE_MAX);
+                    let hi = upper_code(b.max[a], origin[a], step)?;
+                    Some([lo, hi])
+                })
+                .collect();
+            if let Some(fit) = fit {
+                for (c, [lo, hi]) in codes.iter_mut().zip(fit) {
+                    c[a] = lo;
+                    c[3 + a] = CODE_MAX - hi;
+                }
+                break;
+            }
+            if e >= MAX_EXPONENT {
+                return None;
+            }
+            e += 1;
+        }
+        exponents[a] = e;
+    }
+    for (k, c) in codes.iter().enumerate() {
+        for (f, &stored) in c.iter().enumerate() {
+            let (word, shift) = code_slot((6 * k + f) as u32);
+            // A top byte of 0x7f or 0xff would let its float-field word read as a NaN; one code
+            // down moves a lower bound down, or an upper one (counted down) up: both outwards.
+            let stored = if shift == 24 && stored & 0x7f == 0x7f {
+                stored - 1
+            } else {
+                stored
+            };
+            w[word] |= stored << shift;
+        }
+    }
+    let kinds = children.iter().enumerate().map(|(k, &c)| {
+        let n = &binary[c as usize];
+        let kind = if n.is_leaf() { n.count } else { INNER };
+        kind << (3 * k)
+    });
+    if children.iter().any(|&c| binary[c as usize].count > MAX_LEAF_GRIDS) {
+        return None;
+    }
+    w[3] = first_node;
+    w[7] = first_grid;
+    w[11] = kinds.fold(0, |m, k| m | k) | exponents[2] << 24;
+    w[14] = exponents[0] | exponents[1] << 8;
+    Some(w)
+}
+
+/// The largest code at most `max` whose point `origin + code * step` is at most `x`.
+fn lower_code(x: f32, origin: f32, step: f32, max: u32) -> u32 {
+    let mut code = (((x as f64 - origin as f64) / step as f64).floor().max(0.0) as u64).min(max as u64) as u32;
+    while code > 0 && origin + step * code as f32 > x {
+        code -= 1;
+    }
+    code
+}
+
+/// The smallest code whose point is at least `x`, or `None` past [`CODE_MAX`].
+fn upper_code(x: f32, origin: f32, step: f32) -> Option<u32> {
+    let mut code = ((x as f64 - origin as f64) / step as f64).ceil().max(0.0) as u64;
+    while code <= CODE_MAX as u64 && origin + step * (code as f32) < x {
+        code += 1;
+    }
+    (code <= CODE_MAX as u64).then_some(code as u32)
+}
+
+/// A node's words as the two buffer elements it fills.
+fn elements(w: &NodeWords) -> [BvhNode; 2] {
+    let f = |i: usize| f32::from_bits(w[i]);
+    let element = |o: usize| BvhNode {
+        min: [f(o), f(o + 1), f(o + 2)],
+        first: w[o + 3],
+        max: [f(o + 4), f(o + 5), f(o + 6)],
+        count: w[o + 7],
+    };
+    [element(0), element(8)]
+}
+
+/// The most entries the walk's stack holds at once: at a node, the entries its ancestors left
+/// waiting plus its own children.
+fn stack_need(groups: &[Vec<u32>], binary: &[BvhNode]) -> usize {
+    let mut most = 0;
+    let mut todo = vec![(0usize, 0usize)];
+    let mut first_inner = vec![0usize; groups.len()];
+    let mut next = 1;
+    for (k, children) in groups.iter().enumerate() {
+        first_inner[k] = next;
+        next += children.iter().filter(|&&c| !binary[c as usize].is_leaf()).count();
+    }
+    while let Some((k, waiting)) = todo.pop() {
+        let children = &groups[k];
+        most = most.max(waiting + children.len());
+        let inner = children.iter().filter(|&&c| !binary[c as usize].is_leaf()).count();
+        for i in 0..inner {
+            todo.push((first_inner[k] + i, waiting + children.len() - 1));
+        }
+    }
+    most
+}
+
+/// Whether every decoded child box holds its binary node's box, every float-field word reads
+/// as a finite float, and the links name what the collapse made.
+fn holds_every_child(nodes: &[BvhNode], groups: &[Vec<u32>], binary: &[BvhNode]) -> bool {
+    let scene = scene_frame(&nodes[0]);
+    groups.iter().enumerate().all(|(k, children)| {
+        let w = load_node(nodes, k as u32);
+        let frame = node_frame(&w, &scene);
+        let finite = (0..16).filter(|i| i % 4 != 3).all(|i| f32::from_bits(w[i]).is_finite());
+        finite
+            && children.iter().enumerate().all(|(i, &c)| {
+                let n = &binary[c as usize];
+                let (lo, hi) = child_box(&w, i as u32, &frame);
+                let kind = child_kind(&w, i as u32);
+                let kind_ok = if n.is_leaf() { kind == n.count } else { kind == INNER };
+                kind_ok && lo.cmple(Vec3::from(n.min)).all() && hi.cmpge(Vec3::from(n.max)).all()
+            })
+            && (children.len() as u32 >= WIDTH || child_kind(&w, children.len() as u32) == 0)
+    })
+}
+
+/// The box around everything a wide hierarchy holds: its root's decoded child boxes.
+pub fn bounds(nodes: &[BvhNode]) -> Aabb {
+    let scene = scene_frame(&nodes[0]);
+    let w = load_node(nodes, 0);
+    let frame = node_frame(&w, &scene);
+    (0..WIDTH)
+        .take_while(|&k| child_kind(&w, k) != 0)
+        .map(|k| {
+            let (min, max) = child_box(&w, k, &frame);
+            Aabb { min, max }
+        })
+        .reduce(Aabb::union)
+        .unwrap_or(Aabb {
+            min: frame.origin,
+            max: frame.origin,
+        })
+}
+
+/// The most grids any leaf child holds.
+pub fn leaf_size(nodes: &[BvhNode]) -> u32 {
+    (0..nodes[0].first)
+        .flat_map(|k| {
+            let w = load_node(nodes, k);
+            (0..WIDTH).map(move |i| child_kind(&w, i))
+        })
+        .filter(|&kind| kind != INNER)
+        .max()
+        .unwrap_or(1)
+        .max(1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bvh::build;
+    use crate::grid::top_level_params;
+    use gridrt_shared::cost::{Tally, Uncounted};
+    use gridrt_shared::layout::Hit;
+    use gridrt_shared::ray::Ray;
+    use gridrt_shared::top_nodes::TopNodes;
+    use gridrt_shared::traverse::{Hierarchy, LeafPrimitives};
+
+    /// Boxes as primitives: a hit is the entry into the box, named by its original index.
+    struct Boxes {
+        boxes: Vec<Aabb>,
+        original: Vec<u32>,
+    }
+
+    impl LeafPrimitives for Boxes {
+        type Scratch = ();
+        fn scratch(&self, _ray: &Ray) {}
+        fn intersect_leaf<T: Tally>(&self, first: u32, count: u32, ray: &Ray, hit: &mut Hit, _: &mut (), _: &mut T) {
+            for i in first..first + count {
+                let b = &self.boxes[i as usize];
+                let t = gridrt_shared::aabb::intersect_aabb(b.min, b.max, ray, hit.t);
+                if t < hit.t {
+                    hit.t = t;
+                    hit.prim = self.original[i as usize];
+                }
+            }
+        }
+        fn triangle(&self, _prim: u32, _level: u32) -> [Vec3; 3] {
+            [Vec3::ZERO; 3]
+        }
+    }
+
+    /// Boxes of many sizes far from the origin, some flat.
+    fn scattered_boxes(n: usize) -> Vec<Aabb> {
+        let mut seed = 12345u32;
+        let mut next = move || {
+            seed = seed.wrapping_mul(1664525).wrapping_add(1013904223);
+            (seed >> 8) as f32 / (1 << 24) as f32
+        };
+        (0..n)
+            .map(|i| {
+                let at = Vec3::new(1000.0 + 40.0 * next(), -5.0 + 10.0 * next(), 3.0 * next());
+                let size = Vec3::new(next(), next(), next()) * if i % 3 == 0 { 0.01 } else { 1.0 };
+                let size = if i % 7 == 0 {
+                    size * Vec3::new(1.0, 0.0, 1.0)
+                } else {
+                    size
+                };
+                Aabb {
+                    min: at,
+                    max: at + size,
+                }
+            })
+            .collect()
+    }
+
+    fn in_order(boxes: &[Aabb], order: &[u32]) -> Boxes {
+        Boxes {
+            boxes: order.iter().map(|&i| boxes[i as usize]).collect(),
+            original: order.to_vec(),
+        }
+    }
+
+    /// The wide walk finds the binary walk's closest box for every ray, and each grid is named
+    /// by exactly one leaf.
+    #[test]
+    fn wide_walk_finds_what_the_binary_walk_finds() {
+        let boxes = scattered_boxes(3000);
+        let bvh = build(&boxes, &top_level_params());
+        let wide = pack(&bvh).expect("packs wide");
+        let mut seen = wide.order.clone();
+        seen.sort_unstable();
+        assert_eq!(seen, (0..boxes.len() as u32).collect::<Vec<_>>());
+        assert!(wide.nodes.len() * 2 < bvh.nodes.len(), "{} elements", wide.nodes.len());
+        let binary = in_order(&boxes, &bvh.order);
+        let order: Vec<u32> = wide.order.iter().map(|&k| bvh.order[k as usize]).collect();
+        let grids = in_order(&boxes, &order);
+        let top = TopNodes::new(wide.nodes.as_slice());
+        assert!(top.is_wide());
+        let mut hits = 0;
+        for i in 0..2000 {
+            let a = i as f32 * 0.618;
+            let origin = Vec3::new(1020.0 + 60.0 * a.cos(), 30.0 * (1.3 * a).sin(), -20.0);
+            let target = Vec3::new(1000.0 + (i % 41) as f32, -5.0 + (i % 11) as f32, 1.5);
+            let ray = Ray::new(origin, target - origin);
+            let mut want = Hit::miss(1e30);
+            bvh.nodes.as_slice().search(&binary, &ray, &mut want, &mut Uncounted);
+            let mut got = Hit::miss(1e30);
+            top.search(&grids, &ray, &mut got, &mut Uncounted);
+            assert_eq!((got.t, got.prim), (want.t, want.prim), "ray {i}");
+            hits += want.is_hit() as u32;
+        }
+        assert!(hits > 1000, "{hits} hits");
+        assert!(bounds(&wide.nodes).contains(&aabb(&bvh.nodes[0])));
+    }
+
+    /// A hierarchy too deep for the walk's stack (a chain: every node one leaf and one node)
+    /// stays binary.
+    #[test]
+    fn a_hierarchy_too_deep_for_the_stack_stays_binary() {
+        let leaves = 100u32;
+        let mut nodes = vec![];
+        for i in 0..leaves {
+            let lo = [i as f32; 3];
+            let whole = [leaves as f32; 3];
+            let inner = i + 1 < leaves;
+            let at = nodes.len() as u32;
+            nodes.push(BvhNode {
+                min: lo,
+                first: if inner { at + 1 } else { i },
+                max: whole,
+                count: if inner { 0 } else { 1 },
+            });
+            if inner {
+                nodes.push(BvhNode {
+                    min: lo,
+                    first: i,
+                    max: [i as f32 + 1.0; 3],
+                    count: 1,
+                });
+            }
+        }
+        // Node `at`'s children: the leaf at `at + 1` and the next node at `at + 2`.
+        let chain = Bvh {
+            nodes,
+            order: (0..leaves).collect(),
+        };
+        assert!(pack(&chain).is_none());
+    }
+}

@@ -1,0 +1,291 @@
+//! The grids' top level in wide nodes: up to seven children a node, each child's box six
+//! 8-bit codes in its node's own frame, after the compressed wide BVHs of Ylitie, Karras and
+//! Laine ("Efficient Incoherent Ray Traversal on GPUs Through Compressed Wide BVHs", HPG
+//! 2017, <https://research.nvidia.com/publication/2017-07_efficient-incoherent-ray-traversal-gpus-through-compressed-wide-bvhs>).
+//! A node takes 64 bytes for what the binary hierarchy spends 16 or 32 bytes a node on, about
+//! twice as many nodes as it has leaves.
+//!
+//! # Layout
+//! The hierarchy sits in a `BvhNode`-typed buffer, so every kernel binds it as any other top
+//! level. Element 0 is a header: the scene's frame (origin in `min`, step per code in `max`,
+//! [`WIDE`] in `count`). Node `k` fills elements `1 + 2k` and `2 + 2k`, read as sixteen words
+//! in field order (`min`, `first`, `max`, `count` of each):
+//! - words 3 and 7: the first inner child's node and the first grid of the leaf children.
+//!   Inner children are consecutive nodes and leaf children's grids consecutive grids, both
+//!   in child order.
+//! - word 11: three bits a child (0: none, 1 to [`MAX_LEAF_GRIDS`]: a leaf of that many
+//!   grids, [`INNER`]: a node), children packed from the first, then the frame's z exponent
+//!   in the top byte.
+//! - word 15 and the top half of word 13: the frame's origin as codes of the scene's frame,
+//!   at most [`ORIGIN_CODE_MAX`].
+//! - word 14: the frame's x and y exponents.
+//! - the 42 bytes of words 0-2, 4-6, 8-10, 12 and the bottom half of 13: byte `6 k + f` holds
+//!   field `f` of child `k`: the box's lower x, y, z codes, then its upper ones counted down
+//!   from 255.
+//!
+//! A frame's step per code is a power of two (an exponent biased by 127), so every product
+//! `code * step` is exact and `origin + code * step` is rounded once, fused or not: the CPU
+//! and every GPU decode the same bits.
+//!
+//! Words that sit in float fields never read as a NaN or an infinity, so moving them through
+//! float registers keeps their bits: a code in a top byte is never `0x7f` or `0xff` (the
+//! builder moves such codes one step outwards), origin codes stay at most
+//! [`ORIGIN_CODE_MAX`], and word 14's top byte is zero.
+//!
+//! # Guarantees
+//! Each decoded child box holds the child's whole subtree (the builder checks it with these
+//! very functions); the walk visits children nearest first and pops a waiting entry only while
+//! it can hold a closer hit, so it finds the binary hierarchy's closest hit.
+
+use crate::aabb::intersect_aabb;
+use crate::buffer::Buffer;
+use crate::cost::Tally;
+use crate::glam::Vec3;
+use crate::layout::{BvhNode, Hit};
+use crate::ray::{Ray, T_FAR};
+use crate::traverse::{LeafPrimitives, LocalStack, WalkStack, MAX_BVH_DEPTH, NO_NODE};
+
+/// `count` of the header element of a wide hierarchy (never a node's count).
+pub const WIDE: u32 = u32::MAX - 1;
+
+/// Most children a node has.
+pub const WIDTH: u32 = 7;
+
+/// A child's three bits when it is a node.
+pub const INNER: u32 = 7;
+
+/// Most grids a leaf child holds.
+pub const MAX_LEAF_GRIDS: u32 = 6;
+
+/// Largest origin code: its word's top byte then never reads as part of a NaN.
+pub const ORIGIN_CODE_MAX: u32 = 0x7f7f;
+
+/// Largest box code.
+pub const CODE_MAX: u32 = 255;
+
+/// Entries the walk's stack holds; the builder keeps to it (see [`stack_need`]).
+pub const STACK_ENTRIES: usize = MAX_BVH_DEPTH;
+
+/// Exponents (biased) a frame may use: steps of `2^-118` to `2^127`, so that no product of a
+/// code and a step, nor any decoded coordinate, is a denormal (which GPUs may flush).
+pub const MIN_EXPONENT: u32 = 9;
+pub const MAX_EXPONENT: u32 = 254;
+
+/// A stack entry for a leaf: this bit, the first grid shifted by [`LEAF_SHIFT`], the count.
+pub const LEAF: u32 = 1 << 31;
+pub const LEAF_SHIFT: u32 = 3;
+
+/// Most grids a wide hierarchy can name.
+pub const MAX_GRIDS: u32 = 1 << (31 - LEAF_SHIFT);
+
+/// A node's sixteen words.
+pub type NodeWords = [u32; 16];
+
+/// A node's frame: the point of code 0, and the step per code.
+#[derive(Copy, Clone)]
+pub struct Frame {
+    pub origin: Vec3,
+    pub step: Vec3,
+}
+
+impl Frame {
+    /// The point codes `codes` stand for: one rounding per axis (see the module docs).
+    #[inline(always)]
+    pub fn point(&self, codes: Vec3) -> Vec3 {
+        self.origin + self.step * codes
+    }
+}
+
+/// The step of biased exponent `e`.
+#[inline(always)]
+pub fn step_of(e: u32) -> f32 {
+    f32::from_bits(e << 23)
+}
+
+/// The scene's frame, from the header element.
+#[inline]
+pub fn scene_frame(header: &BvhNode) -> Frame {
+    Frame {
+        origin: Vec3::from(header.min),
+        step: Vec3::from(header.max),
+    }
+}
+
+/// Node `k`'s words.
+#[inline(always)]
+pub fn load_node<N: Buffer<BvhNode>>(nodes: N, k: u32) -> NodeWords {
+    let a = nodes.load(1 + 2 * k);
+    let b = nodes.load(2 + 2 * k);
+    [
+        a.min[0].to_bits(),
+        a.min[1].to_bits(),
+        a.min[2].to_bits(),
+        a.first,
+        a.max[0].to_bits(),
+        a.max[1].to_bits(),
+        a.max[2].to_bits(),
+        a.count,
+        b.min[0].to_bits(),
+        b.min[1].to_bits(),
+        b.min[2].to_bits(),
+        b.first,
+        b.max[0].to_bits(),
+        b.max[1].to_bits(),
+        b.max[2].to_bits(),
+        b.count,
+    ]
+}
+
+/// The word and shift of code byte `j` (`6 k + f`).
+#[inline(always)]
+pub fn code_slot(j: u32) -> (usize, u32) {
+    let q = j / 4;
+    ((q + q / 3) as usize, 8 * (j % 4))
+}
+
+/// Node `w`'s frame, within the scene's frame `scene`.
+#[inline(always)]
+pub fn node_frame(w: &NodeWords, scene: &Frame) -> Frame {
+    let codes = Vec3::new((w[15] & 0xffff) as f32, (w[15] >> 16) as f32, (w[13] >> 16) as f32);
+    Frame {
+        origin: scene.point(codes),
+        step: Vec3::new(
+            step_of(w[14] & 0xff),
+            step_of((w[14] >> 8) & 0xff),
+            step_of(w[11] >> 24),
+        ),
+    }
+}
+
+/// Child `k`'s three bits.
+#[inline(always)]
+pub fn child_kind(w: &NodeWords, k: u32) -> u32 {
+    (w[11] >> (3 * k)) & 7
+}
+
+/// Child `k`'s six codes as stored (the upper ones counted down from [`CODE_MAX`]).
+#[inline(always)]
+fn child_code(w: &NodeWords, k: u32, f: u32) -> u32 {
+    let (word, shift) = code_slot(6 * k + f);
+    (w[word] >> shift) & 0xff
+}
+
+/// Child `k`'s box in frame `frame`.
+#[inline(always)]
+pub fn child_box(w: &NodeWords, k: u32, frame: &Frame) -> (Vec3, Vec3) {
+    let c = |f| child_code(w, k, f) as f32;
+    let top = CODE_MAX as f32;
+    let lo = Vec3::new(c(0), c(1), c(2));
+    let hi = Vec3::new(top - c(3), top - c(4), top - c(5));
+    (frame.point(lo), frame.point(hi))
+}
+
+/// The box of a whole node: its frame's 255 codes.
+#[inline]
+pub fn frame_box(frame: &Frame) -> (Vec3, Vec3) {
+    (frame.origin, frame.point(Vec3::splat(CODE_MAX as f32)))
+}
+
+/// Closest hit along `ray` closer than `hit.t` in the wide hierarchy `nodes` (header first).
+///
+/// Shaped as the binary walk (`crate::traverse::traverse_bvh`): an inner loop takes nodes
+/// off the stack, nearest first, pushing each one's children that the ray enters (sorted, so
+/// the nearest is on top) until it takes a leaf; the leaf is tested after it, once per leaf.
+pub fn traverse_wide<N: Buffer<BvhNode>, P: LeafPrimitives, T: Tally>(
+    nodes: N,
+    prims: &P,
+    ray: &Ray,
+    hit: &mut Hit,
+    tally: &mut T,
+) {
+    if nodes.is_empty() {
+        return;
+    }
+    let scene = scene_frame(&nodes.load(0));
+    let root = node_frame(&load_node(nodes, 0), &scene);
+    let (lo, hi) = frame_box(&root);
+    tally.nodes(1);
+    let t_root = intersect_aabb(lo, hi, ray, hit.t);
+    if t_root == T_FAR {
+        return;
+    }
+    let mut stack = LocalStack::new();
+    stack.push(0, 0, t_root);
+    let mut sp = 1usize;
+    let mut scratch = prims.scratch(ray);
+    loop {
+        let leaf = next_leaf(nodes, &scene, ray, hit.t, &mut stack, &mut sp, tally);
+        if leaf == NO_NODE {
+            break;
+        }
+        let first = (leaf & !LEAF) >> LEAF_SHIFT;
+        let count = leaf & ((1 << LEAF_SHIFT) - 1);
+        prims.intersect_leaf(first, count, ray, hit, &mut scratch, tally);
+    }
+}
+
+/// Takes entries off `stack` until a leaf the ray may hit closer than `t`, opening the nodes
+/// on the way; the leaf's entry, or [`NO_NODE`] when the stack runs out.
+#[inline(always)]
+fn next_leaf<N: Buffer<BvhNode>, T: Tally>(
+    nodes: N,
+    scene: &Frame,
+    ray: &Ray,
+    t: f32,
+    stack: &mut LocalStack,
+    sp: &mut usize,
+    tally: &mut T,
+) -> u32 {
+    loop {
+        let entry = stack.pop_closer(sp, t);
+        if entry == NO_NODE || entry & LEAF != 0 {
+            return entry;
+        }
+        let w = load_node(nodes, entry);
+        let frame = node_frame(&w, scene);
+        let mut node = w[3];
+        let mut grid = w[7];
+        let bottom = *sp;
+        // Over all seven slots, empty ones skipped rather than ending the loop: a loop of a
+        // fixed count, which compilers unroll, so every code's word and shift are constants.
+        let mut k = 0;
+        loop {
+            let kind = child_kind(&w, k);
+            if kind != 0 {
+                let (lo, hi) = child_box(&w, k, &frame);
+                tally.nodes(1);
+                let t_enter = intersect_aabb(lo, hi, ray, t);
+                let child = if kind == INNER {
+                    node
+                } else {
+                    LEAF | grid << LEAF_SHIFT | kind
+                };
+                if t_enter < T_FAR && *sp < STACK_ENTRIES {
+                    push_sorted(stack, bottom, sp, child, t_enter);
+                }
+                if kind == INNER {
+                    node += 1;
+                } else {
+                    grid += kind;
+                }
+            }
+            k += 1;
+            if k >= WIDTH {
+                break;
+            }
+        }
+    }
+}
+
+/// Pushes `entry` at distance `t` among the entries above `bottom`, which stay sorted with the
+/// nearest on top.
+#[inline(always)]
+fn push_sorted(stack: &mut LocalStack, bottom: usize, sp: &mut usize, entry: u32, t: f32) {
+    let mut at = *sp;
+    while at > bottom && stack.t(at - 1) < t {
+        stack.push(at, stack.node(at - 1), stack.t(at - 1));
+        at -= 1;
+    }
+    stack.push(at, entry, t);
+    *sp += 1;
+}
