@@ -119,7 +119,8 @@ pub struct GridScene {
 }
 
 impl GridScene {
-    /// The top-level BVH as the traversal reads it, full or compact.
+    /// The top-level BVH as the traversal searches it, full, compact or wide (binary nodes are
+    /// also read one by one through it; wide ones only by its search).
     pub fn top(&self) -> TopNodes<&[BvhNode]> {
         TopNodes::new(self.nodes.as_slice())
     }
