@@ -199,10 +199,11 @@ fn scene_frame_of(b: &Aabb) -> Option<Frame> {
 /// The biased exponent of the smallest power of two at least `span` (clamped to the usable
 /// range).
 fn exponent_for(span: f64) -> u32 {
+    // Clamped first: an infinite span (a box of overflowing extent) must not overflow the sum.
     let e = if span > 0.0 {
-        span.log2().ceil() as i64
+        span.log2().ceil().clamp(-1000.0, 1000.0) as i64
     } else {
-        i64::MIN / 2
+        -1000
     };
     (e + 127).clamp(MIN_EXPONENT as i64, MAX_EXPONENT as i64) as u32
 }
@@ -481,6 +482,17 @@ mod tests {
         }
         assert!(hits > 1000, "{hits} hits");
         assert!(bounds(&wide.nodes).contains(&aabb(&bvh.nodes[0])));
+    }
+
+    /// Spans past the float range, none and NaN give exponents in range, without overflow.
+    #[test]
+    fn exponents_stay_in_range() {
+        assert_eq!(exponent_for(f64::INFINITY), MAX_EXPONENT);
+        assert_eq!(exponent_for(1e300), MAX_EXPONENT);
+        assert_eq!(exponent_for(0.0), MIN_EXPONENT);
+        assert_eq!(exponent_for(f64::NAN), MIN_EXPONENT);
+        assert_eq!(exponent_for(1.0), 127);
+        assert_eq!(exponent_for(3.0), 129);
     }
 
     /// A hierarchy too deep for the walk's stack (a chain: every node one leaf and one node)
