@@ -111,25 +111,19 @@ pub fn split<'a>(scene: &'a Scene, chunk_words: u32, device: &str) -> Result<Spl
     );
     let buffers = scene_buffers(scene);
     let sizes: Vec<BufferSize> = buffers.iter().map(SceneBuffer::size).collect();
-    if matches!(scene, Scene::Grids(g) if g.params.displaced != 0) {
-        // The split kernels leave the displaced decoder out: with it they grow much larger,
-        // and so does the time their first compile takes.
+    // The split kernels leave the displaced decoder and the wide walk out: with them they grow
+    // much larger, and so does the time their first compile takes.
+    let whole_only = match scene {
+        Scene::Grids(g) if g.params.displaced != 0 => Some(("displaced grids are", "")),
+        Scene::Grids(g) if g.has_wide_top() => Some(("a wide top level (--wide-top) is", "; use --compact-top")),
+        _ => None,
+    };
+    if let Some((what, way_out)) = whole_only {
         let largest = sizes.iter().max_by_key(|b| b.bytes).expect("a scene has buffers");
         fail!(
             Limits,
-            "displaced grids are read from one binding per buffer, and this scene's {} buffer ({}) is larger \
-             than {device} binds at once",
-            largest.name,
-            crate::limits::human(largest.bytes)
-        );
-    }
-    if matches!(scene, Scene::Grids(g) if g.has_wide_top()) {
-        // The split kernels leave the wide walk out, for the same reason.
-        let largest = sizes.iter().max_by_key(|b| b.bytes).expect("a scene has buffers");
-        fail!(
-            Limits,
-            "a wide top level (--wide-top) is read from one binding per buffer, and this scene's {} buffer ({}) \
-             is larger than {device} binds at once; use --compact-top",
+            "{what} read from one binding per buffer, and this scene's {} buffer ({}) is larger than {device} \
+             binds at once{way_out}",
             largest.name,
             crate::limits::human(largest.bytes)
         );

@@ -40,6 +40,10 @@ pub fn pack(bvh: &Bvh) -> Option<WideTop> {
     let merged = merge_sibling_leaves(binary);
     let binary = merged.as_slice();
     let groups = collapse(binary);
+    let first_inner = first_inner_children(&groups, binary);
+    if stack_need(&groups, binary, &first_inner) > STACK_ENTRIES {
+        return None;
+    }
     let scene = scene_frame_of(&aabb(root))?;
     let mut nodes = vec![BvhNode {
         min: scene.origin.to_array(),
@@ -48,8 +52,7 @@ pub fn pack(bvh: &Bvh) -> Option<WideTop> {
         count: WIDE,
     }];
     let mut order = Vec::with_capacity(bvh.order.len());
-    let mut next_node = 1u32;
-    for children in &groups {
+    for (children, &first_node) in groups.iter().zip(&first_inner) {
         let first_grid = order.len() as u32;
         for &c in children {
             let n = &binary[c as usize];
@@ -57,13 +60,8 @@ pub fn pack(bvh: &Bvh) -> Option<WideTop> {
                 order.extend(n.first..n.first + n.count);
             }
         }
-        let first_node = next_node;
-        next_node += children.iter().filter(|&&c| !binary[c as usize].is_leaf()).count() as u32;
         let words = encode(binary, children, &scene, [first_node, first_grid])?;
         nodes.extend(elements(&words));
-    }
-    if stack_need(&groups, binary) > STACK_ENTRIES {
-        return None;
     }
     let wide = WideTop { nodes, order };
     holds_every_child(&wide.nodes, &groups, binary).then_some(wide)
@@ -314,24 +312,37 @@ fn elements(w: &NodeWords) -> [BvhNode; 2] {
 
 /// The most entries the walk's stack holds at once: at a node, the entries its ancestors left
 /// waiting plus its own children.
-fn stack_need(groups: &[Vec<u32>], binary: &[BvhNode]) -> usize {
+fn stack_need(groups: &[Vec<u32>], binary: &[BvhNode], first_inner: &[u32]) -> usize {
     let mut most = 0;
     let mut todo = vec![(0usize, 0usize)];
-    let mut first_inner = vec![0usize; groups.len()];
-    let mut next = 1;
-    for (k, children) in groups.iter().enumerate() {
-        first_inner[k] = next;
-        next += children.iter().filter(|&&c| !binary[c as usize].is_leaf()).count();
-    }
     while let Some((k, waiting)) = todo.pop() {
         let children = &groups[k];
         most = most.max(waiting + children.len());
-        let inner = children.iter().filter(|&&c| !binary[c as usize].is_leaf()).count();
-        for i in 0..inner {
-            todo.push((first_inner[k] + i, waiting + children.len() - 1));
+        let first = first_inner[k] as usize;
+        for i in first..first + inner_count(binary, children) as usize {
+            todo.push((i, waiting + children.len() - 1));
         }
     }
     most
+}
+
+/// How many of `children` are inner nodes.
+fn inner_count(binary: &[BvhNode], children: &[u32]) -> u32 {
+    children.iter().filter(|&&c| !binary[c as usize].is_leaf()).count() as u32
+}
+
+/// Each wide node's first inner child: nodes are numbered in the order [`collapse`] lists
+/// them (breadth first), the root 0, so each node's inner children are consecutive.
+fn first_inner_children(groups: &[Vec<u32>], binary: &[BvhNode]) -> Vec<u32> {
+    let mut next = 1;
+    groups
+        .iter()
+        .map(|children| {
+            let first = next;
+            next += inner_count(binary, children);
+            first
+        })
+        .collect()
 }
 
 /// Whether every decoded child box holds its binary node's box, every float-field word reads
