@@ -8,10 +8,14 @@
 //!   `l - 1` one; its parents are the ends of the coarser edge it halves. Its value is
 //!   `clamp(mean + correction << shift, 0, 2047)`, `mean = (a + b + 1) >> 1` of its parents'
 //!   values: whole numbers, so every decoder computes the same bits.
-//! - Corrections are signed, `width(l)` bits each (0 to 11), one set of widths for a whole
-//!   scene. Each block (a grid's inner points, or a base edge's points) begins with its own
-//!   shift per level, [`SHIFT_BITS`] each, chosen by the encoder, then its corrections level by
-//!   level, coarse to fine.
+//! - Corrections are signed, `width(l)` bits each (0 to 11). Each block (a grid's inner
+//!   points, or a base edge's points) holds its own shift per level, [`SHIFT_BITS`] each,
+//!   chosen by the encoder, then its corrections level by level, coarse to fine.
+//! - The base edges share one set of widths, the scene's. Each grid's block begins with its
+//!   own widths, [`WIDTH_BITS`] per level, before its shifts: a smooth grid spends few bits
+//!   and a detailed one many, where one set for the whole scene would spend the detailed
+//!   grids' widths everywhere. Grid blocks are therefore of different lengths; a table at
+//!   the start of the buffer gives each one's first bit (see [`CodedScene::block_bit`]).
 //! - A base edge's points form a block of their own, stored once from the edge's lower base
 //!   vertex id, and are predicted from points of that edge alone: both grids that share the
 //!   edge decode the same values, so the surface stays watertight. Corners are plain 11-bit
@@ -35,6 +39,8 @@ pub const SHIFT_BITS: u32 = 4;
 pub const WIDTH_BITS: u32 = 4;
 /// The deepest level a code describes.
 pub const MAX_LEVELS: u32 = 6;
+/// Where [`CodedGrid::edge_code`] keeps the levels, above the widths of [`MAX_LEVELS`] levels.
+const LEVELS_SHIFT: u32 = WIDTH_BITS * MAX_LEVELS;
 /// Bits of a plain value (a corner).
 pub const VALUE_BITS: u32 = 11;
 /// The largest value.
@@ -94,6 +100,12 @@ impl ValueCode {
         SHIFT_BITS * self.levels
     }
 
+    /// Bits of the widths at the start of every grid's block.
+    #[inline]
+    pub fn width_bits(&self) -> u32 {
+        WIDTH_BITS * self.levels
+    }
+
     /// Bit, within a grid's block, where level `l`'s corrections begin.
     #[inline]
     pub fn inner_level_bit(&self, l: u32) -> u32 {
@@ -124,16 +136,27 @@ impl ValueCode {
         self.shift_bits() + term(1) + term(2) + term(3) + term(4) + term(5) + term(6)
     }
 
-    /// Bits of a grid's block.
+    /// Bits of a grid's block whose own widths are this code's, its widths included.
     #[inline]
     pub fn inner_block_bits(&self) -> u32 {
-        self.inner_level_bit(self.levels + 1)
+        self.width_bits() + self.inner_level_bit(self.levels + 1)
     }
 
     /// Bits of a base edge's block.
     #[inline]
     pub fn edge_block_bits(&self) -> u32 {
         self.edge_level_bit(self.levels + 1)
+    }
+}
+
+/// `width` bits of `buffer` from bit `bit`, for any `width` up to 32: two reads of at most
+/// 16 bits where one of up to 25 may not do.
+#[inline]
+pub fn read_long_bits<B: Buffer<u32>>(buffer: B, bit: u32, width: u32) -> u32 {
+    if width <= 16 {
+        read_bits(buffer, bit, width)
+    } else {
+        read_bits(buffer, bit, 16) | read_bits(buffer, bit + 16, width - 16) << 16
     }
 }
 
@@ -168,9 +191,13 @@ pub fn corrected(a: u32, b: u32, field: u32, width: u32, shift: u32) -> u32 {
 /// values.
 #[derive(Copy, Clone, Default)]
 pub struct CodedGrid {
-    pub code_levels: u32,
-    pub widths: u32,
-    /// Bit where the grid's own block begins, and its shifts.
+    /// The code's levels (bits 24 and up) and the base edges' widths (the scene's) below
+    /// them, in one word, and the grid's own widths. (One word for both keeps the struct the
+    /// size it had before grids had widths of their own: the GPU's shader validator reads its
+    /// members at the offsets Rust lays out, and a larger struct moved them.)
+    pub edge_code: u32,
+    pub inner_widths: u32,
+    /// Bit where the grid's own block begins after its widths, and its shifts.
     pub inner_bit: u32,
     pub inner_shifts: u32,
     /// Bit where each base edge's block begins, their shifts, and which run against the
@@ -190,19 +217,31 @@ pub struct CodedScene {
     pub edge_block_bits: u32,
     /// Bit of base vertex 0's corner value (11 bits each).
     pub corner_bit: u32,
+    /// Bits of each entry of the block table (see [`Self::block_bit`]).
+    pub offset_bits: u32,
 }
 
 impl CodedScene {
-    /// Grid `ids` whose block begins at bit `inner_bit`, resolved.
+    /// The first bit of grid `grid`'s block: entry `grid` of the table at the start of the
+    /// buffer, `offset_bits` bits each, end to end.
     #[inline]
-    pub fn open<B: Buffer<u32>>(&self, buffer: B, ids: &GridIds, inner_bit: u32) -> CodedGrid {
+    pub fn block_bit<B: Buffer<u32>>(&self, buffer: B, grid: u32) -> u32 {
+        read_long_bits(buffer, grid * self.offset_bits, self.offset_bits)
+    }
+
+    /// Grid `grid` with ids `ids`, resolved.
+    #[inline]
+    pub fn open<B: Buffer<u32>>(&self, buffer: B, ids: &GridIds, grid: u32) -> CodedGrid {
         let shift_bits = self.code.shift_bits();
+        let block_bit = self.block_bit(buffer, grid);
+        let width_bits = self.code.width_bits();
+        let inner_bit = block_bit + width_bits;
         let edge = |e: u32| self.edge_bit + ids.edge(e) * self.edge_block_bits;
         let edge_bit = [edge(0), edge(1), edge(2)];
         let corner = |c: u32| read_bits(buffer, self.corner_bit + ids.corner(c) * VALUE_BITS, VALUE_BITS);
         CodedGrid {
-            code_levels: self.code.levels,
-            widths: self.code.widths,
+            edge_code: (self.code.levels << LEVELS_SHIFT) | self.code.widths,
+            inner_widths: read_bits(buffer, block_bit, width_bits),
             inner_bit,
             inner_shifts: read_bits(buffer, inner_bit, shift_bits),
             edge_bit,
@@ -220,10 +259,25 @@ impl CodedScene {
 }
 
 impl CodedGrid {
+    /// The code's levels.
+    #[inline]
+    fn levels(&self) -> u32 {
+        self.edge_code >> LEVELS_SHIFT
+    }
+
+    /// The base edges' code.
     fn code(&self) -> ValueCode {
         ValueCode {
-            levels: self.code_levels,
-            widths: self.widths,
+            levels: self.levels(),
+            widths: self.edge_code & ((1 << LEVELS_SHIFT) - 1),
+        }
+    }
+
+    /// The grid's own code, for its inner points.
+    fn inner_code(&self) -> ValueCode {
+        ValueCode {
+            levels: self.levels(),
+            widths: self.inner_widths,
         }
     }
 
@@ -246,7 +300,7 @@ impl CodedGrid {
         } else {
             (3, 0)
         };
-        let (bit, shifts, level, place) = if edge < 3 {
+        let (bit, shifts, level, place, width) = if edge < 3 {
             let t = if (self.edge_reversed >> edge) & 1 != 0 {
                 n - s
             } else {
@@ -260,8 +314,10 @@ impl CodedGrid {
                 self.edge_shifts[edge as usize],
                 level,
                 place,
+                code.width(level),
             )
         } else {
+            let inner = self.inner_code();
             let tz = (i | j).trailing_zeros();
             let level = code.levels - tz;
             let rank = inner_rank(i >> tz, j >> tz, 1 << level);
@@ -269,10 +325,10 @@ impl CodedGrid {
                 self.inner_bit,
                 self.inner_shifts,
                 level,
-                code.inner_level_bit(level) + rank * code.width(level),
+                inner.inner_level_bit(level) + rank * inner.width(level),
+                inner.width(level),
             )
         };
-        let width = code.width(level);
         let shift = (shifts >> (SHIFT_BITS * (level - 1))) & ((1 << SHIFT_BITS) - 1);
         corrected(a, b, read_bits(buffer, bit + place, width), width, shift)
     }
@@ -282,7 +338,7 @@ impl CodedGrid {
     fn root(&self) -> Walk {
         Walk {
             a: [0, 0],
-            h: 1 << self.code_levels,
+            h: 1 << self.levels(),
             d: 1,
             q: self.corner_values,
         }
@@ -464,5 +520,8 @@ mod tests {
         assert_eq!(read_bits(&words[..], 0, 8), 0xef);
         assert_eq!(read_bits(&words[..], 28, 8), 0x8d);
         assert_eq!(read_bits(&words[..], 32, 24), 0x34_5678);
+        assert_eq!(read_long_bits(&words[..], 4, 32), 0x8dea_dbee);
+        assert_eq!(read_long_bits(&words[..], 36, 20), 0x3_4567);
+        assert_eq!(read_long_bits(&words[..], 0, 12), 0xeef);
     }
 }

@@ -20,7 +20,8 @@ use crate::lod::grid_level;
 use crate::quantize::{dequantize, halves_from_words, read_half, unit_from_exponent};
 use crate::ray::{Ray, T_FAR};
 use crate::sphere::{
-    decode_radius, intersect_sphere_scaled, relative_radius, relative_radius_at, relative_radius_words,
+    decode_radius, intersect_sphere_scaled, leaf_radius, leaf_thickness, relative_radius, relative_radius_at,
+    relative_radius_words,
 };
 use crate::traverse::{load_vec3_bits, record_hit, trace, Hierarchy, LeafPrimitives};
 use crate::triangle::{intersect_sheared, shear};
@@ -74,10 +75,12 @@ const INNER_CODES: u32 = 1 << 31;
 /// Working memory of the grid traversal, one per ray.
 pub struct GridScratch {
     /// Pending sub-triangles: `index << 4 | level`, the corner `a` packed by [`pack_corner`],
-    /// and the sphere's entry distance.
+    /// the sphere's entry distance and its radius.
     stack: [u32; GRID_STACK],
     stack_corner: [u32; GRID_STACK],
     stack_t: [f32; GRID_STACK],
+    /// The pending spheres' radii: leaf radii are stored relative to their parents'.
+    stack_radius: [f32; GRID_STACK],
     /// A leaf's vertices in the ray's sheared frame.
     sheared: [Vec3; LEAF_VERTICES],
     /// Which sides of the ray each sheared vertex lies strictly on: bits for `x > 0`, `x < 0`,
@@ -248,8 +251,9 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                 edge_bit,
                 edge_block_bits: g.edge_block_bits,
                 corner_bit: g.corner_bit,
+                offset_bits: g.block_offset_bits,
             };
-            scene.open(self.vertices, &ids, inner_bit)
+            scene.open(self.vertices, &ids, grid)
         } else {
             CodedGrid::default()
         };
@@ -358,7 +362,12 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     #[inline]
     pub fn radius(&self, grid: u32, node: u32) -> f32 {
         if self.params.radius_format == RADII_RELATIVE {
-            let first = grid * relative_radius_words(self.params.sphere_count);
+            let first = grid * relative_radius_words(self.params.stored_spheres());
+            let first_leaf = level_start(self.params.leaf_level);
+            if self.params.leaf_pairs() && node >= first_leaf {
+                let parent = relative_radius_at(self.radii, first, (node - 1) / 4);
+                return leaf_radius(parent, self.leaf_byte(grid, node - first_leaf));
+            }
             return relative_radius_at(self.radii, first, node);
         }
         let k = grid * self.params.sphere_count + node;
@@ -371,13 +380,24 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         decode_radius((word >> (16 * (k & 1))) & 0xffff, self.params.radius_scale)
     }
 
-    /// Radii of the four children of a sphere whose first child is `first_child`, in a grid
-    /// whose root has radius `root_radius`.
+    /// Radii of the four children of a sphere whose first child is `first_child` at level
+    /// `level`, whose own radius is `parent_radius`, in a grid whose root has radius
+    /// `root_radius`.
     #[inline]
-    fn child_radii(&self, grid: u32, first_child: u32, root_radius: f32) -> [f32; 4] {
+    fn child_radii(&self, grid: u32, first_child: u32, level: u32, parent_radius: f32, root_radius: f32) -> [f32; 4] {
+        if self.params.leaf_pairs() && level == self.params.leaf_level {
+            // The leaves' own bytes, four to a word.
+            let word = self.leaf_word(grid, first_child - level_start(level));
+            return [
+                leaf_radius(parent_radius, word),
+                leaf_radius(parent_radius, word >> 8),
+                leaf_radius(parent_radius, word >> 16),
+                leaf_radius(parent_radius, word >> 24),
+            ];
+        }
         if self.params.radius_format == RADII_RELATIVE {
             // The four bytes of one word.
-            let first = grid * relative_radius_words(self.params.sphere_count);
+            let first = grid * relative_radius_words(self.params.stored_spheres());
             let word = self.radii.load(first + 1 + (first_child - 1) / 4);
             return [
                 relative_radius(root_radius, word, 0),
@@ -398,12 +418,26 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     /// has radius `radius`.
     #[inline]
     pub fn thickness(&self, grid: u32, leaf: u32, radius: f32) -> f32 {
+        let byte = self.leaf_byte(grid, leaf);
+        if self.params.leaf_pairs() {
+            return leaf_thickness(radius, byte >> 4);
+        }
+        radius * (byte as f32 * (2.0 / 255.0))
+    }
+
+    /// The word of `grid`'s leaf bytes that holds leaf `leaf`'s, in its lowest byte when
+    /// `leaf` is a multiple of 4.
+    #[inline]
+    fn leaf_word(&self, grid: u32, leaf: u32) -> u32 {
         let words_per_grid = triangle_count(self.params.leaf_level).div_ceil(4);
-        let word = self
-            .radii
-            .load(self.params.thickness_word + grid * words_per_grid + leaf / 4);
-        let code = (word >> (8 * (leaf & 3))) & 0xff;
-        radius * (code as f32 * (1.0 / 255.0))
+        self.radii
+            .load(self.params.thickness_word + grid * words_per_grid + leaf / 4)
+    }
+
+    /// Leaf `leaf`'s byte (see `GridParams::thickness_word`).
+    #[inline]
+    fn leaf_byte(&self, grid: u32, leaf: u32) -> u32 {
+        (self.leaf_word(grid, leaf) >> (8 * (leaf & 3))) & 0xff
     }
 
     /// Tests the `4^k` micro-triangles of a leaf sub-triangle: its first corner is `corner`,
@@ -617,6 +651,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         scratch.stack[0] = 0;
         scratch.stack_corner[0] = pack_corner(root.corner, root.inverted);
         scratch.stack_t[0] = root.t;
+        scratch.stack_radius[0] = visit.root_radius;
         // Tested at the bottom (see `traverse_bvh`): the root is always there to pop, and a
         // pass more would cost every group a sub-triangle's whole work.
         loop {
@@ -629,6 +664,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                     corner: [(packed & 0xff) as i32, ((packed >> 8) & 0xff) as i32],
                     inverted: packed >> 16 != 0,
                     t: scratch.stack_t[sp],
+                    radius: scratch.stack_radius[sp],
                 };
                 sp = self.visit_sub_triangle::<true, true, T>(
                     &visit,
@@ -719,11 +755,13 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             // Children 0, 1, 2 at corners a, b, c, and the inverted middle child 3; their radii
             // are adjacent in BFS order.
             let first_child = level_start(level + 1) + 4 * index;
-            let r = self.child_radii(grid, first_child, visit.root_radius);
+            let radius = if level == 0 { visit.root_radius } else { sub.radius };
+            let r = self.child_radii(grid, first_child, level + 1, radius, visit.root_radius);
             let entry = |center: Vec3, child: u32| {
                 Entry::new(
                     intersect_sphere_scaled(center, r[child as usize], ray, inv_dir_len2, hit.t),
                     child,
+                    r[child as usize],
                 )
             };
             tally.spheres(4);
@@ -785,6 +823,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                         scratch.stack[sp] = ((4 * index + e.child) << 4) | (level + 1);
                         scratch.stack_corner[sp] = child_corner(e.child);
                         scratch.stack_t[sp] = e.t;
+                        scratch.stack_radius[sp] = e.radius;
                         sp += 1;
                     }
                 };
@@ -972,6 +1011,8 @@ struct SubTriangle {
     corner: [i32; 2],
     inverted: bool,
     t: f32,
+    /// Its sphere's radius (the root's is the visit's).
+    radius: f32,
 }
 
 impl SubTriangle {
@@ -981,21 +1022,23 @@ impl SubTriangle {
         corner: [0, 0],
         inverted: false,
         t: 0.0,
+        radius: 0.0,
     };
 }
 
-/// A child sphere's entry distance and which child it is.
+/// A child sphere's entry distance, which child it is, and its radius.
 #[repr(C)]
 #[derive(Copy, Clone)]
 struct Entry {
     t: f32,
     child: u32,
+    radius: f32,
 }
 
 impl Entry {
     #[inline]
-    fn new(t: f32, child: u32) -> Entry {
-        Entry { t, child }
+    fn new(t: f32, child: u32, radius: f32) -> Entry {
+        Entry { t, child, radius }
     }
 }
 
@@ -1014,6 +1057,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             stack: [0; GRID_STACK],
             stack_corner: [0; GRID_STACK],
             stack_t: [0.0; GRID_STACK],
+            stack_radius: [0.0; GRID_STACK],
             sheared: [Vec3::ZERO; LEAF_VERTICES],
             sides: [0; LEAF_VERTICES],
             inv_dir_len2: 1.0 / ray.dir.dot(ray.dir),

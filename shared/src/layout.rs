@@ -3,6 +3,7 @@
 //! All fields are 4-byte scalars or arrays of them, so `#[repr(C)]` gives the same offsets in
 //! Rust, in the SPIR-V that rust-gpu emits and in std430 storage buffers.
 
+use crate::grid_index::sphere_count;
 #[cfg(not(target_arch = "spirv"))]
 use bytemuck::{Pod, Zeroable};
 
@@ -216,9 +217,12 @@ pub struct GridParams {
     /// `radius_scale`, a power of two) or [`RADII_RELATIVE`].
     pub radius_format: u32,
     pub radius_scale: f32,
-    /// Word of the radius buffer where the leaves' thicknesses begin: a byte per leaf, the
-    /// thickness in 255ths of the leaf's radius (see `crate::footprint`), `4^leaf_level` bytes
-    /// per grid in whole words, grids in order.
+    /// Word of the radius buffer where the leaves' bytes begin, `4^leaf_level` bytes per grid
+    /// in whole words, grids in order. Each byte holds the leaf's thickness (see
+    /// `crate::footprint`): in `2 / 255`ths of the leaf's radius; or, with relative radii
+    /// ([`GridParams::leaf_pairs`]), the leaf's radius in its low four bits (see
+    /// `crate::sphere::leaf_radius`) and its thickness in its high four (see
+    /// `crate::sphere::leaf_thickness`), and the radius area then holds no leaf radii.
     pub thickness_word: u32,
     /// Whether leaf thicknesses are stored and leaves culled by their footprint.
     pub leaf_footprint: u32,
@@ -246,11 +250,13 @@ pub struct GridParams {
     /// position and a direction, six `f32`, per base vertex.
     pub base_word: u32,
     /// For displaced grids of compressed values ([`DISPLACED_COMPRESSED`]): each level's
-    /// correction width (see `crate::compressed_values::ValueCode`), the bits of one base
-    /// edge's block, and the bit where the corner values begin.
+    /// correction width on the base edges (see `crate::compressed_values::ValueCode`), the
+    /// bits of one base edge's block, the bit where the corner values begin, and the bits of
+    /// each entry of the grid blocks' table (see `crate::compressed_values::CodedScene`).
     pub value_widths: u32,
     pub edge_block_bits: u32,
     pub corner_bit: u32,
+    pub block_offset_bits: u32,
 }
 
 /// [`GridParams::radius_format`]: one `f32` per radius.
@@ -260,7 +266,11 @@ pub const RADII_HALF: u32 = 1;
 /// [`GridParams::radius_format`]: per grid, the root's radius as an `f32` word, then a byte
 /// per sphere below it, in 255ths of the root's radius, rounded up. A sphere's four children
 /// are one word, so a visit reads their radii in one load, and every radius decodes from its
-/// own byte and the root's (no chain through the parents).
+/// own byte and the root's (no chain through the parents). With leaf footprints and at least
+/// two sphere levels above the leaves, the leaves' radii are not here but beside their
+/// thicknesses, relative to their parents' (see [`GridParams::thickness_word`]): the leaves
+/// are most of the spheres, and half a byte each holds them within a sixteenth of their
+/// parent's radius.
 pub const RADII_RELATIVE: u32 = 2;
 
 /// [`GridParams::displaced`] for grids of plain 11-bit values.
@@ -269,6 +279,27 @@ pub const DISPLACED_PLAIN: u32 = 1;
 pub const DISPLACED_COMPRESSED: u32 = 2;
 
 impl GridParams {
+    /// Whether each leaf's byte holds its radius and its thickness (see
+    /// [`Self::thickness_word`]): with relative radii and leaf footprints, from two sphere
+    /// levels above the leaves on. (Leaves that are the root's children keep a byte of the
+    /// root's radius each: their half-byte radii would test more leaves for four bytes a
+    /// grid.)
+    #[inline]
+    pub fn leaf_pairs(&self) -> bool {
+        self.radius_format == RADII_RELATIVE && self.leaf_footprint != 0 && self.leaf_level >= 2
+    }
+
+    /// Spheres per grid in the radius area: all of them, or all but the leaves when the
+    /// leaves' radii are in their bytes.
+    #[inline]
+    pub fn stored_spheres(&self) -> u32 {
+        if self.leaf_pairs() {
+            sphere_count(self.leaf_level - 1)
+        } else {
+            self.sphere_count
+        }
+    }
+
     /// Whether every grid's hierarchy is walked by its root's visit alone: its stored leaves
     /// are the root's children or the root itself, as at the default depth `L = 3`. Such
     /// scenes may be traced as `OneVisitGrids` (see `crate::grid_traverse`), without a stack.

@@ -33,6 +33,32 @@ pub fn relative_radius(root: f32, word: u32, k: u32) -> f32 {
     root * (code as f32 * (1.0 / 255.0))
 }
 
+/// The radius a leaf's 4-bit code `code` stands for, its parent's radius being `parent`
+/// (leaf pairs: see `layout::GridParams::thickness_word`): `(code + 1) / 16` of it, or twice it
+/// for code 15. A leaf's points lie in its parent's sphere, and so does its centre (their
+/// mean), so its radius never exceeds twice its parent's.
+#[inline]
+pub fn leaf_radius(parent: f32, code: u32) -> f32 {
+    let k = code & 0xf;
+    let fraction = if k == 15 { 2.0 } else { (k + 1) as f32 * (1.0 / 16.0) };
+    parent * fraction
+}
+
+/// The thickness a leaf's 4-bit code `code` stands for, its radius being `radius` (leaf
+/// pairs): `code / 32` of it below 8, where thin leaves want fine steps, then `(code - 6) / 4`,
+/// up to 2.25 times it. A point lies within the radius of the leaf's centre, and so does its
+/// flat place, so a thickness never exceeds twice the radius.
+#[inline]
+pub fn leaf_thickness(radius: f32, code: u32) -> f32 {
+    let k = code & 0xf;
+    let fraction = if k < 8 {
+        k as f32 * (1.0 / 32.0)
+    } else {
+        (k - 6) as f32 * 0.25
+    };
+    radius * fraction
+}
+
 /// Radius of sphere `node` (breadth-first id) of the grid whose relative radius words start
 /// at word `first` of `radii`.
 #[inline]

@@ -106,7 +106,10 @@ fn a_mesh_bakes_into_files_the_other_commands_read() {
     };
     assert_eq!(Some(grid_bytes(&[])), report["grid_bytes"].as_u64());
     let said = stderr(&gridrt(&["stats", o_str(&out)]));
-    assert!(said.contains("its values compress to widths ["), "{said}");
+    assert!(
+        said.contains("its values are compressed (base edges at widths ["),
+        "{said}"
+    );
     assert!(grid_bytes(&["--plain-values"]) > grid_bytes(&[]) * 11 / 10, "{report}");
     let plain = dir.join("plain.gltf");
     let plain_report = json(&[

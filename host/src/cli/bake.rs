@@ -45,8 +45,11 @@ struct Report {
 
 #[derive(Serialize)]
 struct CompressionReport {
-    /// Bits of a correction at each level, coarse to fine.
+    /// Bits of a correction on the base edges at each level, coarse to fine (each grid has
+    /// its own widths).
     widths: Vec<u32>,
+    /// Bits per stored value, all blocks together.
+    bits_per_value: f64,
     /// The bound asked for and the RMS error added over every value, as fractions of the
     /// base mesh's bounding-box diagonal.
     max_added_error: f32,
@@ -106,6 +109,7 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
             let d = measure(stages, &compressed.mesh);
             let report = CompressionReport {
                 widths: grid::compressed::level_widths(&compressed.code),
+                bits_per_value: compressed.bits_per_value(),
                 max_added_error: options.max_added_error,
                 added_error: compressed.added_error,
                 uncompressed_symmetric: plain.symmetric.relative_to(plain.a_diagonal),
@@ -213,9 +217,9 @@ fn summary(r: &Report) -> String {
         share(b.clamped),
         match &r.compression {
             Some(c) => format!(
-                "values: compressed to widths {:?} bits per level, adding {:.3e} of the base's diagonal (RMS, \
-                 bound {:.3e})\n",
-                c.widths, c.added_error, c.max_added_error
+                "values: compressed to {:.2} bits each (base edges at widths {:?} bits per level, each grid at \
+                 its own), adding {:.3e} of the base's diagonal (RMS, bound {:.3e})\n",
+                c.bits_per_value, c.widths, c.added_error, c.max_added_error
             ),
             None => "values: plain, 11 bits each\n".into(),
         },

@@ -199,7 +199,8 @@ pub struct BuildArgs {
     pub excluded_levels: u32,
     /// How sphere radii are stored, each rounded up so spheres only grow: 32-bit floats
     /// (the default for subdivided meshes), half floats, or a byte in 255ths of the grid's
-    /// root radius (the default for displaced micro-meshes).
+    /// root radius (the default for displaced micro-meshes; leaves two or more sphere levels
+    /// down then take half a byte, in 16ths of their parent's radius, beside their thickness).
     #[arg(long, value_enum)]
     pub radii: Option<RadiiArg>,
     /// Store the top-level BVH in wide 64-byte nodes of up to seven children, each child's box
@@ -264,8 +265,10 @@ pub fn compress_values(input: &mut Input, build: &BuildArgs) -> Result<()> {
     let options = grid::compressed::ValueCompression { max_added_error: bound };
     let compressed = grid::compressed::compress(micromesh, &options).map_err(|e| e.prefixed(&input.name))?;
     eprintln!(
-        "note: {}: values compressed to widths {:?} bits per level, adding {:.3e} of the diagonal (RMS)",
+        "note: {}: values compressed to {:.2} bits each (base edges at widths {:?} bits per level, each grid \
+         at its own), adding {:.3e} of the diagonal (RMS)",
         input.name,
+        compressed.bits_per_value(),
         grid::compressed::level_widths(&compressed.code),
         compressed.added_error
     );
@@ -751,7 +754,9 @@ pub fn load_all(paths: &[&Path]) -> Result<Input> {
         let code = input.micromesh.as_ref().and_then(|m| m.micromap.value_code);
         let values = code.map_or(String::new(), |c| {
             let widths = grid::compressed::level_widths(&c);
-            format!("; its values compress to widths {widths:?} bits per level")
+            format!(
+                "; its values are compressed (base edges at widths {widths:?} bits per level, each grid at its own)"
+            )
         });
         eprintln!(
             "note: {}: a displaced micro-mesh of {} base triangles at {levels}, {} micro-triangles{values}",

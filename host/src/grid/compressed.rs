@@ -1,16 +1,20 @@
 //! Compressed displacement values (the format of `gridrt_shared::compressed_values`): the
-//! encoder, which picks each level's correction width for a whole micro-mesh and each block's
-//! shifts, and the blocks as displaced grids store them.
+//! encoder, which picks the base edges' correction widths, each grid's own widths and each
+//! block's shifts, and the blocks as displaced grids store them.
 //!
 //! Guarantees:
 //! - Closed loop: every correction is chosen against the values the decoder will already
 //!   have made (coarser levels, the base edges, the corners), so the decoded values are the
 //!   encoder's own, bit for bit. [`compress`] hands back the micro-mesh with those values, so
 //!   the grids, the triangles they are compared against and any file written from it all hold
-//!   the same surface; encoding that micro-mesh again with the same widths loses nothing.
+//!   the same surface. Laying that micro-mesh out again ([`encode_exact`]) loses nothing: each
+//!   grid takes the narrowest widths that decode its values exactly.
 //! - Each block takes, per level, the shift whose corrections leave the least squared error.
-//! - Widths are lowered one level at a time, always where a bit saved costs the least added
-//!   error, for as long as the added RMS error stays within the bound asked for.
+//! - One set of widths is lowered one level at a time, always where a bit saved costs the
+//!   least added error, for as long as the added RMS error stays within the bound asked for;
+//!   the base edges keep it. Each grid then gets its own widths: all grids narrow theirs as
+//!   long as a bit saved adds less error than one rate they share, the largest rate that keeps
+//!   the whole within the same bound. Smooth grids so give their bits to detailed ones.
 //! - A base edge's values are encoded once, from its lower base vertex id, and both grids that
 //!   share the edge read that one block: the surface stays watertight.
 
@@ -30,6 +34,8 @@ use crate::error::{fail, Result};
 
 /// Widest correction: a whole value.
 const MAX_WIDTH: u32 = VALUE_BITS;
+/// How much wider than the scene's a grid's widths may be.
+const EXTRA_WIDTH: u32 = 3;
 
 /// What [`compress`] aims for.
 #[derive(Copy, Clone, Debug, PartialEq)]
@@ -73,8 +79,17 @@ pub struct CompressedMesh {
     pub code: ValueCode,
     /// RMS error added over every stored value, as a fraction of the diagonal.
     pub added_error: f32,
-    /// Bits of the corrections, shifts and corners, all blocks together.
+    /// Bits of the corrections, shifts, widths and corners, all blocks together, and the
+    /// values they store (each shared one once).
     pub bits: u64,
+    pub points: u64,
+}
+
+impl CompressedMesh {
+    /// Bits per stored value, all blocks together.
+    pub fn bits_per_value(&self) -> f64 {
+        self.bits as f64 / self.points.max(1) as f64
+    }
 }
 
 /// Compresses `mesh`'s values (a micro-mesh of one level) as tightly as `options` allow.
@@ -86,12 +101,10 @@ pub fn compress(mesh: &DisplacedMesh, options: &ValueCompression) -> Result<Comp
     let edges = BaseEdges::new(&folded.base_mesh());
     let diagonal = diagonal(&folded);
     let bound = options.max_added_error as f64 * diagonal as f64;
+    // First one set of widths for every block, as narrow as the bound allows: the base
+    // edges keep it.
     let mut widths = [MAX_WIDTH; MAX_LEVELS as usize];
-    let code = |w: &[u32; MAX_LEVELS as usize]| ValueCode {
-        levels,
-        widths: (0..levels as usize).fold(0, |acc, l| acc | w[l] << (WIDTH_BITS * l as u32)),
-    };
-    let mut best = encode(&folded, &edges, code(&widths));
+    let mut best = encode(&folded, &edges, code(levels, &widths), |_| code(levels, &widths));
     loop {
         // The level whose narrower corrections add the least error per bit saved.
         let mut choice: Option<(f64, [u32; MAX_LEVELS as usize], Encoded)> = None;
@@ -101,12 +114,12 @@ pub fn compress(mesh: &DisplacedMesh, options: &ValueCompression) -> Result<Comp
             }
             let mut trial = widths;
             trial[l] -= 1;
-            let encoded = encode(&folded, &edges, code(&trial));
+            let trial_code = code(levels, &trial);
+            let encoded = encode(&folded, &edges, trial_code, |_| trial_code);
             if encoded.rms() > bound {
                 continue;
             }
-            let saved = best.bits.saturating_sub(encoded.bits).max(1) as f64;
-            let cost = (encoded.squared_error - best.squared_error).max(0.0) / saved;
+            let cost = best.cost_of(&encoded);
             if choice.as_ref().is_none_or(|(c, ..)| cost < *c) {
                 choice = Some((cost, trial, encoded));
             }
@@ -114,6 +127,13 @@ pub fn compress(mesh: &DisplacedMesh, options: &ValueCompression) -> Result<Comp
         let Some((_, trial, encoded)) = choice else { break };
         widths = trial;
         best = encoded;
+    }
+    // Then each grid its own widths, within the same bound.
+    let scene_code = code(levels, &widths);
+    let grid_codes = allocate(&folded, &edges, scene_code, bound * bound * best.points as f64);
+    let each = encode(&folded, &edges, scene_code, |g| grid_codes[g]);
+    if each.rms() <= bound.max(best.rms()) && each.bits <= best.bits {
+        best = each;
     }
     let mut mesh = folded;
     mesh.micromap.values = best.values.concat();
@@ -124,20 +144,122 @@ pub fn compress(mesh: &DisplacedMesh, options: &ValueCompression) -> Result<Comp
             first_value: t * per_triangle,
         })
         .collect();
-    mesh.micromap.value_code = Some(code(&widths));
+    mesh.micromap.value_code = Some(scene_code);
     Ok(CompressedMesh {
         added_error: (best.rms() / diagonal as f64) as f32,
         bits: best.bits,
+        points: best.points,
         mesh,
-        code: code(&widths),
+        code: scene_code,
     })
 }
 
-/// A micro-mesh's values encoded with one code.
+/// The code of `levels` levels with widths `w`, level 1 first.
+fn code(levels: u32, w: &[u32; MAX_LEVELS as usize]) -> ValueCode {
+    ValueCode {
+        levels,
+        widths: (0..levels as usize).fold(0, |acc, l| acc | w[l] << (WIDTH_BITS * l as u32)),
+    }
+}
+
+/// Each grid's widths, chosen so that the grids' squared error, with the base edges' (at
+/// `scene`), stays within `budget` in as few bits as a single trade-off of bits against
+/// error finds (Lagrangian allocation: every grid stops narrowing where a bit saved would
+/// cost more error than the one rate all grids share).
+fn allocate(mesh: &DisplacedMesh, edges: &BaseEdges, scene: ValueCode, budget: f64) -> Vec<ValueCode> {
+    let shared = SharedValues::encode(mesh, edges, scene);
+    // Each grid's choices: its widths narrowed one level at a time, always where a bit saved
+    // costs the least error, and the scene's widths.
+    let choices: Vec<Vec<Choice>> = (0..mesh.triangles.len())
+        .into_par_iter()
+        .map(|g| {
+            let trial = |c: ValueCode| {
+                let (block, _) = encode_grid(mesh, g, c, &shared, edges);
+                Choice {
+                    code: c,
+                    bits: c.inner_block_bits() as u64,
+                    squared_error: block.squared_error,
+                }
+            };
+            // From a few bits wider than the scene's at each level: a grid that needs more
+            // than that is rare, and each bit more lengthens every grid's path.
+            let mut widths = [0; MAX_LEVELS as usize];
+            for (l, w) in widths.iter_mut().enumerate().take(scene.levels as usize) {
+                *w = (scene.width(l as u32 + 1) + EXTRA_WIDTH).min(MAX_WIDTH);
+            }
+            let mut path = vec![trial(scene), trial(code(scene.levels, &widths))];
+            loop {
+                let now = path[path.len() - 1];
+                let narrower = (0..scene.levels as usize)
+                    .filter(|&l| widths[l] > 0)
+                    .map(|l| {
+                        let mut w = widths;
+                        w[l] -= 1;
+                        (w, trial(code(scene.levels, &w)))
+                    })
+                    .min_by(|(_, a), (_, b)| now.cost_of(a).total_cmp(&now.cost_of(b)));
+                let Some((w, next)) = narrower else { break };
+                widths = w;
+                path.push(next);
+            }
+            path
+        })
+        .collect();
+    let budget = budget - shared.squared_error;
+    let pick = |rate: f64| -> (f64, Vec<ValueCode>) {
+        let picked: Vec<&Choice> = choices
+            .iter()
+            .map(|c| {
+                c.iter()
+                    .min_by(|a, b| a.price(rate).total_cmp(&b.price(rate)))
+                    .expect("every grid has a choice")
+            })
+            .collect();
+        (
+            picked.iter().map(|c| c.squared_error).sum(),
+            picked.iter().map(|c| c.code).collect(),
+        )
+    };
+    // The largest rate (error per bit saved) that keeps within the budget, by bisection of
+    // its logarithm; at the smallest every grid takes its least error.
+    let (mut low, mut high) = (1e-30f64, 1e30f64);
+    for _ in 0..100 {
+        let mid = (low * high).sqrt();
+        if pick(mid).0 <= budget {
+            low = mid;
+        } else {
+            high = mid;
+        }
+    }
+    pick(low).1
+}
+
+/// One grid's block at one code: its bits and the squared error it leaves.
+#[derive(Copy, Clone)]
+struct Choice {
+    code: ValueCode,
+    bits: u64,
+    squared_error: f64,
+}
+
+impl Choice {
+    /// Error added per bit saved, going from `self` to `other`.
+    fn cost_of(&self, other: &Choice) -> f64 {
+        error_per_bit_saved((self.bits, self.squared_error), (other.bits, other.squared_error))
+    }
+
+    /// Bits, with error at `rate` squared error per bit.
+    fn price(&self, rate: f64) -> f64 {
+        self.bits as f64 + self.squared_error / rate
+    }
+}
+
+/// A micro-mesh's values encoded: the base edges with the scene's code, each grid with its
+/// own.
 #[derive(Clone, Debug, Default)]
 pub struct Encoded {
-    /// Each grid's block, in whole words.
-    pub grid_blocks: Vec<Vec<u32>>,
+    /// Each grid's block (its widths, shifts and corrections) and its length in bits.
+    pub grid_blocks: Vec<(Vec<u32>, u32)>,
     /// The base edges' blocks end to end, by edge id, then every base vertex's value.
     pub shared: Vec<u32>,
     /// Each grid's decoded values, u-major.
@@ -153,137 +275,266 @@ impl Encoded {
     pub fn rms(&self) -> f64 {
         (self.squared_error / self.points.max(1) as f64).sqrt()
     }
+
+    /// Error added per bit saved, going from `self` to `other`.
+    fn cost_of(&self, other: &Encoded) -> f64 {
+        error_per_bit_saved((self.bits, self.squared_error), (other.bits, other.squared_error))
+    }
 }
 
-/// Encodes the values of `mesh` (ranges folded, one level) with `code`, edges by `edges`'
-/// ids: base edges first (from the corners), then each grid (from its corners and edges).
-pub(super) fn encode(mesh: &DisplacedMesh, edges: &BaseEdges, code: ValueCode) -> Encoded {
-    let n = grid_size(code.levels);
-    let grids = mesh.triangles.len();
-    let original: Vec<&[u16]> = (0..grids).map(|g| mesh.micromap.triangle_values(g)).collect();
-    // Distance one value step moves lattice point `p` of grid `g`.
-    let unit = |g: usize, p: Lattice| interpolated(&mesh.base_triangle(g), p, n).1.length() / VALUE_MAX as f32;
-    let mut out = Encoded::default();
+/// Squared error added per bit saved going from `(bits, squared error)` `from` to `to`.
+fn error_per_bit_saved(from: (u64, f64), to: (u64, f64)) -> f64 {
+    let saved = from.0.saturating_sub(to.0).max(1) as f64;
+    (to.1 - from.1).max(0.0) / saved
+}
 
-    // Corners: plain values, from the first grid that uses each base vertex.
-    let mut corner_values = vec![0u16; mesh.positions.len()];
-    let mut corner_seen = vec![false; mesh.positions.len()];
-    for (g, t) in mesh.triangles.iter().enumerate() {
-        for (c, &v) in t.iter().enumerate() {
-            if !std::mem::replace(&mut corner_seen[v as usize], true) {
-                corner_values[v as usize] = original[g][u_major_index(corner_point(c, n), n) as usize];
+/// The grids' blocks as the vertex buffer holds them, from its first word: a table of each
+/// block's first bit (`offset_bits` each, end to end, in whole words), then the blocks end to
+/// end in bits, grid by grid in the order the grids are stored.
+#[derive(Clone, Debug, Default)]
+pub struct GridBlocks {
+    /// Each grid's block and its length in bits, in base-triangle order.
+    pub blocks: Vec<(Vec<u32>, u32)>,
+    pub offset_bits: u32,
+    pub table_words: u64,
+    /// Words of the table and the blocks together.
+    pub words: u64,
+}
+
+impl GridBlocks {
+    pub fn new(blocks: Vec<(Vec<u32>, u32)>) -> GridBlocks {
+        let grids = blocks.len() as u64;
+        let block_bits: u64 = blocks.iter().map(|b| b.1 as u64).sum();
+        // The table's entries must hold the bits before the last block, which grow with the
+        // table: widen them until they do.
+        let mut offset_bits = 1;
+        loop {
+            let table_words = (grids * offset_bits as u64).div_ceil(32);
+            let end = 32 * table_words + block_bits;
+            let needed = (u64::BITS - end.leading_zeros()).max(1);
+            if needed <= offset_bits || offset_bits >= 32 {
+                return GridBlocks {
+                    blocks,
+                    offset_bits,
+                    table_words,
+                    words: end.div_ceil(32),
+                };
             }
+            offset_bits = needed;
         }
     }
 
-    // Base edges, each along its stored direction (from its lower vertex id), from the grid
-    // that owns it.
-    let edge_blocks: Vec<(BlockEncoder, Vec<u16>)> = edges
-        .owner
-        .par_iter()
-        .map(|&(g, e)| {
-            let t = mesh.triangles[g];
-            let (from, to) = (t[e], t[(e + 1) % 3]);
-            let point = |s: u32| edge_point(e, if from <= to { s } else { n - s }, n);
-            let mut values: Vec<u16> = (0..=n)
-                .map(|s| original[g][u_major_index(point(s), n) as usize])
-                .collect();
-            values[0] = corner_values[from.min(to) as usize];
-            values[n as usize] = corner_values[from.max(to) as usize];
-            let truth = values.clone();
-            let mut block = BlockEncoder::new(code);
-            for l in 1..=code.levels {
-                let step = n >> l;
-                let targets: Vec<Target> = (1..=(1 << l >> 1))
-                    .map(|k| {
-                        let s = (2 * k - 1) * step;
-                        Target {
-                            truth: truth[s as usize],
-                            parents: (values[(s - step) as usize], values[(s + step) as usize]),
-                            unit: unit(g, point(s)),
-                        }
-                    })
-                    .collect();
-                for (k, q) in block.level(l, &targets).into_iter().enumerate() {
-                    values[((2 * k + 1) as u32 * step) as usize] = q;
-                }
+    /// The table and the blocks into `out` (`words` words), the grid of base triangle
+    /// `order[slot]` stored at `slot`.
+    pub fn write(&self, order: &[u32], out: &mut [u32]) {
+        let mut table = BitWriter::default();
+        let mut area = BitWriter::default();
+        let start = 32 * self.table_words;
+        for &g in order {
+            table.push((start + area.bits as u64) as u32, self.offset_bits);
+            let (words, bits) = &self.blocks[g as usize];
+            for (k, &w) in words.iter().enumerate() {
+                area.push(w, (bits - 32 * k as u32).min(32));
             }
-            (block, values)
-        })
-        .collect();
-    let mut shared = BitWriter::default();
-    let mut edge_values: Vec<Vec<u16>> = Vec::with_capacity(edges.owner.len());
-    for (block, values) in edge_blocks {
-        out.squared_error += block.squared_error;
-        out.points += block.points;
-        block.write(&mut shared);
-        edge_values.push(values);
+        }
+        out[..table.words.len()].copy_from_slice(&table.words);
+        let area_start = self.table_words as usize;
+        out[area_start..area_start + area.words.len()].copy_from_slice(&area.words);
     }
-    for &q in &corner_values {
-        shared.push(q as u32, VALUE_BITS);
-    }
-    out.points += corner_values.len() as u64;
-    out.bits += shared.bits as u64;
-    shared.words.push(0);
-    out.shared = shared.words;
+}
 
-    // Grids: corners and edges as decoded above, then the inner points level by level.
-    let grid_blocks: Vec<(BlockEncoder, Vec<u16>)> = (0..grids)
+/// Encodes the values of `mesh` (ranges folded, one level): the base edges with `scene`
+/// (ids by `edges`, from the corners), then grid `g` with `grid_code(g)` (from its corners and
+/// edges as decoded).
+pub(super) fn encode(
+    mesh: &DisplacedMesh,
+    edges: &BaseEdges,
+    scene: ValueCode,
+    grid_code: impl Fn(usize) -> ValueCode + Sync,
+) -> Encoded {
+    let shared = SharedValues::encode(mesh, edges, scene);
+    let grid_blocks: Vec<(BlockEncoder, Vec<u16>)> = (0..mesh.triangles.len())
         .into_par_iter()
-        .map(|g| encode_grid(mesh, g, code, &original, &corner_values, &edge_values, edges, &unit))
+        .map(|g| encode_grid(mesh, g, grid_code(g), &shared, edges))
         .collect();
+    let mut out = Encoded {
+        squared_error: shared.squared_error,
+        points: shared.points,
+        bits: shared.bits,
+        shared: shared.words,
+        ..Encoded::default()
+    };
     for (block, values) in grid_blocks {
         out.squared_error += block.squared_error;
         out.points += block.points;
         let mut words = BitWriter::default();
         block.write(&mut words);
         out.bits += words.bits as u64;
-        words.words.resize(code.inner_block_bits().div_ceil(32) as usize, 0);
-        out.grid_blocks.push(words.words);
+        out.grid_blocks.push((words.words, words.bits as u32));
         out.values.push(values);
     }
     out
 }
 
-/// Grid `g`'s block, from its corners and edges as decoded, and its decoded values.
-#[allow(clippy::too_many_arguments)]
+/// Encodes `mesh` (ranges folded, one level) with no loss, for values a compressed code made:
+/// the base edges with `scene`, each grid with the narrowest widths that decode its values
+/// exactly. `None` when some value is off every such code.
+pub(super) fn encode_exact(mesh: &DisplacedMesh, edges: &BaseEdges, scene: ValueCode) -> Option<Encoded> {
+    let codes: Option<Vec<ValueCode>> = (0..mesh.triangles.len())
+        .into_par_iter()
+        .map(|g| exact_code(mesh, g, scene.levels))
+        .collect();
+    let codes = codes?;
+    let encoded = encode(mesh, edges, scene, |g| codes[g]);
+    let exact = (0..mesh.triangles.len()).all(|g| encoded.values[g] == mesh.micromap.triangle_values(g));
+    exact.then_some(encoded)
+}
+
+/// The narrowest widths, level by level, at which grid `g`'s inner values decode exactly
+/// from its own corners and edges; `None` where no width does.
+fn exact_code(mesh: &DisplacedMesh, g: usize, levels: u32) -> Option<ValueCode> {
+    let n = grid_size(levels);
+    let truth = mesh.micromap.triangle_values(g);
+    let at = |p: Lattice| u_major_index(p, n) as usize;
+    let mut widths = [0; MAX_LEVELS as usize];
+    for l in 1..=levels {
+        let targets: Vec<Target> = new_inner_points(l, n)
+            .into_iter()
+            .map(|p| {
+                let (pa, pb) = parents(p, n >> l);
+                Target {
+                    truth: truth[at(p)],
+                    parents: (truth[at(pa)], truth[at(pb)]),
+                    unit: 1.0,
+                }
+            })
+            .collect();
+        let exact = |width: u32, shift: u32| targets.iter().all(|t| t.encode(width, shift).1 == t.truth as u32);
+        widths[l as usize - 1] =
+            (0..=MAX_WIDTH).find(|&w| (0..=if w == 0 { 0 } else { VALUE_BITS }).any(|s| exact(w, s)))?;
+    }
+    Some(code(levels, &widths))
+}
+
+/// Distance one value step moves lattice point `p` of grid `g` (of size `n`).
+fn unit(mesh: &DisplacedMesh, g: usize, p: Lattice, n: u32) -> f32 {
+    interpolated(&mesh.base_triangle(g), p, n).1.length() / VALUE_MAX as f32
+}
+
+/// The values every grid takes from what it shares: the base edges' and corners', as decoded.
+struct SharedValues {
+    /// Each base vertex's value.
+    corner_values: Vec<u16>,
+    /// Each base edge's values, along its stored direction, corners included.
+    edge_values: Vec<Vec<u16>>,
+    /// The base edges' blocks end to end, by edge id, then the corners' values.
+    words: Vec<u32>,
+    bits: u64,
+    squared_error: f64,
+    points: u64,
+}
+
+impl SharedValues {
+    /// Corners as plain values, from the first grid that uses each base vertex; each base
+    /// edge along its stored direction (from its lower vertex id) with `code`, from the grid
+    /// that owns it.
+    fn encode(mesh: &DisplacedMesh, edges: &BaseEdges, code: ValueCode) -> SharedValues {
+        let n = grid_size(code.levels);
+        let mut corner_values = vec![0u16; mesh.positions.len()];
+        let mut corner_seen = vec![false; mesh.positions.len()];
+        for (g, t) in mesh.triangles.iter().enumerate() {
+            for (c, &v) in t.iter().enumerate() {
+                if !std::mem::replace(&mut corner_seen[v as usize], true) {
+                    corner_values[v as usize] =
+                        mesh.micromap.triangle_values(g)[u_major_index(corner_point(c, n), n) as usize];
+                }
+            }
+        }
+        let edge_blocks: Vec<(BlockEncoder, Vec<u16>)> = edges
+            .owner
+            .par_iter()
+            .map(|&(g, e)| {
+                let t = mesh.triangles[g];
+                let original = mesh.micromap.triangle_values(g);
+                let (from, to) = (t[e], t[(e + 1) % 3]);
+                let point = |s: u32| edge_point(e, if from <= to { s } else { n - s }, n);
+                let mut values: Vec<u16> = (0..=n).map(|s| original[u_major_index(point(s), n) as usize]).collect();
+                values[0] = corner_values[from.min(to) as usize];
+                values[n as usize] = corner_values[from.max(to) as usize];
+                let truth = values.clone();
+                let mut block = BlockEncoder::new(code);
+                for l in 1..=code.levels {
+                    let step = n >> l;
+                    let targets: Vec<Target> = (1..=(1 << l >> 1))
+                        .map(|k| {
+                            let s = (2 * k - 1) * step;
+                            Target {
+                                truth: truth[s as usize],
+                                parents: (values[(s - step) as usize], values[(s + step) as usize]),
+                                unit: unit(mesh, g, point(s), n),
+                            }
+                        })
+                        .collect();
+                    for (k, q) in block.level(l, &targets).into_iter().enumerate() {
+                        values[((2 * k + 1) as u32 * step) as usize] = q;
+                    }
+                }
+                (block, values)
+            })
+            .collect();
+        let mut out = BitWriter::default();
+        let (mut squared_error, mut points) = (0.0, corner_values.len() as u64);
+        let mut edge_values = Vec::with_capacity(edges.owner.len());
+        for (block, values) in edge_blocks {
+            squared_error += block.squared_error;
+            points += block.points;
+            block.write(&mut out);
+            edge_values.push(values);
+        }
+        for &q in &corner_values {
+            out.push(q as u32, VALUE_BITS);
+        }
+        let bits = out.bits as u64;
+        out.words.push(0);
+        SharedValues {
+            corner_values,
+            edge_values,
+            words: out.words,
+            bits,
+            squared_error,
+            points,
+        }
+    }
+}
+
+/// Grid `g`'s block at `code` (its widths first), from its corners and edges as decoded, and
+/// its decoded values.
 fn encode_grid(
     mesh: &DisplacedMesh,
     g: usize,
     code: ValueCode,
-    original: &[&[u16]],
-    corner_values: &[u16],
-    edge_values: &[Vec<u16>],
+    shared: &SharedValues,
     edges: &BaseEdges,
-    unit: &(impl Fn(usize, Lattice) -> f32 + Sync),
 ) -> (BlockEncoder, Vec<u16>) {
     let n = grid_size(code.levels);
     let t = mesh.triangles[g];
-    let mut values = original[g].to_vec();
+    let truth = mesh.micromap.triangle_values(g);
+    let mut values = truth.to_vec();
     for c in 0..3 {
-        values[u_major_index(corner_point(c, n), n) as usize] = corner_values[t[c] as usize];
+        values[u_major_index(corner_point(c, n), n) as usize] = shared.corner_values[t[c] as usize];
     }
     for e in 0..3 {
-        let edge = &edge_values[edges.of_grid[g][e] as usize];
+        let edge = &shared.edge_values[edges.of_grid[g][e] as usize];
         let forward = t[e] <= t[(e + 1) % 3];
         for s in 1..n {
             values[u_major_index(edge_point(e, s, n), n) as usize] = edge[if forward { s } else { n - s } as usize];
         }
     }
-    let truth = original[g];
     let at = |p: Lattice| u_major_index(p, n) as usize;
-    let mut block = BlockEncoder::new(code);
+    let mut block = BlockEncoder::with_widths(code);
     for l in 1..=code.levels {
         let step = n >> l;
-        let m = 1u32 << l;
-        let mut points = Vec::with_capacity(inner_new_count(l) as usize);
-        for a in 1..m {
-            for b in 1..m - a {
-                if a % 2 == 1 || b % 2 == 1 {
-                    points.push([a * step, b * step]);
-                }
-            }
-        }
+        let points = new_inner_points(l, n);
         let targets: Vec<Target> = points
             .iter()
             .map(|&p| {
@@ -291,7 +542,7 @@ fn encode_grid(
                 Target {
                     truth: truth[at(p)],
                     parents: (values[at(pa)], values[at(pb)]),
-                    unit: unit(g, p),
+                    unit: unit(mesh, g, p, n),
                 }
             })
             .collect();
@@ -300,6 +551,21 @@ fn encode_grid(
         }
     }
     (block, values)
+}
+
+/// The inner points new at level `l` of a grid of size `n`, in the order the format stores
+/// them (row by row on the level's lattice).
+fn new_inner_points(l: u32, n: u32) -> Vec<Lattice> {
+    let (step, m) = (n >> l, 1u32 << l);
+    let mut points = Vec::with_capacity(inner_new_count(l) as usize);
+    for a in 1..m {
+        for b in 1..m - a {
+            if a % 2 == 1 || b % 2 == 1 {
+                points.push([a * step, b * step]);
+            }
+        }
+    }
+    points
 }
 
 /// The two points of the coarser lattice (spacing `2 step`) that inner point `p`, new on the
@@ -324,6 +590,8 @@ struct Target {
 /// One block's shifts and corrections, level by level.
 struct BlockEncoder {
     code: ValueCode,
+    /// Whether the block begins with its widths (a grid's block).
+    own_widths: bool,
     shifts: u32,
     corrections: Vec<(u32, u32)>,
     squared_error: f64,
@@ -334,6 +602,7 @@ impl BlockEncoder {
     fn new(code: ValueCode) -> Self {
         BlockEncoder {
             code,
+            own_widths: false,
             shifts: 0,
             corrections: Vec::new(),
             squared_error: 0.0,
@@ -341,19 +610,30 @@ impl BlockEncoder {
         }
     }
 
-    /// Encodes level `l`'s points with the shift that leaves the least squared error;
-    /// returns their decoded values.
+    /// A grid's block, which begins with its widths.
+    fn with_widths(code: ValueCode) -> Self {
+        BlockEncoder {
+            own_widths: true,
+            ..BlockEncoder::new(code)
+        }
+    }
+
+    /// Encodes level `l`'s points with the shift that leaves the least squared error (then
+    /// the least error in values, where points do not move); returns their decoded values.
     fn level(&mut self, l: u32, targets: &[Target]) -> Vec<u16> {
         let width = self.code.width(l);
         let shifts = if width == 0 { 0 } else { (1 << SHIFT_BITS) - 1 };
-        let mut best: Option<(f64, u32)> = None;
+        let mut best: Option<((f64, u64), u32)> = None;
         for shift in 0..=shifts.min(VALUE_BITS) {
-            let error: f64 = targets.iter().map(|t| t.error(width, shift)).sum();
+            let error = targets.iter().fold((0.0, 0), |(e, v), t| {
+                let (point, value) = t.error(width, shift);
+                (e + point, v + value)
+            });
             if best.is_none_or(|(e, _)| error < e) {
                 best = Some((error, shift));
             }
         }
-        let (error, shift) = best.unwrap_or((0.0, 0));
+        let ((error, _), shift) = best.unwrap_or(((0.0, 0), 0));
         self.shifts |= shift << (SHIFT_BITS * (l - 1));
         self.squared_error += error;
         self.points += targets.len() as u64;
@@ -368,6 +648,9 @@ impl BlockEncoder {
     }
 
     fn write(&self, out: &mut BitWriter) {
+        if self.own_widths {
+            out.push(self.code.widths, self.code.width_bits());
+        }
         out.push(self.shifts, self.code.shift_bits());
         for &(field, width) in &self.corrections {
             out.push(field, width);
@@ -398,10 +681,13 @@ impl Target {
         (field(best), decode(best))
     }
 
-    fn error(&self, width: u32, shift: u32) -> f64 {
+    /// The squared distance the point moves and the squared change of its value, encoded
+    /// at `width` and `shift`.
+    fn error(&self, width: u32, shift: u32) -> (f64, u64) {
         let (_, q) = self.encode(width, shift);
-        let d = (q as f64 - self.truth as f64) * self.unit as f64;
-        d * d
+        let v = q as i64 - self.truth as i64;
+        let d = v as f64 * self.unit as f64;
+        (d * d, (v * v) as u64)
     }
 }
 
@@ -409,14 +695,15 @@ impl Target {
 mod tests {
     use super::*;
     use crate::bary::Micromap;
-    use crate::grid::displaced::layout;
+    use crate::grid::displaced::{build, layout};
     use crate::grid::GridOptions;
     use gridrt_shared::compressed_values::CodedScene;
     use gridrt_shared::glam::Vec3;
     use gridrt_shared::grid_index::lattice_points;
 
     /// A closed tetrahedron at `levels` whose values follow a bumpy function of each point's
-    /// undisplaced position, plus a hash of it as noise: neighbours agree on shared edges.
+    /// undisplaced position, plus a hash of it as noise inside each triangle (none on triangle
+    /// 0, up to `noise` on triangle 3): neighbours agree on shared edges.
     fn tetrahedron(levels: u32, noise: u32) -> DisplacedMesh {
         let positions = vec![
             Vec3::new(1.0, 1.0, 1.0),
@@ -444,6 +731,8 @@ mod tests {
                             .iter()
                             .fold(7u32, |h, c| (h ^ c.to_bits()).wrapping_mul(0x9e37_79b1));
                         let smooth = 1024.0 + 700.0 * (3.0 * x.x).sin() * (2.0 * x.y + x.z).cos();
+                        let inner = p[0] > 0 && p[1] > 0 && p[0] + p[1] < n;
+                        let noise = if inner { noise * t as u32 / 3 } else { 0 };
                         (smooth as i64 + (hash >> 7) as i64 % (noise as i64 + 1)).clamp(0, 2047) as u16
                     };
                 }
@@ -462,24 +751,27 @@ mod tests {
             for bound in [0.0, 1e-3, 1e-2, 1.0] {
                 let mesh = tetrahedron(levels, 40);
                 let compressed = compress(&mesh, &ValueCompression { max_added_error: bound }).unwrap();
-                let grids = layout(&compressed.mesh, &GridOptions::for_displaced()).unwrap();
-                let shape = &grids.shape;
-                let code = shape.value_code.unwrap();
+                let grids = build(&compressed.mesh, &GridOptions::for_displaced()).unwrap();
+                let params = grids.params;
+                let code = ValueCode {
+                    levels,
+                    widths: params.value_widths,
+                };
                 assert_eq!(code, compressed.code);
-                let mut buffer = grids.buffer.clone();
-                buffer[..grids.inner_by_grid.len()].copy_from_slice(&grids.inner_by_grid);
                 let scene = CodedScene {
                     code,
-                    edge_bit: 32 * 4 * shape.inner_words,
-                    edge_block_bits: code.edge_block_bits(),
-                    corner_bit: shape.corner_bit,
+                    edge_bit: 32 * params.edge_word,
+                    edge_block_bits: params.edge_block_bits,
+                    corner_bit: params.corner_bit,
+                    offset_bits: params.block_offset_bits,
                 };
-                let n = grid_size(levels);
-                for g in 0..4 {
-                    let grid = scene.open(&buffer[..], &grids.ids[g], 32 * g as u32 * shape.inner_words);
+                let (n, view, buffer) = (grid_size(levels), grids.view(), &grids.vertices[..]);
+                for slot in 0..4 {
+                    let g = grids.base_triangle[slot] as usize;
+                    let grid = scene.open(buffer, &view.ids(slot as u32), slot as u32);
                     let values = compressed.mesh.micromap.triangle_values(g);
                     for p in lattice_points(n) {
-                        let q = grid.value(&buffer[..], p);
+                        let q = grid.value(buffer, p);
                         assert_eq!(
                             q,
                             values[u_major_index(p, n) as usize] as u32,
@@ -489,6 +781,20 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Each grid takes its own widths: the noisiest more bits than the others, and
+    /// laying the result out again finds widths that decode every value as compressed.
+    #[test]
+    fn smooth_grids_take_fewer_bits() {
+        let mesh = tetrahedron(4, 200);
+        let compressed = compress(&mesh, &ValueCompression { max_added_error: 2e-3 }).unwrap();
+        let folded = &compressed.mesh;
+        let edges = BaseEdges::new(&folded.base_mesh());
+        let exact = encode_exact(folded, &edges, compressed.code).unwrap();
+        assert!(exact.bits <= compressed.bits, "{} > {}", exact.bits, compressed.bits);
+        let bits: Vec<u32> = exact.grid_blocks.iter().map(|b| b.1).collect();
+        assert!(bits[3] > bits[0].max(bits[1]).max(bits[2]), "{bits:?}");
     }
 
     /// The added error stays within the bound, measured from the values; a looser bound
@@ -529,8 +835,8 @@ mod tests {
         let mut compressed = compress(&tetrahedron(3, 40), &ValueCompression { max_added_error: 1e-2 })
             .unwrap()
             .mesh;
-        let k = compressed.micromap.values.len() / 2;
-        compressed.micromap.values[k] ^= 0x155;
+        // A point on a base edge, which both grids read from one block of the edges' widths.
+        compressed.micromap.values[1] ^= 0x155;
         let err = layout(&compressed, &GridOptions::for_displaced()).unwrap_err();
         assert!(err.to_string().contains("compressed code"), "{err}");
     }

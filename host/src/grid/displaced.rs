@@ -12,8 +12,9 @@
 //! folded into the base mesh first (see [`DisplacedMesh::with_ranges_folded`]).
 //!
 //! A micro-mesh whose values carry a compressed code ([`crate::bary::Micromap::value_code`]) is laid
-//! out the same way with blocks for values: each grid's block in whole words, then the base
-//! edges' blocks end to end and the corners' 11-bit values (see [`super::compressed`]).
+//! out with blocks for values: a table of the grids' blocks and the blocks, each of its own
+//! length (written in leaf order by the build), then the base edges' blocks end to end and the
+//! corners' 11-bit values (see [`super::compressed`]).
 //!
 //! A value on a shared base edge or corner is taken from the first grid that uses it; in a
 //! consistent micromap (gridrt's, or any tool's that keeps edges watertight) every grid holds
@@ -55,6 +56,7 @@ pub fn layout(mesh: &DisplacedMesh, options: &GridOptions) -> Result<GridLayout>
     shape.inner_words = packed_words(inner_count as u64) as u32;
     let grids = base.triangles.len();
     let edge_word = grids * shape.inner_words as usize;
+    shape.edge_word = edge_word as u32;
     let shared_values = (shape.corner_offset - shape.edge_offset) as usize + base.positions.len();
     let base_word = edge_word as u64 + packed_words(shared_values as u64);
     check_addressable(base_word, &format!("{grids} grids at level {levels}"))?;
@@ -94,37 +96,39 @@ pub fn layout(mesh: &DisplacedMesh, options: &GridOptions) -> Result<GridLayout>
         vertices.push(p.unwrap_or(Vec3::ZERO));
     }
 
-    let (inner_by_grid, shared) = match mesh.micromap.value_code {
+    let (inner_by_grid, shared, value_blocks) = match mesh.micromap.value_code {
         None => {
             let inner = grids * inner_count;
             let inner_by_grid = (0..grids)
                 .flat_map(|g| pack(&values[g * inner_count..(g + 1) * inner_count]))
                 .collect();
-            (inner_by_grid, pack(&values[inner..]))
+            (inner_by_grid, pack(&values[inner..]), None)
         }
         Some(code) => {
-            let encoded = compressed::encode(&mesh, &edges, code);
-            if (0..grids).any(|g| encoded.values[g] != mesh.micromap.triangle_values(g)) {
+            let Some(encoded) = compressed::encode_exact(&mesh, &edges, code) else {
                 fail!(
                     Input,
                     "its values are not those of their compressed code: compress the micro-mesh again"
                 );
-            }
-            shape.inner_words = code.inner_block_bits().div_ceil(32);
+            };
+            let blocks = compressed::GridBlocks::new(encoded.grid_blocks);
+            shape.inner_words = 0;
             shape.value_code = Some(code);
-            let edge_word = grids * shape.inner_words as usize;
-            let corner_bit = 32 * edge_word as u64 + edges.owner.len() as u64 * code.edge_block_bits() as u64;
-            let base_word = edge_word as u64 + encoded.shared.len() as u64;
+            shape.block_offset_bits = blocks.offset_bits;
+            let edge_word = blocks.words;
+            let corner_bit = 32 * edge_word + edges.owner.len() as u64 * code.edge_block_bits() as u64;
+            let base_word = edge_word + encoded.shared.len() as u64;
             check_addressable(
                 base_word,
                 &format!("{grids} grids of compressed values at level {levels}"),
             )?;
+            shape.edge_word = edge_word as u32;
             shape.corner_bit = corner_bit as u32;
             shape.base_word = base_word as u32;
-            (encoded.grid_blocks.concat(), encoded.shared)
+            (Vec::new(), encoded.shared, Some(blocks))
         }
     };
-    let edge_word = grids * shape.inner_words as usize;
+    let edge_word = shape.edge_word as usize;
     let mut buffer = vec![0u32; shape.base_word as usize + 6 * base.positions.len()];
     buffer[edge_word..edge_word + shared.len()].copy_from_slice(&shared);
     for (record, (p, d)) in buffer[shape.base_word as usize..]
@@ -139,6 +143,7 @@ pub fn layout(mesh: &DisplacedMesh, options: &GridOptions) -> Result<GridLayout>
         ids: edges.ids(&base),
         vertices,
         inner_by_grid,
+        value_blocks,
         buffer,
     })
 }

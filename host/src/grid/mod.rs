@@ -38,7 +38,9 @@ use crate::subdiv::Subdivided;
 pub use lean::{build_lean, build_lean_reporting, lean_build_applies, GridBuild};
 pub use spheres::encode_radius;
 pub use spheres::RadiusFormat;
-use spheres::{encode_relative_radii, grid_bounds_and_radii, radius_scale, rescale_thickness, SphereTable};
+use spheres::{
+    encode_leaf_pairs, encode_relative_radii, grid_bounds_and_radii, radius_scale, rescale_thickness, SphereTable,
+};
 
 /// Sphere levels left out at the bottom by default: leaves of 16 micro-triangles.
 pub const DEFAULT_EXCLUDED_LEVELS: u32 = 2;
@@ -229,7 +231,10 @@ impl GridScene {
         parts.extend([
             ("sphere_radii", self.params.thickness_word as usize * 4),
             (
-                "leaf_thickness",
+                match self.params.leaf_pairs() {
+                    true => "leaf_radii_and_thickness",
+                    false => "leaf_thickness",
+                },
                 (self.radii.len() - self.params.thickness_word as usize) * 4,
             ),
         ]);
@@ -241,11 +246,16 @@ impl GridScene {
         let inner = self.params.edge_word as usize;
         if self.params.displaced != 0 {
             let base = self.params.base_word as usize;
-            return vec![
-                ("inner_values", inner * 4),
+            let table = (self.grid_count() * self.params.block_offset_bits as usize).div_ceil(32);
+            let mut parts = vec![
+                ("inner_values", (inner - table) * 4),
                 ("edge_and_corner_values", (base - inner) * 4),
                 ("base_vertices", (self.vertices.len() - base) * 4),
             ];
+            if table > 0 {
+                parts.insert(1, ("value_block_table", table * 4));
+            }
+            return parts;
         }
         let edge = ((self.params.corner_offset - self.params.edge_offset) * 3) as usize;
         let corner = self.vertices.len() - inner - edge;
@@ -281,8 +291,11 @@ pub struct GridShape {
     pub corner_offset: u32,
     /// Inner vertices as 16-bit codes (`gridrt_shared::quantize`) rather than `f32` triples.
     pub quantized_inner: bool,
-    /// Words of one grid's inner area.
+    /// Words of one grid's inner area (none for compressed values, whose grid blocks differ
+    /// in length: see `block_offset_bits`).
     pub inner_words: u32,
+    /// Word of the vertex buffer where the inner areas end.
+    pub edge_word: u32,
     /// Ids stored as plain words, two headers per grid (more than `2^21` base edges or
     /// vertices), rather than packed in one.
     pub wide_headers: bool,
@@ -290,10 +303,12 @@ pub struct GridShape {
     pub header_bits: u32,
     /// Word of the base vertex records of displaced grids (see [`displaced`]); 0 otherwise.
     pub base_word: u32,
-    /// For displaced grids of compressed values: their code and the bit where the corner
-    /// values begin (see [`compressed`]).
+    /// For displaced grids of compressed values: their base edges' code, the bit where the
+    /// corner values begin and the bits of each entry of the grid blocks' table (see
+    /// [`compressed`]).
     pub value_code: Option<ValueCode>,
     pub corner_bit: u32,
+    pub block_offset_bits: u32,
 }
 
 impl GridShape {
@@ -302,6 +317,10 @@ impl GridShape {
         let inner_count = inner_vertex_count(levels);
         let edge_offset = grids as u32 * inner_count;
         let wide_headers = needs_wide_headers(edges as u64, base.positions.len() as u64);
+        let inner_words = match quantized {
+            true => quantize::inner_words(inner_count),
+            false => 3 * inner_count,
+        };
         GridShape {
             levels,
             leaf_level: levels.saturating_sub(options.excluded_levels),
@@ -311,10 +330,8 @@ impl GridShape {
             edge_offset,
             corner_offset: edge_offset + edges as u32 * edge_vertex_count(levels),
             quantized_inner: quantized,
-            inner_words: match quantized {
-                true => quantize::inner_words(inner_count),
-                false => 3 * inner_count,
-            },
+            inner_words,
+            edge_word: grids as u32 * inner_words,
             wide_headers,
             header_bits: match options.tight_headers && !wide_headers {
                 true => id_bits(edges as u64) | id_bits(base.positions.len() as u64) << 8,
@@ -323,6 +340,21 @@ impl GridShape {
             base_word: 0,
             value_code: None,
             corner_bit: 0,
+            block_offset_bits: 0,
+        }
+    }
+
+    /// Whether each leaf's byte holds its radius and its thickness (see
+    /// `GridParams::leaf_pairs`).
+    fn leaf_pairs(&self) -> bool {
+        self.radii == RadiusFormat::Relative && self.leaf_footprint && self.leaf_level >= 2
+    }
+
+    /// Spheres per grid in the radius area (see `GridParams::stored_spheres`).
+    fn stored_spheres(&self) -> u32 {
+        match self.leaf_pairs() {
+            true => sphere_count(self.leaf_level - 1),
+            false => sphere_count(self.leaf_level),
         }
     }
 
@@ -356,6 +388,8 @@ pub struct GridLayout {
     pub vertices: Vec<Vec3>,
     /// Each grid's inner area as stored, grid after grid in base-triangle order.
     pub inner_by_grid: Vec<u32>,
+    /// For compressed values, the grids' blocks instead (`inner_by_grid` is then empty).
+    pub value_blocks: Option<compressed::GridBlocks>,
     /// The vertex buffer as uploaded: room for the inner areas (filled in leaf order by the
     /// build), then the edge and corner areas, which never move.
     pub buffer: Vec<u32>,
@@ -472,7 +506,7 @@ fn least_buffer_sizes(base: &Mesh, edges: u64, build: &GridBuild) -> Vec<BufferS
     let radius_words = match shape.radii {
         RadiusFormat::F32 => grids * spheres,
         RadiusFormat::Half => (grids * spheres).div_ceil(2),
-        RadiusFormat::Relative => grids * relative_radius_words(spheres as u32) as u64,
+        RadiusFormat::Relative => grids * relative_radius_words(shape.stored_spheres()) as u64,
     };
     let size = |name, bytes| BufferSize {
         name,
@@ -621,6 +655,7 @@ pub fn layout(base: &Mesh, sub: &Subdivided, options: &GridOptions) -> Result<Gr
         ids: edges.ids(base),
         vertices,
         inner_by_grid,
+        value_blocks: None,
         buffer,
     })
 }
@@ -657,7 +692,11 @@ pub fn build_from_layout(layout: &mut GridLayout) -> GridScene {
             }
         });
     vertices[..layout.inner_by_grid.len()].copy_from_slice(&layout.inner_by_grid);
-    assemble(&layout.shape, &layout.ids, &per_grid, vertices)
+    let mut scene = assemble(&layout.shape, &layout.ids, &per_grid, vertices);
+    if let Some(blocks) = &layout.value_blocks {
+        blocks.write(&scene.base_triangle, &mut scene.vertices);
+    }
+    scene
 }
 
 /// Per grid, in base-triangle order: its box, its spheres' radii and its leaves' thickness
@@ -755,7 +794,7 @@ fn assemble(shape: &GridShape, ids: &[GridIds], per_grid: &PerGrid, mut vertices
     let sphere_words = match shape.radii {
         RadiusFormat::F32 => spheres,
         RadiusFormat::Half => 0,
-        RadiusFormat::Relative => relative_radius_words(spheres as u32) as usize,
+        RadiusFormat::Relative => relative_radius_words(shape.stored_spheres()) as usize,
     };
     let header_stride = if shape.wide_headers { 2 } else { 1 };
     let mut leaf_headers = vec![GridHeader::default(); grids * header_stride];
@@ -779,17 +818,19 @@ fn assemble(shape: &GridShape, ids: &[GridIds], per_grid: &PerGrid, mut vertices
             }
             let from = &per_grid.radii[g * spheres..][..spheres];
             let into = &mut radii[i * sphere_words..][..sphere_words];
+            let bytes = &per_grid.thickness[g * per_grid.leaf_bytes..][..leaf_words * 4];
+            let leaf_bytes = &mut thickness[i * leaf_words..][..leaf_words];
+            for (w, b) in leaf_bytes.iter_mut().zip(bytes.chunks(4)) {
+                *w = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+            }
             match shape.radii {
                 RadiusFormat::F32 => into.iter_mut().zip(from).for_each(|(r, &f)| *r = f.to_bits()),
                 RadiusFormat::Half => {}
+                RadiusFormat::Relative if shape.leaf_pairs() => {
+                    encode_leaf_pairs(from, per_grid.leaves, into, leaf_bytes);
+                    continue;
+                }
                 RadiusFormat::Relative => encode_relative_radii(from, into),
-            }
-            let bytes = &per_grid.thickness[g * per_grid.leaf_bytes..][..leaf_words * 4];
-            for (w, b) in thickness[i * leaf_words..][..leaf_words]
-                .iter_mut()
-                .zip(bytes.chunks(4))
-            {
-                *w = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
             }
             if shape.radii == RadiusFormat::Relative {
                 rescale_thickness(
@@ -842,7 +883,7 @@ fn assemble(shape: &GridShape, ids: &[GridIds], per_grid: &PerGrid, mut vertices
             corner_offset: shape.corner_offset,
             quantized_inner: shape.quantized_inner as u32,
             inner_words: shape.inner_words,
-            edge_word: (grids * words) as u32,
+            edge_word: shape.edge_word,
             radius_format: shape.radii.code(),
             leaf_footprint: shape.leaf_footprint as u32,
             radius_scale,
@@ -858,6 +899,7 @@ fn assemble(shape: &GridShape, ids: &[GridIds], per_grid: &PerGrid, mut vertices
             value_widths: shape.value_code.map_or(0, |c| c.widths),
             edge_block_bits: shape.value_code.map_or(0, |c| c.edge_block_bits()),
             corner_bit: shape.corner_bit,
+            block_offset_bits: shape.block_offset_bits,
             ..Default::default()
         },
         base_triangle: top.order,

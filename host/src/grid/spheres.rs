@@ -9,7 +9,7 @@ use gridrt_shared::grid_index::{
 };
 use gridrt_shared::grid_traverse::sphere_center;
 use gridrt_shared::layout::{RADII_F32, RADII_HALF, RADII_RELATIVE};
-use gridrt_shared::sphere::{relative_radius, relative_radius_at};
+use gridrt_shared::sphere::{leaf_radius, leaf_thickness, relative_radius, relative_radius_at};
 
 use super::GridLayout;
 use crate::bvh::Aabb;
@@ -155,19 +155,26 @@ pub(super) fn bounds_and_radii(table: &SphereTable, points: &[Vec3A], radii: &mu
     }
 }
 
-/// A leaf's thickness `d` in 8 bits, as a fraction of its sphere's radius `r` (a bound on the
-/// distance to the flat triangle never exceeds the distance to its centroid): `ceil(255 d / r)`,
-/// decoded as `r code / 255`, never below `d`. Computed per grid in the radius pass, with no
-/// scale shared across grids, so nothing waits for the whole mesh.
+/// A leaf's thickness `d` in 8 bits, as a fraction of its sphere's radius `r`: every vertex
+/// and its flat place lie within `r` of the sphere's centre, so `d <= 2 r`. The code is
+/// `ceil(127.5 d / r)` and a step more, decoded as `2 r code / 255`, never below `d`. Computed
+/// per grid in the radius pass, with no scale shared across grids, so nothing waits for the
+/// whole mesh.
 pub fn thickness_code(d: f32, r: f32) -> u8 {
     if d <= 0.0 {
         0
-    } else if d >= r {
+    } else if d >= 2.0 * r {
         255
     } else {
         // One more step than the f64 quotient asks, against the f32 rounding of the decode.
-        ((d as f64 / r as f64 * 255.0).ceil() as u32 + 1).min(255) as u8
+        ((d as f64 / r as f64 * 127.5).ceil() as u32 + 1).min(255) as u8
     }
+}
+
+/// The thickness an 8-bit code `code` stands for, for a leaf of radius `r`, as the traversal
+/// decodes it.
+fn decoded_thickness(r: f32, code: u32) -> f32 {
+    r * (code as f32 * (2.0 / 255.0))
 }
 
 /// How a grid scene stores its sphere radii (see `GridParams::radius_format`).
@@ -178,7 +185,9 @@ pub enum RadiusFormat {
     /// Half floats in units of a power of two per scene, two to a word.
     Half,
     /// Per grid, the root's `f32`, then a byte per sphere below it in 255ths of the root's
-    /// radius: a quarter of `f32` radii, and a visit reads four children in one load.
+    /// radius: a quarter of `f32` radii, and a visit reads four children in one load. Leaves
+    /// two or more levels down (with footprints) take four bits instead, relative to their
+    /// parents, beside their thicknesses (see `GridParams::leaf_pairs`).
     Relative,
 }
 
@@ -200,11 +209,51 @@ impl RadiusFormat {
 /// grows to it: each byte can then code it, and the root's sphere only grows.
 pub(super) fn encode_relative_radii(radii: &[f32], into: &mut [u32]) {
     let root = radii.iter().fold(0f32, |m, &r| m.max(r));
+    encode_radii_under(radii, root, into);
+}
+
+/// [`encode_relative_radii`] with the root's stored radius `root`, at least each of `radii`.
+fn encode_radii_under(radii: &[f32], root: f32, into: &mut [u32]) {
     into.fill(0);
     into[0] = root.to_bits();
     for (k, &r) in radii.iter().enumerate().skip(1) {
         let code = relative_code(r, root);
         into[1 + (k - 1) / 4] |= code << (8 * ((k - 1) % 4));
+    }
+}
+
+/// One grid's spheres in leaf pairs (see `GridParams::thickness_word`): `radii` (breadth-first,
+/// the `leaves` last) as relative radii into `radius_words` but for the leaves, whose bytes in
+/// `leaf_words` hold their thickness codes on entry and each leaf's radius and thickness codes
+/// on return. A leaf's radius is coded against its parent's radius as decoded, and its
+/// thickness against its own as decoded, so each only grows.
+pub(super) fn encode_leaf_pairs(radii: &[f32], leaves: usize, radius_words: &mut [u32], leaf_words: &mut [u32]) {
+    let first_leaf = radii.len() - leaves;
+    // The root at least every sphere, leaves included, so each parent's byte can grow to
+    // twice any leaf below it.
+    let root = radii.iter().fold(0f32, |m, &r| m.max(r));
+    encode_radii_under(&radii[..first_leaf], root, radius_words);
+    for (l, &needed) in radii[first_leaf..].iter().enumerate() {
+        let parent_node = ((first_leaf + l - 1) / 4) as u32;
+        // A leaf needs at most twice its parent's radius; where padding or rounding asks a
+        // little more, the parent grows (the root already holds every leaf).
+        let mut parent = relative_radius_at(&*radius_words, 0, parent_node);
+        while leaf_radius(parent, 15) < needed && parent_node > 0 {
+            let k = parent_node as usize - 1;
+            let (word, shift) = (&mut radius_words[1 + k / 4], 8 * (k % 4));
+            let code = ((*word >> shift) & 0xff) + 1;
+            if code > 255 {
+                break;
+            }
+            *word = (*word & !(0xff << shift)) | (code << shift);
+            parent = relative_radius_at(&*radius_words, 0, parent_node);
+        }
+        let radius_code = (0..15).find(|&k| leaf_radius(parent, k) >= needed).unwrap_or(15);
+        let radius = leaf_radius(parent, radius_code);
+        let (word, shift) = (&mut leaf_words[l / 4], 8 * (l % 4));
+        let thickness = decoded_thickness(needed, (*word >> shift) & 0xff) * (1.0 + 1e-6);
+        let thickness_code = (0..15).find(|&k| leaf_thickness(radius, k) >= thickness).unwrap_or(15);
+        *word = (*word & !(0xff << shift)) | ((radius_code | thickness_code << 4) << shift);
     }
 }
 
@@ -218,7 +267,7 @@ pub(super) fn rescale_thickness(radius_words: &[u32], radii: &[f32], leaves: usi
         let (word, shift) = (&mut words[l / 4], 8 * (l % 4));
         let code = (*word >> shift) & 0xff;
         // The thickness the code stood for, and its code against the decoded radius.
-        let thickness = needed * (code as f32 / 255.0) * (1.0 + 1e-6);
+        let thickness = decoded_thickness(needed, code) * (1.0 + 1e-6);
         let recoded = thickness_code(thickness, decoded) as u32;
         *word = (*word & !(0xff << shift)) | (recoded.min(code) << shift);
     }

@@ -138,8 +138,14 @@ fn leaf_thickness_is_conservative() {
                 }
                 assert!(moved <= d, "a vertex moved {moved} from its flat place, thickness {d}");
                 let size = (c[1] - c[0]).length().max((c[2] - c[0]).length());
-                // Codes step in 255ths of the leaf's radius.
-                let step = view.radius(slot as u32, level_start(leaf_level) + leaf) / 255.0;
+                // Codes step in 2 / 255ths of the leaf's radius; leaf pairs' in 32nds of it
+                // below a quarter, then in quarters.
+                let r = view.radius(slot as u32, level_start(leaf_level) + leaf);
+                let step = match scene.params.leaf_pairs() {
+                    true if moved < 0.2 * r => r / 32.0,
+                    true => r / 4.0,
+                    false => 2.0 * r / 255.0,
+                };
                 assert!(
                     d <= moved + 3.0 * step + size * 1e-3,
                     "thickness {d}, farthest move {moved}"
@@ -180,6 +186,19 @@ fn sizes_follow_the_layout() {
     )
     .unwrap();
     assert_eq!(relative.radii.len(), 12 * 2 + 12);
+    // Two levels above the leaves: the root's radius and its children's bytes, then the
+    // sixteen leaves' radius and thickness bytes in four words.
+    let deeper = build(
+        &mesh,
+        &subdivide(&mesh, 4, Scheme::Loop),
+        &GridOptions {
+            radii: RadiusFormat::Relative,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert!(deeper.params.leaf_pairs());
+    assert_eq!(deeper.radii.len(), 12 * 2 + 12 * 4);
     let bare = build(
         &mesh,
         &sub,
