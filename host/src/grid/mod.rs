@@ -344,18 +344,27 @@ impl GridShape {
         }
     }
 
+    /// The parameters that decide how the radii are laid out, as the traversal reads them:
+    /// the rule is `GridParams`' alone.
+    fn radius_params(&self) -> GridParams {
+        GridParams {
+            radius_format: self.radii.code(),
+            leaf_footprint: self.leaf_footprint as u32,
+            leaf_level: self.leaf_level,
+            sphere_count: sphere_count(self.leaf_level),
+            ..Default::default()
+        }
+    }
+
     /// Whether each leaf's byte holds its radius and its thickness (see
     /// `GridParams::leaf_pairs`).
     fn leaf_pairs(&self) -> bool {
-        self.radii == RadiusFormat::Relative && self.leaf_footprint && self.leaf_level >= 2
+        self.radius_params().leaf_pairs()
     }
 
     /// Spheres per grid in the radius area (see `GridParams::stored_spheres`).
     fn stored_spheres(&self) -> u32 {
-        match self.leaf_pairs() {
-            true => sphere_count(self.leaf_level - 1),
-            false => sphere_count(self.leaf_level),
-        }
+        self.radius_params().stored_spheres()
     }
 
     /// Words of the vertex buffer as uploaded, for `corners` base vertices: the inner areas,
