@@ -111,11 +111,15 @@ pub fn split<'a>(scene: &'a Scene, chunk_words: u32, device: &str) -> Result<Spl
     );
     let buffers = scene_buffers(scene);
     let sizes: Vec<BufferSize> = buffers.iter().map(SceneBuffer::size).collect();
-    // The split kernels leave the displaced decoder and the wide walk out: with them they grow
-    // much larger, and so does the time their first compile takes.
+    // The split kernels leave the displaced decoder, the wide walk and leaf radius pairs out:
+    // with them they grow much larger, and so does the time their first compile takes.
     let whole_only = match scene {
         Scene::Grids(g) if g.params.displaced != 0 => Some(("displaced grids are", "")),
         Scene::Grids(g) if g.has_wide_top() => Some(("a wide top level (--wide-top) is", "; use --compact-top")),
+        Scene::Grids(g) if g.params.leaf_pairs() => Some((
+            "relative radii (--radii relative) at this depth are",
+            "; use --radii half",
+        )),
         _ => None,
     };
     if let Some((what, way_out)) = whole_only {

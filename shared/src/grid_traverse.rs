@@ -20,8 +20,8 @@ use crate::lod::grid_level;
 use crate::quantize::{dequantize, halves_from_words, read_half, unit_from_exponent};
 use crate::ray::{Ray, T_FAR};
 use crate::sphere::{
-    decode_radius, intersect_sphere_scaled, leaf_radius, leaf_thickness, relative_radius, relative_radius_at,
-    relative_radius_words,
+    byte_thickness, decode_radius, intersect_sphere_scaled, leaf_radius, leaf_thickness, relative_radius,
+    relative_radius_at, relative_radius_words,
 };
 use crate::traverse::{load_vec3_bits, record_hit, trace, Hierarchy, LeafPrimitives};
 use crate::triangle::{intersect_sheared, shear};
@@ -79,7 +79,8 @@ pub struct GridScratch {
     stack: [u32; GRID_STACK],
     stack_corner: [u32; GRID_STACK],
     stack_t: [f32; GRID_STACK],
-    /// The pending spheres' radii: leaf radii are stored relative to their parents'.
+    /// The pending spheres' radii, written only where leaf radii are stored relative to their
+    /// parents' (see `GridScene::leaf_pairs`).
     stack_radius: [f32; GRID_STACK],
     /// A leaf's vertices in the ray's sheared frame.
     sheared: [Vec3; LEAF_VERTICES],
@@ -358,13 +359,31 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         ]
     }
 
+    /// Whether the leaves' radii are in their bytes ([`GridParams::leaf_pairs`]). Never in a
+    /// split scene: the host refuses to split such scenes, and their kernels leave the pairs'
+    /// reads out, which made lavapipe's first compile of them many times longer.
+    #[inline(always)]
+    fn leaf_pairs(&self) -> bool {
+        !W::SPLIT && self.params.leaf_pairs()
+    }
+
+    /// Spheres per grid in the radius area (see [`GridParams::stored_spheres`]).
+    #[inline(always)]
+    fn stored_spheres(&self) -> u32 {
+        if W::SPLIT {
+            self.params.sphere_count
+        } else {
+            self.params.stored_spheres()
+        }
+    }
+
     /// Radius of sphere `node` (breadth-first id) of `grid`.
     #[inline]
     pub fn radius(&self, grid: u32, node: u32) -> f32 {
         if self.params.radius_format == RADII_RELATIVE {
-            let first = grid * relative_radius_words(self.params.stored_spheres());
+            let first = grid * relative_radius_words(self.stored_spheres());
             let first_leaf = level_start(self.params.leaf_level);
-            if self.params.leaf_pairs() && node >= first_leaf {
+            if self.leaf_pairs() && node >= first_leaf {
                 let parent = relative_radius_at(self.radii, first, (node - 1) / 4);
                 return leaf_radius(parent, self.leaf_byte(grid, node - first_leaf));
             }
@@ -385,7 +404,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     /// `root_radius`.
     #[inline]
     fn child_radii(&self, grid: u32, first_child: u32, level: u32, parent_radius: f32, root_radius: f32) -> [f32; 4] {
-        if self.params.leaf_pairs() && level == self.params.leaf_level {
+        if self.leaf_pairs() && level == self.params.leaf_level {
             // The leaves' own bytes, four to a word.
             let word = self.leaf_word(grid, first_child - level_start(level));
             return [
@@ -397,7 +416,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         }
         if self.params.radius_format == RADII_RELATIVE {
             // The four bytes of one word.
-            let first = grid * relative_radius_words(self.params.stored_spheres());
+            let first = grid * relative_radius_words(self.stored_spheres());
             let word = self.radii.load(first + 1 + (first_child - 1) / 4);
             return [
                 relative_radius(root_radius, word, 0),
@@ -419,10 +438,10 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     #[inline]
     pub fn thickness(&self, grid: u32, leaf: u32, radius: f32) -> f32 {
         let byte = self.leaf_byte(grid, leaf);
-        if self.params.leaf_pairs() {
+        if self.leaf_pairs() {
             return leaf_thickness(radius, byte >> 4);
         }
-        radius * (byte as f32 * (2.0 / 255.0))
+        byte_thickness(radius, byte)
     }
 
     /// The word of `grid`'s leaf bytes that holds leaf `leaf`'s, in its lowest byte when
@@ -651,7 +670,6 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         scratch.stack[0] = 0;
         scratch.stack_corner[0] = pack_corner(root.corner, root.inverted);
         scratch.stack_t[0] = root.t;
-        scratch.stack_radius[0] = visit.root_radius;
         // Tested at the bottom (see `traverse_bvh`): the root is always there to pop, and a
         // pass more would cost every group a sub-triangle's whole work.
         loop {
@@ -823,7 +841,9 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                         scratch.stack[sp] = ((4 * index + e.child) << 4) | (level + 1);
                         scratch.stack_corner[sp] = child_corner(e.child);
                         scratch.stack_t[sp] = e.t;
-                        scratch.stack_radius[sp] = e.radius;
+                        if self.leaf_pairs() {
+                            scratch.stack_radius[sp] = e.radius;
+                        }
                         sp += 1;
                     }
                 };
@@ -1011,7 +1031,7 @@ struct SubTriangle {
     corner: [i32; 2],
     inverted: bool,
     t: f32,
-    /// Its sphere's radius (the root's is the visit's).
+    /// Its sphere's radius where leaves hold radius pairs (the root's is the visit's).
     radius: f32,
 }
 

@@ -19,6 +19,13 @@ pub fn decode_radius(half: u32, scale: f32) -> f32 {
     value * scale
 }
 
+/// The thickness a leaf's 8-bit code `code` stands for, its radius being `radius` (without
+/// leaf pairs): up to twice the radius, for the same reason as [`leaf_thickness`].
+#[inline]
+pub fn byte_thickness(radius: f32, code: u32) -> f32 {
+    radius * ((code & 0xff) as f32 * (2.0 / 255.0))
+}
+
 /// Words of one grid's radii stored relative to its root (`layout::RADII_RELATIVE`): the
 /// root's `f32`, then a byte per other sphere, four to a word.
 #[inline]

@@ -4,7 +4,7 @@
 //! the CPU and on the GPU, and what cannot be bound must be refused with its sizes.
 
 use gridrt::camera;
-use gridrt::grid::{GridOptions, TopFormat};
+use gridrt::grid::{GridOptions, RadiusFormat, TopFormat};
 use gridrt::image_io::fraction_within;
 use gridrt::mesh::scene::default_scene;
 use gridrt::rays::{primary_rays, trace_cpu};
@@ -90,25 +90,34 @@ fn too_many_chunks_are_refused_with_the_sizes() {
     assert!(!err.contains('\n'), "{err:?} is not one line");
 }
 
-/// A wide top level is never split (the split kernels leave its walk out): refused on one line
-/// that names the way out.
+/// A wide top level and leaf radius pairs are never split (the split kernels leave them out):
+/// refused on one line that names the way out.
 #[test]
-fn wide_top_levels_are_refused() {
-    let options = GridOptions {
+fn wide_top_levels_and_leaf_radius_pairs_are_refused() {
+    let wide = GridOptions {
         top: TopFormat::Wide,
         ..GridOptions::default()
     };
-    let grids = build_pair_with(&default_scene(), 2, 2, Scheme::Loop, &options).grids;
-    let Scene::Grids(g) = &grids else { panic!("grids") };
-    assert!(g.has_wide_top());
-    let err = split(&grids, 1 << 10, "a small GPU")
-        .err()
-        .expect("refused")
-        .to_string();
-    for part in ["wide top level", "a small GPU", "--compact-top"] {
-        assert!(err.contains(part), "{err:?} lacks {part:?}");
+    let relative = GridOptions {
+        radii: RadiusFormat::Relative,
+        ..GridOptions::default()
+    };
+    for (options, levels, parts) in [
+        (wide, 2, ["wide top level", "--compact-top"]),
+        (relative, 4, ["relative radii", "--radii half"]),
+    ] {
+        let grids = build_pair_with(&default_scene(), levels, levels, Scheme::Loop, &options).grids;
+        let Scene::Grids(g) = &grids else { panic!("grids") };
+        assert!(g.has_wide_top() || g.params.leaf_pairs());
+        let err = split(&grids, 1 << 10, "a small GPU")
+            .err()
+            .expect("refused")
+            .to_string();
+        for part in parts.iter().chain(&["a small GPU"]) {
+            assert!(err.contains(part), "{err:?} lacks {part:?}");
+        }
+        assert!(!err.contains('\n'), "{err:?} is not one line");
     }
-    assert!(!err.contains('\n'), "{err:?} is not one line");
 }
 
 /// The GPU with a small binding limit: split scenes, tiled images and batched ray lists give

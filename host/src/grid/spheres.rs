@@ -9,7 +9,7 @@ use gridrt_shared::grid_index::{
 };
 use gridrt_shared::grid_traverse::sphere_center;
 use gridrt_shared::layout::{RADII_F32, RADII_HALF, RADII_RELATIVE};
-use gridrt_shared::sphere::{leaf_radius, leaf_thickness, relative_radius, relative_radius_at};
+use gridrt_shared::sphere::{byte_thickness, leaf_radius, leaf_thickness, relative_radius, relative_radius_at};
 
 use super::GridLayout;
 use crate::bvh::Aabb;
@@ -171,12 +171,6 @@ pub fn thickness_code(d: f32, r: f32) -> u8 {
     }
 }
 
-/// The thickness an 8-bit code `code` stands for, for a leaf of radius `r`, as the traversal
-/// decodes it.
-fn decoded_thickness(r: f32, code: u32) -> f32 {
-    r * (code as f32 * (2.0 / 255.0))
-}
-
 /// How a grid scene stores its sphere radii (see `GridParams::radius_format`).
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum RadiusFormat {
@@ -251,7 +245,7 @@ pub(super) fn encode_leaf_pairs(radii: &[f32], leaves: usize, radius_words: &mut
         let radius_code = (0..15).find(|&k| leaf_radius(parent, k) >= needed).unwrap_or(15);
         let radius = leaf_radius(parent, radius_code);
         let (word, shift) = (&mut leaf_words[l / 4], 8 * (l % 4));
-        let thickness = decoded_thickness(needed, (*word >> shift) & 0xff) * (1.0 + 1e-6);
+        let thickness = byte_thickness(needed, (*word >> shift) & 0xff) * (1.0 + 1e-6);
         let thickness_code = (0..15).find(|&k| leaf_thickness(radius, k) >= thickness).unwrap_or(15);
         *word = (*word & !(0xff << shift)) | ((radius_code | thickness_code << 4) << shift);
     }
@@ -267,7 +261,7 @@ pub(super) fn rescale_thickness(radius_words: &[u32], radii: &[f32], leaves: usi
         let (word, shift) = (&mut words[l / 4], 8 * (l % 4));
         let code = (*word >> shift) & 0xff;
         // The thickness the code stood for, and its code against the decoded radius.
-        let thickness = decoded_thickness(needed, code) * (1.0 + 1e-6);
+        let thickness = byte_thickness(needed, code) * (1.0 + 1e-6);
         let recoded = thickness_code(thickness, decoded) as u32;
         *word = (*word & !(0xff << shift)) | (recoded.min(code) << shift);
     }
