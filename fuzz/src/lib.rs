@@ -63,7 +63,7 @@ pub fn check_gltf(data: &[u8]) {
                 assert!(decoded.triangles.iter().flatten().all(|&i| (i as usize) < n));
                 // Compressed values lay out as grids without loss.
                 if mesh.uniform_level().is_some() && decoded.triangles.len() <= 1 << 14 {
-                    let options = gridrt::grid::compressed::ValueCompression { max_added_error: 1e-2 };
+                    let options = gridrt::grid::compressed::ValueCompression::bounded(1e-2);
                     let compressed = gridrt::grid::compressed::compress(&mesh, &options).expect("compressed");
                     let grid_options = gridrt::grid::GridOptions::for_displaced();
                     if let Err(e) = gridrt::grid::displaced::layout(&compressed.mesh, &grid_options) {

@@ -10,7 +10,9 @@
 use crate::bary::Micromap;
 use crate::error::{fail, Result};
 use crate::mesh::Mesh;
-use gridrt_shared::displacement::{displaced_point, u_major_index, unorm11_displacement, DisplacedTriangle};
+use gridrt_shared::displacement::{
+    decimated_point, displaced_point, u_major_index, unorm11_displacement, DisplacedTriangle, DECIMATED_EDGES,
+};
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::grid_index::{grid_size, lattice_points, sub_triangle, triangle_count};
 
@@ -22,6 +24,9 @@ pub struct DisplacedMesh {
     pub directions: Vec<Vec3>,
     pub triangles: Vec<[u32; 3]>,
     pub micromap: Micromap,
+    /// Per triangle, its edges whose neighbours are one level coarser (see
+    /// `gridrt_shared::displacement::DECIMATED_EDGES`); empty when none is.
+    pub decimated_edges: Vec<u8>,
 }
 
 /// The deepest subdivision level decoded.
@@ -45,6 +50,13 @@ impl DisplacedMesh {
                 Input,
                 "its micromap has {} triangles, its mesh {triangles}",
                 self.micromap.triangles.len()
+            );
+        }
+        if !self.decimated_edges.is_empty() && self.decimated_edges.len() != triangles {
+            fail!(
+                Input,
+                "{} triangle flags for {triangles} triangles",
+                self.decimated_edges.len()
             );
         }
         if let Some(t) = self.micromap.triangles.iter().position(|t| t.level > MAX_LEVEL) {
@@ -92,15 +104,23 @@ impl DisplacedMesh {
         group.map_or((0.0, 1.0), |g| (g.bias, g.scale))
     }
 
-    /// Every micro-vertex of triangle `t` at its level, in lattice order.
+    /// Triangle `t`'s decimated edges (see [`Self::decimated_edges`]).
+    pub fn decimated(&self, t: usize) -> u32 {
+        self.decimated_edges.get(t).map_or(0, |&f| f as u32 & DECIMATED_EDGES)
+    }
+
+    /// Every micro-vertex of triangle `t` at its level, in lattice order; on a decimated edge,
+    /// an odd point is decoded where it snaps to (its own value is not part of the surface).
     pub fn micro_vertices(&self, t: usize) -> Vec<Vec3> {
         let level = self.micromap.triangles[t].level;
         let n = grid_size(level);
         let base = self.base_triangle(t);
         let values = self.micromap.triangle_values(t);
         let (bias, scale) = self.bias_scale(t);
+        let decimated = self.decimated(t);
         lattice_points(n)
             .map(|p| {
+                let p = decimated_point(p, n, decimated);
                 let q = values[u_major_index(p, n) as usize];
                 displaced_point(&base, p, n, unorm11_displacement(q as u32, scale, bias))
             })
@@ -122,6 +142,7 @@ impl DisplacedMesh {
                 }],
                 ..self.micromap.clone()
             },
+            decimated_edges: self.decimated_edges.clone(),
             ..Default::default()
         };
         // (vertex, bias bits, scale bits) -> folded vertex id
@@ -141,9 +162,12 @@ impl DisplacedMesh {
         folded
     }
 
-    /// The level every triangle is subdivided to, or `None` when they differ (or there are
-    /// none).
+    /// The level every triangle is subdivided to, or `None` when they differ, when an edge is
+    /// decimated (as only a neighbour of another level asks) or when there are none.
     pub fn uniform_level(&self) -> Option<u32> {
+        if (0..self.triangles.len()).any(|t| self.decimated(t) != 0) {
+            return None;
+        }
         let first = self.micromap.triangles.first()?.level;
         self.micromap
             .triangles
@@ -153,7 +177,8 @@ impl DisplacedMesh {
     }
 
     /// [`Self::decoded`] with the points that decode to the same bits (shared edges and
-    /// corners, seen from each side) stored once; the triangles as they are, in order.
+    /// corners, seen from each side) stored once; the triangles as they are, in order, less
+    /// those a decimated edge collapsed.
     pub fn decoded_welded(&self) -> Mesh {
         let decoded = self.decoded();
         let mut ids = std::collections::HashMap::with_capacity(decoded.positions.len());
@@ -166,8 +191,10 @@ impl DisplacedMesh {
                 })
             })
             .collect();
+        let decimated = !self.decimated_edges.is_empty();
         welded.triangles = (decoded.triangles.iter())
             .map(|t| t.map(|i| remap[i as usize]))
+            .filter(|[a, b, c]| !decimated || (a != b && b != c && c != a))
             .collect();
         welded
     }
@@ -229,6 +256,7 @@ mod tests {
             directions,
             triangles,
             micromap: Micromap::from_triangles(-0.05, 0.2, &[(level, first), (level, second)]),
+            decimated_edges: Vec::new(),
         }
     }
 
@@ -249,6 +277,57 @@ mod tests {
                 "level {level}"
             );
         }
+    }
+
+    /// A level-3 triangle beside a level-2 one, its edge towards it decimated (the odd values
+    /// there are junk, as the flag says they are unused): the seam closes, every micro-edge
+    /// along it shared by one micro-triangle on each side.
+    #[test]
+    fn decimated_edges_meet_their_coarser_neighbours() {
+        let (fine, coarse) = (two_triangles(3), two_triangles(2));
+        let mut fine_values = fine.micromap.triangle_values(0).to_vec();
+        let n = grid_size(3);
+        for k in (1..n).step_by(2) {
+            fine_values[u_major_index([n - k, k], n) as usize] = 2047;
+        }
+        // The fine side's even seam points take the coarse side's values: `two_triangles`
+        // gives point k of 2^L steps from vertex 1 the value 100 + 37 k.
+        for k in (0..=n).step_by(2) {
+            fine_values[u_major_index([n - k, k], n) as usize] = (100 + 37 * k / 2) as u16;
+        }
+        let coarse_values = coarse.micromap.triangle_values(1).to_vec();
+        let mut mesh = DisplacedMesh {
+            micromap: Micromap::from_triangles(-0.05, 0.2, &[(3, fine_values), (2, coarse_values)]),
+            ..fine
+        };
+        let open_seam = |mesh: &DisplacedMesh| {
+            let (welded, _) = WorldMesh::from(mesh.decoded()).validate("decoded").unwrap();
+            let mut uses = std::collections::HashMap::new();
+            for t in &welded.triangles {
+                for e in 0..3 {
+                    let (a, b) = (t[e], t[(e + 1) % 3]);
+                    *uses.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+                }
+            }
+            // Edges of one micro-triangle, less the outer boundary: the fine triangle's two
+            // other edges (8 micro-edges each) and the coarse one's (4 each).
+            uses.values().filter(|&&u| u == 1).count() - (2 * 8 + 2 * 4)
+        };
+        assert!(open_seam(&mesh) > 0, "without the flag the seam has cracks");
+        mesh.decimated_edges = vec![0b010, 0];
+        mesh.check().unwrap();
+        assert_eq!(mesh.uniform_level(), None);
+        assert_eq!(open_seam(&mesh), 0);
+        assert_eq!(mesh.with_ranges_folded().decimated_edges, mesh.decimated_edges);
+        // Welded, the micro-triangles the flag collapsed are gone: along the seam, four of
+        // the fine side's eight.
+        assert_eq!(mesh.decoded_welded().triangles.len(), 64 + 16 - 4);
+        mesh.decimated_edges = vec![0b010];
+        assert!(mesh
+            .check()
+            .unwrap_err()
+            .to_string()
+            .contains("1 triangle flags for 2 triangles"));
     }
 
     /// Folding moves no micro-vertex by more than rounding, and leaves a bias-free micromap;

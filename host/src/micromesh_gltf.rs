@@ -8,6 +8,7 @@
 //! directions are in the same local units, so the node's scale applies to them as the
 //! extension's `p = lerp(P) + lerp(D) * d` needs. The micromap's triangle `t` displaces the
 //! primitive's triangle `t` (no `mapIndices`); its group's bias and scale hold the range.
+//! Decimated edges, when any, are the primitive's `primitiveFlags`.
 
 use std::path::{Path, PathBuf};
 
@@ -56,6 +57,8 @@ fn document(mesh: &DisplacedMesh, frame: &LocalFrame, bin: &str, bary: &str) -> 
     buffer.extend(floats(&mesh.directions));
     let indices_at = buffer.len();
     buffer.extend(mesh.triangles.iter().flatten().flat_map(|i| i.to_le_bytes()));
+    let flags_at = buffer.len();
+    buffer.extend_from_slice(&mesh.decimated_edges);
     let vertices = mesh.positions.len();
     let (lo, hi) = mesh.positions.iter().fold(
         (
@@ -66,7 +69,7 @@ fn document(mesh: &DisplacedMesh, frame: &LocalFrame, bin: &str, bary: &str) -> 
     );
     let view = |offset: usize, length: usize| json!({"buffer": 0, "byteOffset": offset, "byteLength": length});
     let unit = 1.0 / frame.scale;
-    let document = json!({
+    let mut document = json!({
         "asset": {"version": "2.0", "generator": "gridrt"},
         "extensionsUsed": ["NV_micromaps", "NV_displacement_micromap"],
         "extensions": {"NV_micromaps": {"micromaps": [{"uri": bary}]}},
@@ -87,7 +90,7 @@ fn document(mesh: &DisplacedMesh, frame: &LocalFrame, bin: &str, bary: &str) -> 
         "bufferViews": [
             view(0, directions_at),
             view(directions_at, indices_at - directions_at),
-            view(indices_at, buffer.len() - indices_at),
+            view(indices_at, flags_at - indices_at),
         ],
         "accessors": [
             {"bufferView": 0, "componentType": 5126, "count": vertices, "type": "VEC3",
@@ -96,6 +99,16 @@ fn document(mesh: &DisplacedMesh, frame: &LocalFrame, bin: &str, bary: &str) -> 
             {"bufferView": 2, "componentType": 5125, "count": 3 * mesh.triangles.len(), "type": "SCALAR"},
         ],
     });
+    if !mesh.decimated_edges.is_empty() {
+        // One unsigned byte per triangle.
+        let views = document["bufferViews"].as_array_mut().expect("views");
+        views.push(view(flags_at, buffer.len() - flags_at));
+        let accessors = document["accessors"].as_array_mut().expect("accessors");
+        accessors
+            .push(json!({"bufferView": 3, "componentType": 5121, "count": mesh.triangles.len(), "type": "SCALAR"}));
+        let extension = &mut document["meshes"][0]["primitives"][0]["extensions"]["NV_displacement_micromap"];
+        extension["primitiveFlags"] = json!(3);
+    }
     (buffer, document)
 }
 
@@ -132,6 +145,7 @@ mod tests {
             directions: vec![Vec3::Z, Vec3::new(0.0, 0.1, 1.0), Vec3::new(0.1, 0.0, 1.0)],
             triangles: vec![[0, 1, 2]],
             micromap: Micromap::from_triangles(-0.01, 0.02, &[(level, values)]),
+            decimated_edges: Vec::new(),
         }
     }
 

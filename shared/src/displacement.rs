@@ -41,6 +41,44 @@ pub const fn u_major_index(p: Lattice, n: u32) -> u32 {
     i * (n + 1) - (i * i - i) / 2 + j
 }
 
+/// Edge flags of a base triangle whose neighbour across an edge is one level coarser (bit `e`
+/// for the edge from corner `e` to corner `e + 1 mod 3`, as glTF's `primitiveFlags` hold
+/// them): such an edge keeps only its even lattice points, the ones its coarser neighbour
+/// has, so the two sides meet watertight.
+pub const DECIMATED_EDGES: u32 = 0b111;
+
+/// Where lattice point `p` of a size-`n` lattice lies once the edges `decimated` flags (see
+/// [`DECIMATED_EDGES`]) are decimated: an odd point of such an edge moves onto its even
+/// neighbour towards the nearer end of the edge (towards the edge's first corner from the
+/// midpoint), as NVIDIA's displacement micro-maps snap it; any other point stays. The
+/// micro-triangles keep their lattice corners, so those along a decimated edge may become
+/// degenerate, and the rest close the gap.
+#[inline]
+pub fn decimated_point(p: Lattice, n: u32, decimated: u32) -> Lattice {
+    let [i, j] = p;
+    // `s` steps from the edge's first corner: odd ones move to an even neighbour (corners
+    // stay, also at level 0, where `n = 1`).
+    let snap = |s: u32| {
+        if s & 1 == 0 || s == n {
+            s
+        } else if 2 * s <= n {
+            s - 1
+        } else {
+            s + 1
+        }
+    };
+    if decimated & 1 != 0 && j == 0 {
+        [snap(i), 0]
+    } else if decimated & 2 != 0 && i + j == n {
+        let j = snap(j);
+        [n - j, j]
+    } else if decimated & 4 != 0 && i == 0 {
+        [0, n - snap(n - j)]
+    } else {
+        p
+    }
+}
+
 /// Lattice point `p` of `triangle`'s size-`n` lattice, displaced by `d`.
 #[inline]
 pub fn displaced_point(triangle: &DisplacedTriangle, p: Lattice, n: u32, d: f32) -> Vec3 {
@@ -170,6 +208,47 @@ mod tests {
             let w = [(n - i - j) as f32, i as f32, j as f32].map(|w| w / n as f32);
             let expected = t.positions[0] * w[0] + t.positions[1] * w[1] + t.positions[2] * w[2];
             assert!((displaced_point(&t, p, n, 0.0) - expected).length() < 1e-6, "{p:?}");
+        }
+    }
+
+    /// A decimated edge keeps its even points, each odd one moved to the even neighbour nearer
+    /// the edge's end (the first end from the midpoint); nothing off the flagged edges moves.
+    #[test]
+    fn decimated_edges_keep_their_even_points() {
+        let n = 8;
+        // Edge 0 runs (0, 0) -> (n, 0), edge 1 (n, 0) -> (0, n), edge 2 (0, n) -> (0, 0).
+        assert_eq!(decimated_point([1, 0], n, 1), [0, 0]);
+        assert_eq!(decimated_point([3, 0], n, 1), [2, 0]);
+        assert_eq!(decimated_point([5, 0], n, 1), [6, 0]);
+        assert_eq!(decimated_point([7, 0], n, 1), [8, 0]);
+        assert_eq!(decimated_point([7, 1], n, 2), [8, 0]);
+        assert_eq!(decimated_point([3, 5], n, 2), [2, 6]);
+        assert_eq!(decimated_point([5, 3], n, 2), [6, 2]);
+        assert_eq!(decimated_point([0, 7], n, 4), [0, 8]);
+        assert_eq!(decimated_point([0, 1], n, 4), [0, 0]);
+        assert_eq!(decimated_point([0, 5], n, 4), [0, 6]);
+        // Level 0 has corners alone.
+        for p in lattice_points(1) {
+            assert_eq!(decimated_point(p, 1, DECIMATED_EDGES), p);
+        }
+        // The midpoint of a level-1 edge goes to the edge's first corner.
+        assert_eq!(decimated_point([1, 0], 2, 1), [0, 0]);
+        assert_eq!(decimated_point([1, 1], 2, 2), [2, 0]);
+        assert_eq!(decimated_point([0, 1], 2, 4), [0, 2]);
+        for p in lattice_points(n) {
+            let [i, j] = p;
+            let on_edge = [j == 0, i + j == n, i == 0];
+            for flags in 0..8u32 {
+                let moved = decimated_point(p, n, flags);
+                let flagged = (0..3).any(|e| flags >> e & 1 != 0 && on_edge[e]);
+                if !flagged || (i % 2 == 0 && j % 2 == 0) {
+                    assert_eq!(moved, p, "{p:?} flags {flags}");
+                } else {
+                    // One step along the same edge, onto an even point.
+                    assert_eq!(moved[0] % 2 + moved[1] % 2, 0, "{p:?} flags {flags}");
+                    assert!(moved[0].abs_diff(i) + moved[1].abs_diff(j) <= 2, "{p:?} flags {flags}");
+                }
+            }
         }
     }
 

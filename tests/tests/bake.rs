@@ -177,3 +177,58 @@ fn bake_refuses_bad_outputs_before_any_work() {
         stderr(&o)
     );
 }
+
+/// A byte budget tighter than the error bound needs is kept, the bound given up and the
+/// report saying so; a level per base triangle writes a file of mixed levels that `render`
+/// reads, with no grids and plain values.
+#[test]
+fn bake_keeps_to_a_byte_budget_and_mixes_levels() {
+    let dir = scratch("bake-budget");
+    let reference = dir.join("ball.obj");
+    write_obj(&reference, &bumpy_ball(4), 0.0);
+    let r = o_str(&reference);
+    let bake = |name: &str, extra: &[&str]| {
+        let out = dir.join(name);
+        let mut args = vec!["bake", r, "-L", "3", "-o", o_str(&out), "--samples", "5000", "--json"];
+        args.extend(extra);
+        (json(&args), out)
+    };
+    let (free, _) = bake("free.gltf", &["--max-bytes", "100"]);
+    let micro = free["micro_triangles"].as_u64().unwrap() as f64;
+    let free_bytes = free["grid_bytes"].as_u64().unwrap() as f64;
+    assert_eq!(free["compression"]["budget_binds"], false, "{free}");
+    let budget = format!("{:.4}", 0.95 * free_bytes / micro);
+    let (tight, _) = bake("tight.gltf", &["--max-bytes", &budget]);
+    let bytes = tight["grid_bytes"].as_u64().unwrap() as f64;
+    assert!(bytes <= budget.parse::<f64>().unwrap() * micro, "{tight}");
+    let c = &tight["compression"];
+    assert_eq!(c["budget_binds"], true, "{tight}");
+    assert!(c["added_error"].as_f64() > c["max_added_error"].as_f64(), "{tight}");
+
+    let (mixed, out) = bake("mixed.gltf", &["--max-error", "2e-3"]);
+    let levels: Vec<u64> = (mixed["level_micro_triangles"].as_array().unwrap().iter())
+        .map(|c| c.as_u64().unwrap())
+        .collect();
+    assert!(levels.iter().filter(|&&c| c > 0).count() >= 2, "{mixed}");
+    assert_eq!(levels.iter().sum::<u64>(), mixed["micro_triangles"].as_u64().unwrap());
+    assert!(
+        mixed["grid_bytes"].is_null() && mixed["compression"].is_null(),
+        "{mixed}"
+    );
+    let png = dir.join("mixed.png");
+    let o = gridrt(&[
+        "render",
+        o_str(&out),
+        "--backend",
+        "cpu",
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "-o",
+        o_str(&png),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let json_text = std::fs::read_to_string(&out).unwrap();
+    assert!(json_text.contains("primitiveFlags"), "{json_text}");
+}

@@ -1006,6 +1006,7 @@ fn displaced_micro_meshes_are_decoded_not_subdivided() {
         directions: vec![Vec3::Z; 4],
         triangles: vec![[0, 1, 2], [3, 2, 1]],
         micromap: Micromap::from_triangles(-0.1, 0.2, &[(level, first), (level, second)]),
+        decimated_edges: Vec::new(),
     };
     let gltf = dir.join("baked.gltf");
     gridrt::micromesh_gltf::write(&gltf, &mesh, &LocalFrame::IDENTITY).unwrap();

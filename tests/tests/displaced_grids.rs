@@ -1,7 +1,7 @@
 //! Displaced grids (a baked micro-mesh traced from its 11-bit values, plain or compressed)
 //! against the same micro-triangles decoded into a list under the baseline's BVH: the same
 //! closest hits, no leaks at shared edges and corners, and the same pictures on the GPU and
-//! the CPU.
+//! the CPU. And a file of mixed levels, as another tool writes it, decoded watertight.
 
 use gridrt::backend::Backend;
 use gridrt::bake::{bake, BakeOptions, Base};
@@ -31,9 +31,7 @@ fn baked_ball(levels: u32) -> DisplacedMesh {
 /// clamped corrections, shifts and zero widths all occur).
 fn variants(levels: u32) -> [(&'static str, DisplacedMesh); 2] {
     let mesh = baked_ball(levels);
-    let compressed = compress(&mesh, &ValueCompression { max_added_error: 2e-3 })
-        .unwrap()
-        .mesh;
+    let compressed = compress(&mesh, &ValueCompression::bounded(2e-3)).unwrap().mesh;
     [("plain", mesh), ("compressed", compressed)]
 }
 
@@ -243,4 +241,117 @@ fn displaced_occlusion_gpu_equals_cpu() {
         eprintln!("{variant} L4 lit: {:.3}% of pixels within 2/255", 100.0 * within);
         assert!(within >= 0.995, "{variant}: {within}");
     }
+}
+
+/// A closed tetrahedron written by hand as another tool would: faces 0 and 1 at level 2,
+/// faces 2 and 3 at level 1, the finer faces' edges towards the coarser ones flagged in
+/// `primitiveFlags`, their odd points there holding 0 (as files store them). Rays at every
+/// point and micro-edge of every base edge never pass through; without the flags they do.
+#[test]
+fn mixed_levels_with_decimated_edges_render_watertight() {
+    use gridrt::bary::{write, Micromap};
+    use gridrt_shared::displacement::u_major_index;
+    use gridrt_shared::grid_index::{grid_size, lattice_points};
+
+    let positions = [
+        [1.0f32, 1.0, 1.0],
+        [1.0, -1.0, -1.0],
+        [-1.0, 1.0, -1.0],
+        [-1.0, -1.0, 1.0],
+    ];
+    let faces: [[u32; 3]; 4] = [[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]];
+    let (levels, flags) = ([2, 2, 1, 1], [0b110u8, 0b011, 0, 0]);
+    let values = |face: usize| -> Vec<u16> {
+        let n = grid_size(levels[face]);
+        let mut v = vec![0u16; lattice_points(n).count()];
+        for [i, j] in lattice_points(n) {
+            // Edge e's points, `s` steps from its first corner.
+            let on_edge = [(j == 0, i), (i + j == n, j), (i == 0, n - j)];
+            let odd_decimated = (0..3).any(|e| on_edge[e].0 && flags[face] >> e & 1 != 0 && on_edge[e].1 % 2 == 1);
+            v[u_major_index([i, j], n) as usize] = if odd_decimated {
+                0
+            } else if on_edge.iter().any(|e| e.0) {
+                1024
+            } else {
+                1500 + 97 * (i + 2 * j) as u16 % 400
+            };
+        }
+        v
+    };
+    let map = Micromap::from_triangles(0.0, 0.3, &(0..4).map(|f| (levels[f], values(f))).collect::<Vec<_>>());
+    let dir = std::env::temp_dir().join(format!("gridrt-mixed-levels-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("tetra.bary"), write(&map)).unwrap();
+    let write_gltf = |flags: [u8; 4]| {
+        let floats = |v: &[[f32; 3]]| v.iter().flatten().flat_map(|f| f.to_le_bytes()).collect::<Vec<u8>>();
+        let mut bin = floats(&positions);
+        let directions = positions.map(|p| (Vec3::from(p).normalize()).to_array());
+        bin.extend(floats(&directions));
+        bin.extend(faces.iter().flatten().flat_map(|i| i.to_le_bytes()));
+        bin.extend(flags);
+        std::fs::write(dir.join("tetra.bin"), &bin).unwrap();
+        let json = serde_json::json!({
+            "asset": {"version": "2.0"},
+            "extensionsUsed": ["NV_micromaps", "NV_displacement_micromap"],
+            "extensions": {"NV_micromaps": {"micromaps": [{"uri": "tetra.bary"}]}},
+            "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 2, "extensions": {
+                "NV_displacement_micromap": {"micromap": 0, "directions": 1, "primitiveFlags": 3}}}]}],
+            "buffers": [{"uri": "tetra.bin", "byteLength": bin.len()}],
+            "bufferViews": [
+                {"buffer": 0, "byteOffset": 0, "byteLength": 48},
+                {"buffer": 0, "byteOffset": 48, "byteLength": 48},
+                {"buffer": 0, "byteOffset": 96, "byteLength": 48},
+                {"buffer": 0, "byteOffset": 144, "byteLength": 4},
+            ],
+            "accessors": [
+                {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+                 "min": [-1, -1, -1], "max": [1, 1, 1]},
+                {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC3"},
+                {"bufferView": 2, "componentType": 5125, "count": 12, "type": "SCALAR"},
+                {"bufferView": 3, "componentType": 5121, "count": 4, "type": "SCALAR"},
+            ],
+        });
+        let path = dir.join("tetra.gltf");
+        std::fs::write(&path, serde_json::to_vec(&json).unwrap()).unwrap();
+        path
+    };
+    // Rays from outside through each base edge's decoded points and the midpoints between
+    // them, aimed at the centre: how many pass through the surface.
+    let leaks = |flags: [u8; 4]| {
+        let input = gridrt::mesh::open(Some(&write_gltf(flags))).unwrap();
+        let micromesh = input.micromesh.as_ref().unwrap();
+        let expected = if flags == [0; 4] { vec![] } else { flags.to_vec() };
+        assert_eq!(micromesh.decimated_edges, expected);
+        let scene = Scene::Triangles(gridrt::triangles::build(&input.mesh.positions, &input.mesh.triangles));
+        let centre = scene.bounds().center();
+        let mut rng = Rng::new(17);
+        let (mut rays, mut leaked) = (0, 0);
+        for t in 0..4 {
+            let n = grid_size(levels[t]);
+            let points = micromesh.micro_vertices(t);
+            let at = |p: [u32; 2]| points[gridrt_shared::grid_index::lattice_index(p[0], p[1], n) as usize];
+            for s in 0..n {
+                for (a, b) in [
+                    ([s, 0], [s + 1, 0]),
+                    ([n - s, s], [n - s - 1, s + 1]),
+                    ([0, n - s], [0, n - s - 1]),
+                ] {
+                    for target in [at(a), (at(a) + at(b)) * 0.5] {
+                        for _ in 0..4 {
+                            let dir = (centre - target).normalize() + rng.direction() * 0.3;
+                            let origin = target - dir * 3.0;
+                            let hit = scene.trace(&Ray::new(origin, dir), T_FAR);
+                            rays += 1;
+                            leaked += (!hit.is_hit() || hit.t > 3.0 * 1.0001) as u32;
+                        }
+                    }
+                }
+            }
+        }
+        assert!(rays >= 100, "{rays}");
+        leaked
+    };
+    assert_eq!(leaks(flags), 0);
+    assert!(leaks([0; 4]) > 0, "without the flags the seams should crack");
 }

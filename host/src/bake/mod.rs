@@ -38,6 +38,7 @@ pub mod cast;
 pub mod decimate;
 pub mod directions;
 pub mod fit;
+pub mod levels;
 pub mod refine;
 
 use gridrt_shared::displacement::{interpolated, u_major_index, DisplacedTriangle};
@@ -78,6 +79,20 @@ pub struct BakeOptions {
 /// add by default. Independent errors add in squares, so the compressed mesh stays within
 /// `sqrt(1 + 0.5^2)`, about 1.12 times the uncompressed one's distance.
 pub const COMPRESSION_ERROR_SHARE: f32 = 0.5;
+
+/// Bytes per micro-triangle that everything the GPU gets keeps within by default, by level:
+/// the sizes of the fixed-function hardware's compressed displacement blocks (64 micro-triangles
+/// in 64 bytes at level 3, 256 in 128 at level 4, 1024 in 128 from level 5 on), here for the
+/// values with the hierarchy that hardware keeps to itself; none below level 3, where its
+/// blocks hold values uncompressed.
+pub fn default_byte_budget(levels: u32) -> Option<f64> {
+    match levels {
+        0..=2 => None,
+        3 => Some(1.0),
+        4 => Some(0.5),
+        _ => Some(0.2),
+    }
+}
 
 /// How many micro-triangles each base triangle stands for by default: with [`BakeOptions::for_reference`]
 /// at level 3, about as many micro-triangles as the reference has triangles.
@@ -190,6 +205,7 @@ pub fn bake(reference: &Mesh, options: &BakeOptions) -> Result<Baked> {
         directions: folded,
         triangles: base.triangles,
         micromap: Micromap::from_triangles(0.0, 1.0, &values),
+        decimated_edges: Vec::new(),
     };
     mesh.check()?;
     Ok(Baked { mesh, report })

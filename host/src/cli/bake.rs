@@ -11,7 +11,7 @@ use super::BakeArgs;
 use gridrt::bake::refine::Refinement;
 use gridrt::bake::{self, BakeOptions, BakeReport, Base};
 use gridrt::displaced::DisplacedMesh;
-use gridrt::grid::compressed::{compress, ValueCompression};
+use gridrt::grid::compressed::{compress, CompressedMesh, ValueCompression};
 use gridrt::grid::{self, GridOptions};
 use gridrt::image_io;
 use gridrt::mesh;
@@ -31,8 +31,12 @@ struct Report {
     micromap_bytes: u64,
     /// Everything the GPU gets to trace the result as displaced grids at their defaults:
     /// values, base mesh, headers, radii, leaf thicknesses, top-level BVH.
-    /// `None` where the micro-mesh is too large for displaced grids (rendered as triangles).
+    /// `None` where the micro-mesh is too large for displaced grids, or of mixed levels
+    /// (rendered as triangles).
     grid_bytes: Option<u64>,
+    /// Micro-triangles at each level `0 ..= 6`, where base triangles have their own levels
+    /// (`--max-error`).
+    level_micro_triangles: Option<Vec<u64>>,
     bake_seconds: f64,
     /// How the values were compressed; `None` where they were left plain.
     compression: Option<CompressionReport>,
@@ -54,6 +58,10 @@ struct CompressionReport {
     /// base mesh's bounding-box diagonal.
     max_added_error: f32,
     added_error: f32,
+    /// The byte budget per micro-triangle (everything the GPU gets), where one applies, and
+    /// whether the bound gave way to it.
+    max_bytes: Option<f64>,
+    budget_binds: bool,
     /// The symmetric distance before compression, as `symmetric` is given.
     uncompressed_symmetric: DistanceSummary,
 }
@@ -89,7 +97,15 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
         ..defaults
     };
     let started = std::time::Instant::now();
-    let baked = stages.run("bake", || bake::bake(&reference_mesh, &options))?;
+    let mut baked = stages.run("bake", || bake::bake(&reference_mesh, &options))?;
+    if let Some(max_error) = args.max_error {
+        let (lo, hi) = reference_mesh.bounds();
+        let bound = max_error * (hi - lo).length();
+        baked.mesh = stages.run("levels", || {
+            bake::levels::adaptive(&baked.mesh.with_ranges_folded(), bound)
+        });
+        baked.report.micro_triangles = bake::levels::level_counts(&baked.mesh).iter().sum();
+    }
     let bake_seconds = started.elapsed().as_secs_f64();
     let sampling = Sampling {
         samples: args.samples,
@@ -105,23 +121,24 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
     let (mesh, compression, d) = match compression_bound(args, &baked.mesh, &plain) {
         None => (baked.mesh, None, plain),
         Some(options) => {
-            let compressed = stages.run("compress", || compress(&baked.mesh, &options))?;
+            let budget = byte_budget(args).map(|b| (b, baked.report.micro_triangles));
+            let (compressed, budget_binds) =
+                stages.run("compress", || compress_within(&baked.mesh, options, budget))?;
             let d = measure(stages, &compressed.mesh);
             let report = CompressionReport {
                 widths: grid::compressed::level_widths(&compressed.code),
                 bits_per_value: compressed.bits_per_value(),
                 max_added_error: options.max_added_error,
                 added_error: compressed.added_error,
+                max_bytes: budget.map(|(b, _)| b),
+                budget_binds,
                 uncompressed_symmetric: plain.symmetric.relative_to(plain.a_diagonal),
             };
             (compressed.mesh, Some(report), d)
         }
     };
     stages.run("write", || micromesh_gltf::write(&args.output, &mesh, &frame))?;
-    let grids = grid::displaced::build(&mesh, &GridOptions::for_displaced());
-    let grid_bytes = grids
-        .ok()
-        .map(|g| g.memory().iter().map(|&(_, bytes)| bytes as u64).sum());
+    let grid_bytes = grid_memory(&mesh).map(|parts| parts.iter().map(|&(_, bytes)| bytes).sum());
     let bytes = |p: &Path| std::fs::metadata(p).map_or(0, |m| m.len());
     let report = Report {
         reference: args.reference.display().to_string(),
@@ -131,6 +148,7 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
         file_bytes: outputs.iter().map(|p| bytes(p)).sum(),
         micromap_bytes: bytes(&outputs[2]),
         grid_bytes,
+        level_micro_triangles: args.max_error.map(|_| bake::levels::level_counts(&mesh)),
         bake_seconds,
         compression,
         reference_to_baked: d.a_to_b.relative_to(d.a_diagonal),
@@ -146,15 +164,89 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
     Ok(())
 }
 
-/// How to compress the baked values: `None` to leave them plain (as asked, or at level 0,
-/// where a base triangle has its corners alone). The bound is the one asked for, or by
+/// The parts of everything the GPU gets to trace `mesh` as displaced grids at their defaults,
+/// in bytes; `None` where it is too large for displaced grids.
+fn grid_memory(mesh: &DisplacedMesh) -> Option<Vec<(&'static str, u64)>> {
+    let grids = grid::displaced::build(mesh, &GridOptions::for_displaced()).ok()?;
+    Some(
+        grids
+            .memory()
+            .into_iter()
+            .map(|(part, bytes)| (part, bytes as u64))
+            .collect(),
+    )
+}
+
+/// The byte budget per micro-triangle: the one asked for, or with the default error bound
+/// the default for the level.
+fn byte_budget(args: &BakeArgs) -> Option<f64> {
+    match (args.max_bytes, args.compress_values) {
+        (Some(bytes), _) => Some(bytes),
+        (None, Some(_)) => None,
+        (None, None) => bake::default_byte_budget(args.levels),
+    }
+}
+
+/// `mesh`'s values compressed within `options`' bound, or, where everything the GPU gets
+/// would then take more than `budget` (bytes per micro-triangle, and micro-triangles), within
+/// the bits that fit it; and whether the budget was what bound them.
+fn compress_within(
+    mesh: &DisplacedMesh,
+    options: ValueCompression,
+    budget: Option<(f64, u64)>,
+) -> Result<(CompressedMesh, bool)> {
+    let Some((per_micro, micro_triangles)) = budget else {
+        return Ok((compress(mesh, &options)?, false));
+    };
+    let allowed = (per_micro * micro_triangles as f64).floor() as u64;
+    let total = |parts: &[(&str, u64)]| parts.iter().map(|&(_, bytes)| bytes).sum::<u64>();
+    let Some(plain) = grid_memory(mesh) else {
+        return Ok((compress(mesh, &options)?, false));
+    };
+    // What the values may take: the budget less the rest (base mesh, headers, radii, top
+    // level), whose sizes the values do not change, less the block table at its widest.
+    let values = ["inner_values", "value_block_table", "edge_and_corner_values"];
+    let rest: u64 = (plain.iter().filter(|(part, _)| !values.contains(part)))
+        .map(|&(_, bytes)| bytes)
+        .sum();
+    let table_bits = 32 * mesh.triangles.len() as u64;
+    let mut max_bits = (8 * allowed.saturating_sub(rest)).saturating_sub(table_bits);
+    let mut compressed = compress(
+        mesh,
+        &ValueCompression {
+            max_bits: Some(max_bits),
+            ..options
+        },
+    )?;
+    // The top level may come out a node larger: take that off too, at most twice.
+    for _ in 0..2 {
+        let over = grid_memory(&compressed.mesh).map_or(0, |parts| total(&parts).saturating_sub(allowed));
+        if over == 0 {
+            break;
+        }
+        max_bits = compressed.bits.min(max_bits).saturating_sub(8 * over + 64);
+        compressed = compress(
+            mesh,
+            &ValueCompression {
+                max_bits: Some(max_bits),
+                ..options
+            },
+        )?;
+    }
+    let binds = compressed.added_error > options.max_added_error;
+    Ok((compressed, binds))
+}
+
+/// How to compress the baked values: `None` to leave them plain (as asked, at level 0, where
+/// a base triangle has its corners alone, or at mixed levels, which compression does not
+/// take yet). The bound is the one asked for, or by
 /// default a share of the uncompressed bake's own distance from the reference.
 fn compression_bound(args: &BakeArgs, mesh: &DisplacedMesh, plain: &SurfaceDistance) -> Option<ValueCompression> {
-    if args.plain_values || args.levels == 0 {
+    if args.plain_values || args.levels == 0 || mesh.uniform_level().is_none() {
         return None;
     }
     Some(match args.compress_values {
-        Some(bound) => ValueCompression { max_added_error: bound },
+        Some(bound) => ValueCompression::bounded(bound),
         None => ValueCompression::within(mesh, bake::COMPRESSION_ERROR_SHARE * plain.symmetric.rms as f32),
     })
 }
@@ -187,7 +279,7 @@ fn summary(r: &Report) -> String {
     let row = |what: &str, s: &DistanceSummary| format!("| {what} | {:.3e} | {:.3e} | {:.3e} |\n", s.rms, s.p99, s.max);
     format!(
         "{} ({} triangles) -> {}\n\
-         base: {} triangles, {} vertices; level {}: {} micro-triangles ({:.1} per reference triangle)\n\
+         base: {} triangles, {} vertices; {}: {} micro-triangles ({:.1} per reference triangle)\n\
          files: {} bytes, {:.2} B per micro-triangle (micromap {:.2} B)\n\
          displaced grids, all the GPU gets: {}\n\
          bake: {:.2} s; {} of {} values ({:.3}%) met no surface within reach, {} ({:.3}%) were clamped\n\
@@ -199,7 +291,18 @@ fn summary(r: &Report) -> String {
         r.output,
         b.base_triangles,
         b.base_vertices,
-        b.levels,
+        match &r.level_micro_triangles {
+            Some(counts) => format!(
+                "levels up to {} (micro-triangles by level: {})",
+                b.levels,
+                (counts.iter().enumerate())
+                    .filter(|(_, &c)| c > 0)
+                    .map(|(l, c)| format!("{l}: {c}"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+            None => format!("level {}", b.levels),
+        },
         b.micro_triangles,
         b.micro_triangles as f64 / r.reference_triangles.max(1) as f64,
         r.file_bytes,
@@ -207,6 +310,9 @@ fn summary(r: &Report) -> String {
         per_micro(r.micromap_bytes),
         match r.grid_bytes {
             Some(bytes) => format!("{bytes} bytes, {:.2} B per micro-triangle", per_micro(bytes)),
+            None if r.level_micro_triangles.is_some() => {
+                "none yet: mixed levels render as decoded triangles".into()
+            }
             None => "too large to trace as displaced grids (rendered as triangles)".into(),
         },
         r.bake_seconds,
@@ -218,9 +324,21 @@ fn summary(r: &Report) -> String {
         match &r.compression {
             Some(c) => format!(
                 "values: compressed to {:.2} bits each (base edges at widths {:?} bits per level, each grid at \
-                 its own), adding {:.3e} of the base's diagonal (RMS, bound {:.3e})\n",
-                c.bits_per_value, c.widths, c.added_error, c.max_added_error
+                 its own), adding {:.3e} of the base's diagonal (RMS, bound {:.3e}{})\n",
+                c.bits_per_value,
+                c.widths,
+                c.added_error,
+                c.max_added_error,
+                match (c.max_bytes, c.budget_binds) {
+                    (Some(b), true) =>
+                        format!(", exceeded to fit the budget of {b} B per micro-triangle (--max-bytes)"),
+                    (Some(b), false) => format!("; budget {b} B per micro-triangle"),
+                    (None, _) => String::new(),
+                }
             ),
+            None if r.level_micro_triangles.is_some() => {
+                "values: plain, 11 bits each (compression takes one level for now)\n".into()
+            }
             None => "values: plain, 11 bits each\n".into(),
         },
         row("reference to baked", &r.reference_to_baked),

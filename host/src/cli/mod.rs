@@ -240,6 +240,13 @@ pub struct BuildArgs {
     pub plain_values: bool,
 }
 
+fn parse_byte_budget(s: &str) -> std::result::Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(b) if b.is_finite() && b > 0.0 => Ok(b),
+        _ => Err(format!("'{s}' is not a byte budget: bytes per micro-triangle, above 0")),
+    }
+}
+
 fn parse_value_error(s: &str) -> std::result::Result<f32, String> {
     match s.parse::<f32>() {
         Ok(e) if e.is_finite() && e >= 0.0 => Ok(e),
@@ -262,7 +269,7 @@ pub fn compress_values(input: &mut Input, build: &BuildArgs) -> Result<()> {
     if micromesh.uniform_level().is_none() {
         return Ok(());
     }
-    let options = grid::compressed::ValueCompression { max_added_error: bound };
+    let options = grid::compressed::ValueCompression::bounded(bound);
     let compressed = grid::compressed::compress(micromesh, &options).map_err(|e| e.prefixed(&input.name))?;
     eprintln!(
         "note: {}: values compressed to {:.2} bits each (base edges at widths {:?} bits per level, each grid \
@@ -647,6 +654,21 @@ pub struct BakeArgs {
     /// in the .bary (which holds the values plain either way, for any reader).
     #[arg(long)]
     pub plain_values: bool,
+    /// Most bytes per micro-triangle for everything the GPU gets as displaced grids: where
+    /// the error bound needs more, the values give up error until they fit [default with the
+    /// default bound: 1.0, 0.5 and 0.2 at levels 3, 4 and 5 (and 6), the budgets of the
+    /// hardware's displacement blocks with the hierarchy on top; none below level 3].
+    #[arg(long, value_name = "BYTES", value_parser = parse_byte_budget, conflicts_with = "plain_values")]
+    pub max_bytes: Option<f64>,
+    /// Give each base triangle its own level, up to --levels: the coarsest whose surface stays
+    /// within this RMS distance (a fraction of the reference's bounding-box diagonal) of the
+    /// one baked at --levels, neighbours within a level of each other, the finer side
+    /// decimating the edge between them (glTF's primitiveFlags). Such micro-meshes keep their
+    /// values plain and render as decoded triangles for now; their coarse levels keep the
+    /// values fitted at --levels, so at equal bytes they are not yet closer to the reference
+    /// than one level for all.
+    #[arg(long, value_name = "MAX_ERROR", value_parser = parse_value_error, conflicts_with_all = ["compress_values", "max_bytes"])]
+    pub max_error: Option<f32>,
     /// Points sampled on each surface, by area, to measure the baked mesh's distance from
     /// the reference.
     #[arg(long, default_value_t = 1_000_000, value_parser = at_least_one())]

@@ -43,20 +43,29 @@ pub struct ValueCompression {
     /// Most RMS error the compression may add, over every stored value, as a fraction of the
     /// base mesh's bounding-box diagonal.
     pub max_added_error: f32,
+    /// Most bits all the values may take: where the error bound needs more, the grids give
+    /// up error for bits until they fit, and the bound is exceeded.
+    pub max_bits: Option<u64>,
 }
 
 impl Default for ValueCompression {
     fn default() -> Self {
-        ValueCompression { max_added_error: 1e-4 }
+        ValueCompression::bounded(1e-4)
     }
 }
 
 impl ValueCompression {
+    /// An error bound alone (see [`Self::max_added_error`]).
+    pub fn bounded(max_added_error: f32) -> ValueCompression {
+        ValueCompression {
+            max_added_error,
+            max_bits: None,
+        }
+    }
+
     /// A bound of `distance` in `mesh`'s own units.
     pub fn within(mesh: &DisplacedMesh, distance: f32) -> ValueCompression {
-        ValueCompression {
-            max_added_error: distance / diagonal(&mesh.with_ranges_folded()),
-        }
+        ValueCompression::bounded(distance / diagonal(&mesh.with_ranges_folded()))
     }
 }
 
@@ -128,12 +137,19 @@ pub fn compress(mesh: &DisplacedMesh, options: &ValueCompression) -> Result<Comp
         widths = trial;
         best = encoded;
     }
-    // Then each grid its own widths, within the same bound.
+    // Then each grid its own widths, within the same bound, or within the bits allowed.
     let scene_code = code(levels, &widths);
-    let grid_codes = allocate(&folded, &edges, scene_code, bound * bound * best.points as f64);
+    let allocation = Allocation::new(&folded, &edges, scene_code);
+    let grid_codes = allocation.within_error(bound * bound * best.points as f64);
     let each = encode(&folded, &edges, scene_code, |g| grid_codes[g]);
     if each.rms() <= bound.max(best.rms()) && each.bits <= best.bits {
         best = each;
+    }
+    if let Some(max_bits) = options.max_bits.filter(|&b| b < best.bits) {
+        // The grids' own blocks give up the bits the rest (base edges, corners) cannot.
+        let inner_bits: u64 = (best.grid_blocks.iter()).map(|&(_, bits)| bits as u64).sum();
+        let grid_codes = allocation.within_bits(max_bits.saturating_sub(best.bits - inner_bits));
+        best = encode(&folded, &edges, scene_code, |g| grid_codes[g]);
     }
     let mut mesh = folded;
     mesh.micromap.values = best.values.concat();
@@ -162,53 +178,64 @@ fn code(levels: u32, w: &[u32; MAX_LEVELS as usize]) -> ValueCode {
     }
 }
 
-/// Each grid's widths, chosen so that the grids' squared error, with the base edges' (at
-/// `scene`), stays within `budget` in as few bits as a single trade-off of bits against
-/// error finds (Lagrangian allocation: every grid stops narrowing where a bit saved would
-/// cost more error than the one rate all grids share).
-fn allocate(mesh: &DisplacedMesh, edges: &BaseEdges, scene: ValueCode, budget: f64) -> Vec<ValueCode> {
-    let shared = SharedValues::encode(mesh, edges, scene);
-    // Each grid's choices: its widths narrowed one level at a time, always where a bit saved
-    // costs the least error, and the scene's widths.
-    let choices: Vec<Vec<Choice>> = (0..mesh.triangles.len())
-        .into_par_iter()
-        .map(|g| {
-            let trial = |c: ValueCode| {
-                let (block, _) = encode_grid(mesh, g, c, &shared, edges);
-                Choice {
-                    code: c,
-                    bits: c.inner_block_bits() as u64,
-                    squared_error: block.squared_error,
+/// Each grid's choices of widths, for a single trade-off of bits against error to pick from
+/// (Lagrangian allocation: every grid stops narrowing where a bit saved would cost more error
+/// than the one rate all grids share).
+struct Allocation {
+    /// Each grid's widths narrowed one level at a time, always where a bit saved costs the
+    /// least error, and the scene's widths.
+    choices: Vec<Vec<Choice>>,
+    /// The squared error of the base edges and corners (at the scene's code).
+    shared_error: f64,
+}
+
+impl Allocation {
+    fn new(mesh: &DisplacedMesh, edges: &BaseEdges, scene: ValueCode) -> Allocation {
+        let shared = SharedValues::encode(mesh, edges, scene);
+        let choices = (0..mesh.triangles.len())
+            .into_par_iter()
+            .map(|g| {
+                let trial = |c: ValueCode| {
+                    let (block, _) = encode_grid(mesh, g, c, &shared, edges);
+                    Choice {
+                        code: c,
+                        bits: c.inner_block_bits() as u64,
+                        squared_error: block.squared_error,
+                    }
+                };
+                // From a few bits wider than the scene's at each level: a grid that needs more
+                // than that is rare, and each bit more lengthens every grid's path.
+                let mut widths = [0; MAX_LEVELS as usize];
+                for (l, w) in widths.iter_mut().enumerate().take(scene.levels as usize) {
+                    *w = (scene.width(l as u32 + 1) + EXTRA_WIDTH).min(MAX_WIDTH);
                 }
-            };
-            // From a few bits wider than the scene's at each level: a grid that needs more
-            // than that is rare, and each bit more lengthens every grid's path.
-            let mut widths = [0; MAX_LEVELS as usize];
-            for (l, w) in widths.iter_mut().enumerate().take(scene.levels as usize) {
-                *w = (scene.width(l as u32 + 1) + EXTRA_WIDTH).min(MAX_WIDTH);
-            }
-            let mut path = vec![trial(scene), trial(code(scene.levels, &widths))];
-            loop {
-                let now = path[path.len() - 1];
-                let narrower = (0..scene.levels as usize)
-                    .filter(|&l| widths[l] > 0)
-                    .map(|l| {
-                        let mut w = widths;
-                        w[l] -= 1;
-                        (w, trial(code(scene.levels, &w)))
-                    })
-                    .min_by(|(_, a), (_, b)| now.cost_of(a).total_cmp(&now.cost_of(b)));
-                let Some((w, next)) = narrower else { break };
-                widths = w;
-                path.push(next);
-            }
-            path
-        })
-        .collect();
-    let budget = budget - shared.squared_error;
-    let pick = |rate: f64| -> (f64, Vec<ValueCode>) {
-        let picked: Vec<&Choice> = choices
-            .iter()
+                let mut path = vec![trial(scene), trial(code(scene.levels, &widths))];
+                loop {
+                    let now = path[path.len() - 1];
+                    let narrower = (0..scene.levels as usize)
+                        .filter(|&l| widths[l] > 0)
+                        .map(|l| {
+                            let mut w = widths;
+                            w[l] -= 1;
+                            (w, trial(code(scene.levels, &w)))
+                        })
+                        .min_by(|(_, a), (_, b)| now.cost_of(a).total_cmp(&now.cost_of(b)));
+                    let Some((w, next)) = narrower else { break };
+                    widths = w;
+                    path.push(next);
+                }
+                path
+            })
+            .collect();
+        Allocation {
+            choices,
+            shared_error: shared.squared_error,
+        }
+    }
+
+    /// Each grid's choice at `rate` (squared error per bit), and their squared error and bits.
+    fn pick(&self, rate: f64) -> (f64, u64, Vec<ValueCode>) {
+        let picked: Vec<&Choice> = (self.choices.iter())
             .map(|c| {
                 c.iter()
                     .min_by(|a, b| a.price(rate).total_cmp(&b.price(rate)))
@@ -217,21 +244,39 @@ fn allocate(mesh: &DisplacedMesh, edges: &BaseEdges, scene: ValueCode, budget: f
             .collect();
         (
             picked.iter().map(|c| c.squared_error).sum(),
+            picked.iter().map(|c| c.bits).sum(),
             picked.iter().map(|c| c.code).collect(),
         )
-    };
-    // The largest rate (error per bit saved) that keeps within the budget, by bisection of
-    // its logarithm; at the smallest every grid takes its least error.
-    let (mut low, mut high) = (1e-30f64, 1e30f64);
-    for _ in 0..100 {
-        let mid = (low * high).sqrt();
-        if pick(mid).0 <= budget {
-            low = mid;
-        } else {
-            high = mid;
-        }
     }
-    pick(low).1
+
+    /// The rate that `fits` says is the last to fit, where rates below it (`low_fits`) or
+    /// above it do, by bisection of its logarithm.
+    fn bisect(&self, low_fits: bool, fits: impl Fn(&(f64, u64, Vec<ValueCode>)) -> bool) -> Vec<ValueCode> {
+        let (mut low, mut high) = (1e-30f64, 1e30f64);
+        for _ in 0..100 {
+            let mid = (low * high).sqrt();
+            if fits(&self.pick(mid)) == low_fits {
+                low = mid;
+            } else {
+                high = mid;
+            }
+        }
+        self.pick(if low_fits { low } else { high }).2
+    }
+
+    /// The widths whose squared error, with the base edges', stays within `budget` in the
+    /// fewest bits: the largest rate that keeps within it (at the smallest every grid takes
+    /// its least error).
+    fn within_error(&self, budget: f64) -> Vec<ValueCode> {
+        let budget = budget - self.shared_error;
+        self.bisect(true, |(error, ..)| *error <= budget)
+    }
+
+    /// The widths whose blocks take at most `bits` in all, with the least error: the
+    /// smallest rate that keeps within them (at the largest every grid takes its fewest).
+    fn within_bits(&self, bits: u64) -> Vec<ValueCode> {
+        self.bisect(false, |(_, b, _)| *b <= bits)
+    }
 }
 
 /// One grid's block at one code: its bits and the squared error it leaves.
@@ -750,7 +795,7 @@ mod tests {
         for levels in 1..=5 {
             for bound in [0.0, 1e-3, 1e-2, 1.0] {
                 let mesh = tetrahedron(levels, 40);
-                let compressed = compress(&mesh, &ValueCompression { max_added_error: bound }).unwrap();
+                let compressed = compress(&mesh, &ValueCompression::bounded(bound)).unwrap();
                 let grids = build(&compressed.mesh, &GridOptions::for_displaced()).unwrap();
                 let params = grids.params;
                 let code = ValueCode {
@@ -788,7 +833,7 @@ mod tests {
     #[test]
     fn smooth_grids_take_fewer_bits() {
         let mesh = tetrahedron(4, 200);
-        let compressed = compress(&mesh, &ValueCompression { max_added_error: 2e-3 }).unwrap();
+        let compressed = compress(&mesh, &ValueCompression::bounded(2e-3)).unwrap();
         let folded = &compressed.mesh;
         let edges = BaseEdges::new(&folded.base_mesh());
         let exact = encode_exact(folded, &edges, compressed.code).unwrap();
@@ -808,7 +853,7 @@ mod tests {
         };
         let mut last_bits = u64::MAX;
         for bound in [0.0, 1e-4, 1e-3, 1e-2] {
-            let c = compress(&mesh, &ValueCompression { max_added_error: bound }).unwrap();
+            let c = compress(&mesh, &ValueCompression::bounded(bound)).unwrap();
             assert!(c.added_error <= bound, "{bound}: {}", c.added_error);
             assert!(c.bits <= last_bits, "{bound}: {} bits", c.bits);
             last_bits = c.bits;
@@ -829,10 +874,28 @@ mod tests {
         }
     }
 
+    /// A bit budget below what the error bound needs is kept, trading error for bits; one
+    /// above it changes nothing.
+    #[test]
+    fn compression_keeps_to_its_bit_budget() {
+        let mesh = tetrahedron(4, 40);
+        let bounded = compress(&mesh, &ValueCompression::bounded(1e-4)).unwrap();
+        let within = |max_bits| ValueCompression {
+            max_bits: Some(max_bits),
+            ..ValueCompression::bounded(1e-4)
+        };
+        let loose = compress(&mesh, &within(bounded.bits + 1)).unwrap();
+        assert_eq!(loose.mesh.micromap.values, bounded.mesh.micromap.values);
+        let max_bits = bounded.bits * 2 / 3;
+        let tight = compress(&mesh, &within(max_bits)).unwrap();
+        assert!(tight.bits <= max_bits, "{} > {max_bits}", tight.bits);
+        assert!(tight.added_error > bounded.added_error);
+    }
+
     /// Values that no longer match their code are refused by the layout, not stored wrong.
     #[test]
     fn values_off_their_code_are_refused() {
-        let mut compressed = compress(&tetrahedron(3, 40), &ValueCompression { max_added_error: 1e-2 })
+        let mut compressed = compress(&tetrahedron(3, 40), &ValueCompression::bounded(1e-2))
             .unwrap()
             .mesh;
         // A point on a base edge, which both grids read from one block of the edges' widths.

@@ -7,10 +7,10 @@
 //! Read as the extension describes: a primitive's triangle `t` takes the group's triangle
 //! `mapIndices[t]` (or `t + mapOffset`); `directionBounds` (per vertex bias and scale) move
 //! the position and scale the direction before anything is interpolated; the node transform
-//! moves positions and turns directions. Refused by name for now: primitives without
-//! `directions` (the vertex normals would stand in), `primitiveFlags` marking coarser
-//! neighbours, strips and fans, mirroring node transforms, and a scene that mixes displaced
-//! and plain primitives.
+//! moves positions and turns directions; `primitiveFlags` decimate the edges towards coarser
+//! neighbours (see `gridrt_shared::displacement::decimated_point`). Refused by name for now:
+//! primitives without `directions` (the vertex normals would stand in), strips and fans,
+//! mirroring node transforms, and a scene that mixes displaced and plain primitives.
 
 use std::path::Path;
 
@@ -36,6 +36,9 @@ pub struct DisplacedWorld {
     pub triangles: Vec<[u32; 3]>,
     /// Triangle `t`'s values displace triangle `t`.
     pub micromap: Micromap,
+    /// Per triangle, its `primitiveFlags` (see `DisplacedMesh::decimated_edges`); empty when
+    /// no primitive has any.
+    pub decimated_edges: Vec<u8>,
 }
 
 impl DisplacedWorld {
@@ -44,9 +47,25 @@ impl DisplacedWorld {
         let first = self.positions.len() as u32;
         self.positions.extend_from_slice(&other.positions);
         self.directions.extend_from_slice(&other.directions);
+        let triangles = self.triangles.len();
         self.triangles
             .extend(other.triangles.iter().map(|t| t.map(|i| i + first)));
         self.micromap.append(&other.micromap);
+        self.add_decimated_edges(triangles, &other.decimated_edges);
+    }
+
+    /// Flags for the triangles from `first` on (none: all zero), keeping the list empty while
+    /// no triangle has any.
+    fn add_decimated_edges(&mut self, first: usize, flags: &[u8]) {
+        if flags.iter().all(|&f| f == 0) {
+            if !self.decimated_edges.is_empty() {
+                self.decimated_edges.resize(self.triangles.len(), 0);
+            }
+            return;
+        }
+        self.decimated_edges.resize(first, 0);
+        self.decimated_edges.extend_from_slice(flags);
+        self.decimated_edges.resize(self.triangles.len(), 0);
     }
 
     /// The mesh in its local frame (centred on its base positions' bounds, scaled by a power
@@ -54,6 +73,7 @@ impl DisplacedWorld {
     pub fn into_local(self) -> (DisplacedMesh, LocalFrame) {
         let directions = self.directions;
         let micromap = self.micromap;
+        let decimated_edges = self.decimated_edges;
         let (base, frame) = WorldMesh {
             positions: self.positions,
             triangles: self.triangles,
@@ -64,6 +84,7 @@ impl DisplacedWorld {
             directions: directions.iter().map(|d| (*d * frame.scale).as_vec3()).collect(),
             triangles: base.triangles,
             micromap,
+            decimated_edges,
         };
         (mesh, frame)
     }
@@ -187,14 +208,7 @@ impl Primitive<'_> {
                     "it has no directions accessor (vertex normals as directions are not supported yet)"
                 )
             })?;
-        if let Some(flags) = self.accessor::<1>("primitiveFlags", Dimensions::Scalar, true)? {
-            if flags.iter().any(|&[f]| f != 0.0) {
-                fail!(
-                    Input,
-                    "its primitiveFlags mark coarser neighbours, which gridrt does not read yet"
-                );
-            }
-        }
+        let flags = self.primitive_flags()?;
         let mut base = WorldMesh::default();
         add_primitive(&mut base, self.primitive, &DMat4::IDENTITY, &self.opened.buffers)?;
         if directions.len() != base.positions.len() {
@@ -226,9 +240,31 @@ impl Primitive<'_> {
             .extend(positions.iter().map(|&p| self.transform.transform_point3(p)));
         out.directions
             .extend(directions.iter().map(|&d| self.transform.transform_vector3(d)));
+        let first_triangle = out.triangles.len();
         out.triangles
             .extend(base.triangles.iter().map(|t| t.map(|i| first_vertex + i)));
+        if flags.as_ref().is_some_and(|f| f.len() != base.triangles.len()) {
+            fail!(
+                Input,
+                "its primitiveFlags hold {} flags for {} triangles",
+                flags.as_ref().map_or(0, Vec::len),
+                base.triangles.len()
+            );
+        }
+        out.add_decimated_edges(first_triangle, &flags.unwrap_or_default());
         self.append_values(base.triangles.len(), &mut out.micromap)
+    }
+
+    /// The `primitiveFlags` accessor: one unsigned byte per triangle, bit `e` set when the
+    /// neighbour across edge `e` is a level coarser.
+    fn primitive_flags(&self) -> Result<Option<Vec<u8>>> {
+        let Some(flags) = self.accessor::<1>("primitiveFlags", Dimensions::Scalar, true)? else {
+            return Ok(None);
+        };
+        if let Some(&[bad]) = flags.iter().find(|&&[f]| f > 255.0) {
+            fail!(Input, "its primitiveFlags hold {bad}, more than a byte");
+        }
+        Ok(Some(flags.iter().map(|&[f]| f as u8).collect()))
     }
 
     /// Each of the primitive's `count` triangles' values, taken from its micromap group.
@@ -304,6 +340,7 @@ mod tests {
             directions: vec![Vec3::Z, Vec3::new(0.0, 0.1, 1.0), Vec3::new(0.1, 0.0, 1.0), Vec3::Z],
             triangles: vec![[0, 1, 2], [1, 3, 2]],
             micromap: Micromap::from_triangles(-0.01, 0.02, &[(2, values(0, 2)), (1, values(7, 1))]),
+            decimated_edges: vec![0b010, 0],
         }
     }
 
@@ -318,6 +355,7 @@ mod tests {
             .unwrap();
         assert_eq!(read.micromap, mesh.micromap);
         assert_eq!(read.triangles, mesh.triangles);
+        assert_eq!(read.decimated_edges, mesh.decimated_edges);
         let world: Vec<DVec3> = mesh.positions.iter().map(|&p| frame.to_world(p)).collect();
         assert_eq!(read.positions, world);
         let directions: Vec<DVec3> = mesh.directions.iter().map(|d| d.as_dvec3() / frame.scale).collect();
@@ -335,7 +373,8 @@ mod tests {
         let mut mesh = sample();
         let values = mesh.micromap.triangle_values(0).to_vec();
         mesh.micromap = Micromap::from_triangles(-0.01, 0.02, &[(2, values.clone()), (2, values)]);
-        let options = crate::grid::compressed::ValueCompression { max_added_error: 1e-2 };
+        mesh.decimated_edges.clear();
+        let options = crate::grid::compressed::ValueCompression::bounded(1e-2);
         let compressed = crate::grid::compressed::compress(&mesh, &options).unwrap();
         let (path, _) = crate::micromesh_gltf::write_far_from_origin(&compressed.mesh, "gltf-value-code");
         let bytes = std::fs::read(&path).unwrap();
