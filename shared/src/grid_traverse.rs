@@ -361,7 +361,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
 
     /// Whether the leaves' radii are in their bytes ([`GridParams::leaf_pairs`]). Never in a
     /// split scene: the host refuses to split such scenes, and their kernels leave the pairs'
-    /// reads out, which made lavapipe's first compile of them many times longer.
+    /// reads out, since every read of a split buffer is a branch per chunk.
     #[inline(always)]
     fn leaf_pairs(&self) -> bool {
         !W::SPLIT && self.params.leaf_pairs()

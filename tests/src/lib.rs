@@ -188,6 +188,23 @@ pub fn gridrt(args: &[&str]) -> Output {
     Command::new(gridrt_exe()).args(args).output().expect("run gridrt")
 }
 
+/// `gridrt render INPUT` on the CPU backend at 64x48, written to `png`.
+pub fn render_small(input: &std::path::Path, png: &std::path::Path) -> Output {
+    let [input, png] = [input, png].map(|p| p.to_str().expect("a UTF-8 path"));
+    gridrt(&[
+        "render",
+        input,
+        "--backend",
+        "cpu",
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "-o",
+        png,
+    ])
+}
+
 /// What a run printed on standard error.
 pub fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()

@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use gridrt::mesh::Mesh;
-use gridrt_tests::{bumpy_ball, fails_with, gridrt, scratch, stderr, TINY_BENCH};
+use gridrt_tests::{bumpy_ball, fails_with, gridrt, render_small, scratch, stderr, TINY_BENCH};
 
 fn write_obj(path: &Path, mesh: &Mesh, offset: f64) {
     let mut text = String::new();
@@ -63,19 +63,7 @@ fn a_mesh_bakes_into_files_the_other_commands_read() {
         (compared["symmetric"]["rms"].as_f64().unwrap() - rms).abs() < 0.05 * rms,
         "{compared} vs {report}"
     );
-    let png = dir.join("ball.png");
-    let o = gridrt(&[
-        "render",
-        o,
-        "--backend",
-        "cpu",
-        "--width",
-        "64",
-        "--height",
-        "48",
-        "-o",
-        png.to_str().unwrap(),
-    ]);
+    let o = render_small(&out, &dir.join("ball.png"));
     assert!(o.status.success(), "{}", stderr(&o));
 
     // The benchmark against the reference: the same distance, the reference's bytes.
@@ -215,19 +203,7 @@ fn bake_keeps_to_a_byte_budget_and_mixes_levels() {
         mixed["grid_bytes"].is_null() && mixed["compression"].is_null(),
         "{mixed}"
     );
-    let png = dir.join("mixed.png");
-    let o = gridrt(&[
-        "render",
-        o_str(&out),
-        "--backend",
-        "cpu",
-        "--width",
-        "64",
-        "--height",
-        "48",
-        "-o",
-        o_str(&png),
-    ]);
+    let o = render_small(&out, &dir.join("mixed.png"));
     assert!(o.status.success(), "{}", stderr(&o));
     let json_text = std::fs::read_to_string(&out).unwrap();
     assert!(json_text.contains("primitiveFlags"), "{json_text}");

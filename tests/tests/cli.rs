@@ -4,7 +4,8 @@ use std::path::Path;
 use std::process::Command;
 
 use gridrt_tests::{
-    fails_with, gpu_or_skip, gridrt, gridrt_exe, meshes_dir, meshes_dir_or_skip, scratch, stderr, TINY_BENCH,
+    fails_with, gpu_or_skip, gridrt, gridrt_exe, meshes_dir, meshes_dir_or_skip, render_small, scratch, stderr,
+    TINY_BENCH,
 };
 
 /// Runs gridrt, which must succeed, and returns the line of its report starting with `prefix`.
@@ -1013,18 +1014,7 @@ fn displaced_micro_meshes_are_decoded_not_subdivided() {
     let g = gltf.to_str().unwrap();
 
     let png = dir.join("baked.png");
-    let o = gridrt(&[
-        "render",
-        g,
-        "--backend",
-        "cpu",
-        "--width",
-        "64",
-        "--height",
-        "48",
-        "-o",
-        png.to_str().unwrap(),
-    ]);
+    let o = render_small(&gltf, &png);
     let err = stderr(&o);
     assert!(o.status.success(), "{err}");
     assert!(

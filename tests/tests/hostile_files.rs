@@ -326,6 +326,7 @@ const GLTF_SEEDS: &[(&str, Option<&str>)] = &[
     ),
     ("deep_1000.glb", None),
     ("displaced_dome.glb", None),
+    ("displaced_decimated_edges.glb", None),
     ("embedded.gltf", None),
     ("matrix_far.glb", None),
     ("scene.glb", None),

@@ -3,6 +3,7 @@
 //! so the scenes stay small: the split reads must give exactly what the whole reads give, on
 //! the CPU and on the GPU, and what cannot be bound must be refused with its sizes.
 
+use gridrt::bvh::Aabb;
 use gridrt::camera;
 use gridrt::grid::{GridOptions, RadiusFormat, TopFormat};
 use gridrt::image_io::fraction_within;
@@ -120,22 +121,19 @@ fn wide_top_levels_and_leaf_radius_pairs_are_refused() {
     }
 }
 
-/// The GPU with a small binding limit: split scenes, tiled images and batched ray lists give
-/// the GPU's own whole-scene results exactly, and the CPU's within the usual tolerance.
-#[test]
-fn split_scenes_on_the_gpu_equal_whole_ones() {
-    let Some(whole_gpu) = gpu_or_skip("split_scenes_on_the_gpu_equal_whole_ones") else {
+/// What the GPU gives for `scene` with a binding limit small enough to split it: its own
+/// whole-scene results exactly, and the CPU's within the usual tolerance; rendered in tiles
+/// (`render`), and traced as batched ray lists (`trace`).
+fn split_on_the_gpu_equals_whole(name: &str, scene: &Scene, bounds: &Aabb, render: bool, trace: bool) {
+    let Some(whole_gpu) = gpu_or_skip(name) else {
         return;
     };
-    let pair = pair();
-    let rays = primary_rays(&pair.bounds, 1, 64, 48);
-    let stacked = stacked_grids();
-    for (name, scene) in named_scenes(&pair, &stacked) {
-        let mut gpu = gpu_or_skip("split_scenes_on_the_gpu_equal_whole_ones").unwrap();
-        gpu.limit_bindings(smallest_chunk_bytes(scene)).unwrap();
-        let frame = scene.frame(camera::frame(&pair.bounds, 96, 72), SHADE_NORMAL);
-        let uploaded = gpu.upload(scene).unwrap();
-        assert!(uploaded.is_split(), "{name}: not split");
+    let mut gpu = gpu_or_skip(name).unwrap();
+    gpu.limit_bindings(smallest_chunk_bytes(scene)).unwrap();
+    let uploaded = gpu.upload(scene).unwrap();
+    assert!(uploaded.is_split(), "{name}: not split");
+    if render {
+        let frame = scene.frame(camera::frame(bounds, 96, 72), SHADE_NORMAL);
         let image = gpu.render_uploaded(&uploaded, &frame).unwrap();
         assert_eq!(image, whole_gpu.render(scene, &frame).unwrap(), "{name}: split image");
         let within = fraction_within(&image, &render_cpu(scene, &frame), 2);
@@ -144,6 +142,9 @@ fn split_scenes_on_the_gpu_equal_whole_ones() {
             "{name}: {:.3}% of pixels agree with the CPU",
             100.0 * within
         );
+    }
+    if trace {
+        let rays = primary_rays(bounds, 1, 64, 48);
         let hits = gpu.trace(&uploaded, &rays).unwrap();
         let whole_hits = whole_gpu.trace(&whole_gpu.upload(scene).unwrap(), &rays).unwrap();
         assert_eq!(hits, whole_hits, "{name}: split hits");
@@ -157,6 +158,29 @@ fn split_scenes_on_the_gpu_equal_whole_ones() {
     }
 }
 
+// Each grid walk is checked on the GPU through one of its two split kernels, render for one
+// and ray lists for the other, in tests of their own so that lavapipe compiles them side by
+// side: each takes it minutes, and both kernels of a walk run the same split reads, which
+// `cpu_reads_split_scenes_as_whole_ones` checks for every walk.
+
+#[test]
+fn split_grids_on_the_gpu_render_as_whole_ones() {
+    let pair = pair();
+    split_on_the_gpu_equals_whole("split grids", &pair.grids, &pair.bounds, true, false);
+}
+
+#[test]
+fn split_stacked_grids_on_the_gpu_trace_as_whole_ones() {
+    let pair = pair();
+    split_on_the_gpu_equals_whole("split stacked grids", &stacked_grids(), &pair.bounds, false, true);
+}
+
+#[test]
+fn split_triangles_on_the_gpu_equal_whole_ones() {
+    let pair = pair();
+    split_on_the_gpu_equals_whole("split triangles", &pair.triangles, &pair.bounds, true, true);
+}
+
 /// The same through the binary, as a user forces it: and a scene that cannot be bound at all
 /// is refused before it is built, naming its buffers and the adapter's limits.
 #[test]
@@ -166,7 +190,9 @@ fn binding_limit_from_the_environment() {
     }
     let dir = std::env::temp_dir().join(format!("gridrt-split-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let run = |limit: &str, out: &str| {
+    // The baseline renders (its split kernel compiles far faster than the grids'), and the
+    // grids are refused before their build.
+    let run = |limit: &str, out: &str, mode: &str| {
         std::process::Command::new(gridrt_tests::gridrt_exe())
             .args([
                 "render",
@@ -174,6 +200,8 @@ fn binding_limit_from_the_environment() {
                 "gpu",
                 "--levels",
                 "2",
+                "--mode",
+                mode,
                 "--width",
                 "96",
                 "--height",
@@ -185,13 +213,13 @@ fn binding_limit_from_the_environment() {
             .output()
             .unwrap()
     };
-    let whole = run("1G", "whole.png");
+    let whole = run("1G", "whole.png", "triangles");
     assert!(whole.status.success(), "{}", String::from_utf8_lossy(&whole.stderr));
-    let cut = run("16K", "split.png");
+    let cut = run("32K", "split.png", "triangles");
     assert!(cut.status.success(), "{}", String::from_utf8_lossy(&cut.stderr));
     let read = |f: &str| image::open(dir.join(f)).unwrap().to_rgba8().into_raw();
     assert_eq!(read("whole.png"), read("split.png"), "the split render differs");
-    let refused = run("1K", "refused.png");
+    let refused = run("1K", "refused.png", "grid");
     let stderr = String::from_utf8_lossy(&refused.stderr);
     assert!(!refused.status.success());
     for part in [
@@ -207,7 +235,7 @@ fn binding_limit_from_the_environment() {
         "built before refusing: {stderr:?}"
     );
     assert!(!dir.join("refused.png").exists());
-    let bad = run("lots", "bad.png");
+    let bad = run("lots", "bad.png", "grid");
     assert!(String::from_utf8_lossy(&bad.stderr).contains("GRIDRT_GPU_BINDING_LIMIT=lots"));
     let _ = std::fs::remove_dir_all(&dir);
 }
