@@ -167,7 +167,7 @@ fn bake_refuses_bad_outputs_before_any_work() {
 }
 
 /// A byte budget tighter than the error bound needs is kept, the bound given up and the
-/// report saying so; a level per base triangle writes a file of mixed levels that `render`
+/// report saying so, and one out of reach is said to be; a level per base triangle writes a file of mixed levels that `render`
 /// reads, with no grids and plain values.
 #[test]
 fn bake_keeps_to_a_byte_budget_and_mixes_levels() {
@@ -190,8 +190,15 @@ fn bake_keeps_to_a_byte_budget_and_mixes_levels() {
     let bytes = tight["grid_bytes"].as_u64().unwrap() as f64;
     assert!(bytes <= budget.parse::<f64>().unwrap() * micro, "{tight}");
     let c = &tight["compression"];
-    assert_eq!(c["budget_binds"], true, "{tight}");
+    assert_eq!(
+        (&c["budget_binds"], &c["budget_met"]),
+        (&true.into(), &true.into()),
+        "{tight}"
+    );
     assert!(c["added_error"].as_f64() > c["max_added_error"].as_f64(), "{tight}");
+    // One that the rest of the bytes alone exceed is said to be out of reach.
+    let (out_of_reach, _) = bake("unreachable.gltf", &["--max-bytes", "0.05"]);
+    assert_eq!(out_of_reach["compression"]["budget_met"], false, "{out_of_reach}");
 
     let (mixed, out) = bake("mixed.gltf", &["--max-error", "2e-3"]);
     let levels: Vec<u64> = (mixed["level_micro_triangles"].as_array().unwrap().iter())

@@ -58,10 +58,12 @@ struct CompressionReport {
     /// base mesh's bounding-box diagonal.
     max_added_error: f32,
     added_error: f32,
-    /// The byte budget per micro-triangle (everything the GPU gets), where one applies, and
-    /// whether the bound gave way to it.
+    /// The byte budget per micro-triangle (everything the GPU gets), where one applies,
+    /// whether the bound gave way to it, and whether it was met (the rest of the bytes may
+    /// take more than a budget allows: the values then take their fewest bits).
     max_bytes: Option<f64>,
     budget_binds: bool,
+    budget_met: bool,
     /// The symmetric distance before compression, as `symmetric` is given.
     uncompressed_symmetric: DistanceSummary,
 }
@@ -122,16 +124,16 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
         None => (baked.mesh, None, plain),
         Some(options) => {
             let budget = byte_budget(args).map(|b| (b, baked.report.micro_triangles));
-            let (compressed, budget_binds) =
-                stages.run("compress", || compress_within(&baked.mesh, options, budget))?;
+            let (compressed, budget) = stages.run("compress", || compress_within(&baked.mesh, options, budget))?;
             let d = measure(stages, &compressed.mesh);
             let report = CompressionReport {
                 widths: grid::compressed::level_widths(&compressed.code),
                 bits_per_value: compressed.bits_per_value(),
                 max_added_error: options.max_added_error,
                 added_error: compressed.added_error,
-                max_bytes: budget.map(|(b, _)| b),
-                budget_binds,
+                max_bytes: budget.max_bytes,
+                budget_binds: budget.binds,
+                budget_met: budget.met,
                 uncompressed_symmetric: plain.symmetric.relative_to(plain.a_diagonal),
             };
             (compressed.mesh, Some(report), d)
@@ -187,29 +189,42 @@ fn byte_budget(args: &BakeArgs) -> Option<f64> {
     }
 }
 
+/// What a byte budget did to a compression (see [`compress_within`]).
+struct BudgetOutcome {
+    max_bytes: Option<f64>,
+    binds: bool,
+    met: bool,
+}
+
 /// `mesh`'s values compressed within `options`' bound, or, where everything the GPU gets
 /// would then take more than `budget` (bytes per micro-triangle, and micro-triangles), within
-/// the bits that fit it; and whether the budget was what bound them.
+/// the bits that fit it; and what the budget did.
 fn compress_within(
     mesh: &DisplacedMesh,
     options: ValueCompression,
     budget: Option<(f64, u64)>,
-) -> Result<(CompressedMesh, bool)> {
+) -> Result<(CompressedMesh, BudgetOutcome)> {
+    let unbudgeted = |max_bytes| BudgetOutcome {
+        max_bytes,
+        binds: false,
+        met: true,
+    };
     let Some((per_micro, micro_triangles)) = budget else {
-        return Ok((compress(mesh, &options)?, false));
+        return Ok((compress(mesh, &options)?, unbudgeted(None)));
     };
     let allowed = (per_micro * micro_triangles as f64).floor() as u64;
     let total = |parts: &[(&str, u64)]| parts.iter().map(|&(_, bytes)| bytes).sum::<u64>();
     let Some(plain) = grid_memory(mesh) else {
-        return Ok((compress(mesh, &options)?, false));
+        return Ok((compress(mesh, &options)?, unbudgeted(None)));
     };
     // What the values may take: the budget less the rest (base mesh, headers, radii, top
-    // level), whose sizes the values do not change, less the block table at its widest.
+    // level), whose sizes the values do not change, less the block table with entries wide
+    // enough to address every bit the values may take.
     let values = ["inner_values", "value_block_table", "edge_and_corner_values"];
     let rest: u64 = (plain.iter().filter(|(part, _)| !values.contains(part)))
         .map(|&(_, bytes)| bytes)
         .sum();
-    let table_bits = 32 * mesh.triangles.len() as u64;
+    let table_bits = (64 - (8 * allowed).leading_zeros() as u64) * mesh.triangles.len() as u64 + 32;
     let mut max_bits = (8 * allowed.saturating_sub(rest)).saturating_sub(table_bits);
     let mut compressed = compress(
         mesh,
@@ -218,23 +233,41 @@ fn compress_within(
             ..options
         },
     )?;
-    // The top level may come out a node larger: take that off too, at most twice.
+    // The table, the blocks' word padding and the top level come out a little off the
+    // estimate: twice at most, the bits move by what the whole missed the budget by, while
+    // the budget binds and the miss is more than a hundredth of it.
+    // A try that fits is kept should a later one not.
+    let missed = |c: &CompressedMesh| grid_memory(&c.mesh).map_or(0, |parts| allowed as i64 - total(&parts) as i64);
+    let mut miss = missed(&compressed);
+    let mut fitting = None;
     for _ in 0..2 {
-        let over = grid_memory(&compressed.mesh).map_or(0, |parts| total(&parts).saturating_sub(allowed));
-        if over == 0 {
+        let binds = compressed.added_error > options.max_added_error;
+        if (miss >= 0 && (!binds || miss <= allowed as i64 / 100)) || (miss < 0 && max_bits == 0) {
             break;
         }
-        max_bits = compressed.bits.min(max_bits).saturating_sub(8 * over + 64);
-        compressed = compress(
+        max_bits = (compressed.bits as i64 + 8 * miss - 64).max(0) as u64;
+        let next = compress(
             mesh,
             &ValueCompression {
                 max_bits: Some(max_bits),
                 ..options
             },
         )?;
+        if miss >= 0 {
+            fitting = Some(compressed);
+        }
+        compressed = next;
+        miss = missed(&compressed);
     }
-    let binds = compressed.added_error > options.max_added_error;
-    Ok((compressed, binds))
+    if let (true, Some(fits)) = (miss < 0, fitting) {
+        (compressed, miss) = (fits, 0);
+    }
+    let outcome = BudgetOutcome {
+        max_bytes: Some(per_micro),
+        binds: compressed.added_error > options.max_added_error,
+        met: miss >= 0,
+    };
+    Ok((compressed, outcome))
 }
 
 /// How to compress the baked values: `None` to leave them plain (as asked, at level 0, where
@@ -329,11 +362,15 @@ fn summary(r: &Report) -> String {
                 c.widths,
                 c.added_error,
                 c.max_added_error,
-                match (c.max_bytes, c.budget_binds) {
-                    (Some(b), true) =>
+                match (c.max_bytes, c.budget_binds, c.budget_met) {
+                    (Some(b), _, false) => format!(
+                        "; the budget of {b} B per micro-triangle (--max-bytes) is out of reach: the rest of the \
+                         bytes take more, and the values their fewest bits"
+                    ),
+                    (Some(b), true, true) =>
                         format!(", exceeded to fit the budget of {b} B per micro-triangle (--max-bytes)"),
-                    (Some(b), false) => format!("; budget {b} B per micro-triangle"),
-                    (None, _) => String::new(),
+                    (Some(b), false, true) => format!("; budget {b} B per micro-triangle"),
+                    (None, ..) => String::new(),
                 }
             ),
             None if r.level_micro_triangles.is_some() => {
