@@ -20,6 +20,8 @@
 //!    sampled on the reference rather than passing through the crossings ([`refine`]); the
 //!    result is quantized to 11 bits.
 //!
+//! Optionally, each base triangle then takes a level of its own ([`levels`]).
+//!
 //! Every micro-vertex on a shared base edge or corner is computed by the shared decoder's
 //! interpolation, which gives both triangles the same bits, so the same ray is cast for it
 //! from both sides and it gets one value: the baked surface is watertight wherever the base
