@@ -11,7 +11,7 @@ use super::BakeArgs;
 use gridrt::bake::refine::Refinement;
 use gridrt::bake::{self, BakeOptions, BakeReport, Base};
 use gridrt::displaced::DisplacedMesh;
-use gridrt::grid::compressed::{compress, CompressedMesh, ValueCompression};
+use gridrt::grid::compressed::{compress, CompressedMesh, Compressor, ValueCompression};
 use gridrt::grid::{self, GridOptions};
 use gridrt::image_io;
 use gridrt::mesh;
@@ -226,13 +226,8 @@ fn compress_within(
         .sum();
     let table_bits = (64 - (8 * allowed).leading_zeros() as u64) * mesh.triangles.len() as u64 + 32;
     let mut max_bits = (8 * allowed.saturating_sub(rest)).saturating_sub(table_bits);
-    let mut compressed = compress(
-        mesh,
-        &ValueCompression {
-            max_bits: Some(max_bits),
-            ..options
-        },
-    )?;
+    let compressor = Compressor::new(mesh, options.max_added_error)?;
+    let mut compressed = compressor.within(Some(max_bits));
     // The table, the blocks' word padding and the top level come out a little off the
     // estimate: twice at most, the bits move by what the whole missed the budget by, while
     // the budget binds and the miss is more than a hundredth of it.
@@ -246,13 +241,7 @@ fn compress_within(
             break;
         }
         max_bits = (compressed.bits as i64 + 8 * miss - 64).max(0) as u64;
-        let next = compress(
-            mesh,
-            &ValueCompression {
-                max_bits: Some(max_bits),
-                ..options
-            },
-        )?;
+        let next = compressor.within(Some(max_bits));
         if miss >= 0 {
             fitting = Some(compressed);
         }

@@ -5,7 +5,7 @@
 //! Guarantees:
 //! - Closed loop: every correction is chosen against the values the decoder will already
 //!   have made (coarser levels, the base edges, the corners), so the decoded values are the
-//!   encoder's own, bit for bit. [`compress`] hands back the micro-mesh with those values, so
+//!   encoder's own, bit for bit. [`compress`] (and [`Compressor`]) hands back the micro-mesh with those values, so
 //!   the grids, the triangles they are compared against and any file written from it all hold
 //!   the same surface. Laying that micro-mesh out again ([`encode_exact`]) loses nothing: each
 //!   grid takes the narrowest widths that decode its values exactly.
@@ -103,71 +103,111 @@ impl CompressedMesh {
 
 /// Compresses `mesh`'s values (a micro-mesh of one level) as tightly as `options` allow.
 pub fn compress(mesh: &DisplacedMesh, options: &ValueCompression) -> Result<CompressedMesh> {
-    let Some(levels) = mesh.uniform_level() else {
-        fail!(Input, "its base triangles are subdivided to different levels");
-    };
-    let folded = mesh.with_ranges_folded();
-    let edges = BaseEdges::new(&folded.base_mesh());
-    let diagonal = diagonal(&folded);
-    let bound = options.max_added_error as f64 * diagonal as f64;
-    // First one set of widths for every block, as narrow as the bound allows: the base
-    // edges keep it.
-    let mut widths = [MAX_WIDTH; MAX_LEVELS as usize];
-    let mut best = encode(&folded, &edges, code(levels, &widths), |_| code(levels, &widths));
-    loop {
-        // The level whose narrower corrections add the least error per bit saved.
-        let mut choice: Option<(f64, [u32; MAX_LEVELS as usize], Encoded)> = None;
-        for l in 0..levels as usize {
-            if widths[l] == 0 {
-                continue;
+    Ok(Compressor::new(mesh, options.max_added_error)?.within(options.max_bits))
+}
+
+/// A micro-mesh's values made ready to compress within an error bound, and then within any
+/// number of bits: the scene's widths and each grid's choices are found once, so that a
+/// caller looking for the bits that fit a byte budget pays only for the last step each try.
+pub struct Compressor {
+    folded: DisplacedMesh,
+    edges: BaseEdges,
+    diagonal: f32,
+    scene_code: ValueCode,
+    allocation: Allocation,
+    /// The fewest bits within the error bound.
+    bounded: Encoded,
+}
+
+impl Compressor {
+    /// `mesh`'s values (one level) compressed within `max_added_error` (see
+    /// [`ValueCompression::max_added_error`]).
+    pub fn new(mesh: &DisplacedMesh, max_added_error: f32) -> Result<Compressor> {
+        let Some(levels) = mesh.uniform_level() else {
+            fail!(Input, "its base triangles are subdivided to different levels");
+        };
+        let folded = mesh.with_ranges_folded();
+        let edges = BaseEdges::new(&folded.base_mesh());
+        let diagonal = diagonal(&folded);
+        let bound = max_added_error as f64 * diagonal as f64;
+        // First one set of widths for every block, as narrow as the bound allows: the base
+        // edges keep it.
+        let mut widths = [MAX_WIDTH; MAX_LEVELS as usize];
+        let mut best = encode(&folded, &edges, code(levels, &widths), |_| code(levels, &widths));
+        loop {
+            // The level whose narrower corrections add the least error per bit saved.
+            let mut choice: Option<(f64, [u32; MAX_LEVELS as usize], Encoded)> = None;
+            for l in 0..levels as usize {
+                if widths[l] == 0 {
+                    continue;
+                }
+                let mut trial = widths;
+                trial[l] -= 1;
+                let trial_code = code(levels, &trial);
+                let encoded = encode(&folded, &edges, trial_code, |_| trial_code);
+                if encoded.rms() > bound {
+                    continue;
+                }
+                let cost = best.cost_of(&encoded);
+                if choice.as_ref().is_none_or(|(c, ..)| cost < *c) {
+                    choice = Some((cost, trial, encoded));
+                }
             }
-            let mut trial = widths;
-            trial[l] -= 1;
-            let trial_code = code(levels, &trial);
-            let encoded = encode(&folded, &edges, trial_code, |_| trial_code);
-            if encoded.rms() > bound {
-                continue;
-            }
-            let cost = best.cost_of(&encoded);
-            if choice.as_ref().is_none_or(|(c, ..)| cost < *c) {
-                choice = Some((cost, trial, encoded));
-            }
+            let Some((_, trial, encoded)) = choice else { break };
+            widths = trial;
+            best = encoded;
         }
-        let Some((_, trial, encoded)) = choice else { break };
-        widths = trial;
-        best = encoded;
-    }
-    // Then each grid its own widths, within the same bound, or within the bits allowed.
-    let scene_code = code(levels, &widths);
-    let allocation = Allocation::new(&folded, &edges, scene_code);
-    let grid_codes = allocation.within_error(bound * bound * best.points as f64);
-    let each = encode(&folded, &edges, scene_code, |g| grid_codes[g]);
-    if each.rms() <= bound.max(best.rms()) && each.bits <= best.bits {
-        best = each;
-    }
-    if let Some(max_bits) = options.max_bits.filter(|&b| b < best.bits) {
-        // The grids' own blocks give up the bits the rest (base edges, corners) cannot.
-        let inner_bits: u64 = (best.grid_blocks.iter()).map(|&(_, bits)| bits as u64).sum();
-        let grid_codes = allocation.within_bits(max_bits.saturating_sub(best.bits - inner_bits));
-        best = encode(&folded, &edges, scene_code, |g| grid_codes[g]);
-    }
-    let mut mesh = folded;
-    mesh.micromap.values = best.values.concat();
-    let per_triangle = best.values.first().map_or(0, Vec::len) as u32;
-    mesh.micromap.triangles = (0..mesh.triangles.len() as u32)
-        .map(|t| MicromapTriangle {
-            level: levels,
-            first_value: t * per_triangle,
+        // Then each grid its own widths, within the same bound.
+        let scene_code = code(levels, &widths);
+        let allocation = Allocation::new(&folded, &edges, scene_code);
+        let grid_codes = allocation.within_error(bound * bound * best.points as f64);
+        let each = encode(&folded, &edges, scene_code, |g| grid_codes[g]);
+        if each.rms() <= bound.max(best.rms()) && each.bits <= best.bits {
+            best = each;
+        }
+        Ok(Compressor {
+            folded,
+            edges,
+            diagonal,
+            scene_code,
+            allocation,
+            bounded: best,
         })
-        .collect();
-    mesh.micromap.value_code = Some(scene_code);
-    Ok(CompressedMesh {
-        added_error: (best.rms() / diagonal as f64) as f32,
-        bits: best.bits,
-        points: best.points,
-        mesh,
-        code: scene_code,
-    })
+    }
+
+    /// The values within the error bound, or, where that takes more than `max_bits`, in
+    /// `max_bits` with the least error (the bound then exceeded).
+    pub fn within(&self, max_bits: Option<u64>) -> CompressedMesh {
+        let Some(max_bits) = max_bits.filter(|&b| b < self.bounded.bits) else {
+            return self.finish(self.bounded.clone());
+        };
+        // The grids' own blocks give up the bits the rest (base edges, corners) cannot.
+        let best = &self.bounded;
+        let inner_bits: u64 = (best.grid_blocks.iter()).map(|&(_, bits)| bits as u64).sum();
+        let grid_codes = (self.allocation).within_bits(max_bits.saturating_sub(best.bits - inner_bits));
+        self.finish(encode(&self.folded, &self.edges, self.scene_code, |g| grid_codes[g]))
+    }
+
+    /// The micro-mesh holding `encoded`'s values.
+    fn finish(&self, encoded: Encoded) -> CompressedMesh {
+        let mut mesh = self.folded.clone();
+        mesh.micromap.values = encoded.values.concat();
+        let per_triangle = encoded.values.first().map_or(0, Vec::len) as u32;
+        mesh.micromap.triangles = (0..mesh.triangles.len() as u32)
+            .map(|t| MicromapTriangle {
+                level: self.scene_code.levels,
+                first_value: t * per_triangle,
+            })
+            .collect();
+        mesh.micromap.value_code = Some(self.scene_code);
+        CompressedMesh {
+            added_error: (encoded.rms() / self.diagonal as f64) as f32,
+            bits: encoded.bits,
+            points: encoded.points,
+            mesh,
+            code: self.scene_code,
+        }
+    }
 }
 
 /// The code of `levels` levels with widths `w`, level 1 first.
