@@ -1,89 +1,205 @@
-//! A level per base triangle: a micro-mesh baked at one level `L` becomes one whose every base
-//! triangle takes the coarsest level whose surface stays within a bound of the level-`L`
-//! surface, flat regions coarse and detailed ones fine, as NVIDIA's displacement micro-map
-//! tools do.
+//! A level per base triangle: each base triangle of a bake takes its own level up to `L`,
+//! flat regions coarse and detailed ones fine, as NVIDIA's displacement micro-map tools do,
+//! so that a micro-mesh spends its bytes where the reference needs them.
+//!
+//! Every level `0 ..= L` is fitted to the reference on its own, on the one base mesh, folded
+//! ranges and crossings of the level-`L` bake ([`fit_levels`]): a coarse triangle's values are
+//! its own least-squares fit, not the level-`L` values subsampled, which keep the fine
+//! surface's wiggles at the coarse points. Each fit's squared distances to the reference are
+//! summed per base triangle, both ways (the reference's samples to the micro-mesh, the
+//! micro-mesh's to the reference: a coarse triangle over a hole of a scan has few of the
+//! first and far ones of the second). The levels then follow one trade of error against
+//! bytes for the whole mesh (Lagrangian allocation: every triangle takes the level where a
+//! byte saved would cost more squared error than one rate they all share), the rate found by
+//! bisection for an error bound or a byte budget ([`choose_levels`]). Last, the micro-mesh of
+//! the chosen levels is fitted once more as a whole, so that every point shared by triangles
+//! of different levels has one value.
 //!
 //! Guarantees:
-//! - Nothing is baked again: a triangle at level `l` keeps the level-`L` values at its own
-//!   lattice points (every `2^(L - l)`-th), so a shared edge holds the same values on both
-//!   sides at every level.
 //! - Across every base edge the levels differ by at most one (coarse triangles are raised
-//!   where a neighbour needs it). The finer triangles of a level change decimate that edge
-//!   (`DisplacedMesh::decimated_edges`, glTF's `primitiveFlags`): they keep its even points,
-//!   the coarser side's, so the surface stays watertight; the odd points there are not part
-//!   of the surface and store 0, as other tools' files do.
-//! - The bound is on each triangle's RMS distance, over its level-`L` lattice points, from the
-//!   level-`L` surface to the one of the level it takes, measured before decimation; a
-//!   decimated edge moves a few points of the finer side onto the coarser side's surface.
-//!
-//! The coarse levels keep values fitted at level `L`, not refitted at their own: at equal
-//! bytes, such a mixed micro-mesh is not yet closer to the reference than a uniform bake
-//! (docs/RESULTS.md, "A level per base triangle").
+//!   where a neighbour needs it, non-manifold edges included). The finer triangles of a level
+//!   change decimate that edge (`DisplacedMesh::decimated_edges`, glTF's `primitiveFlags`):
+//!   their odd points there move onto the coarser side's points, and the final fit gives
+//!   each such point one value, so the surface stays watertight. The odd points store 0, as
+//!   other tools' files do.
+//! - The bound and the budget hold for the per-level fits (the symmetric RMS distance, and
+//!   the packed values' bytes); the final fit moves the error a little, the bytes not at all.
 
 use std::collections::HashMap;
 
 use gridrt_shared::displacement::{decimated_point, u_major_index};
-use gridrt_shared::glam::Vec3;
-use gridrt_shared::grid_index::{grid_size, lattice_index, lattice_points, triangle_count};
+use gridrt_shared::glam::DVec3;
+use gridrt_shared::grid_index::{grid_size, lattice_points, triangle_count};
+use rayon::prelude::*;
 
-use crate::bary::Micromap;
+use super::refine::{self, MicroLines};
+use super::{fit, BakeOptions, Baked, Crossed};
+use crate::bary::{packed_bytes, Micromap};
 use crate::displaced::DisplacedMesh;
+use crate::error::Result;
+use crate::mesh::Mesh;
+use crate::surface_distance::{area_samples, area_samples_on_triangles, NearestTriangles, Sampling};
 
-/// For each triangle of `mesh` (one level `L`, ranges folded), the RMS distance from its
-/// level-`L` micro-vertices to the surface of each level `0 ..= L`, at the same barycentrics
-/// (zero at level `L`).
-pub fn coarsening_errors(mesh: &DisplacedMesh, levels: u32) -> Vec<Vec<f32>> {
-    use rayon::prelude::*;
-    let n = grid_size(levels);
-    (0..mesh.triangles.len())
-        .into_par_iter()
-        .map(|t| {
-            let points = mesh.micro_vertices(t);
-            let at = |i: u32, j: u32| points[lattice_index(i, j, n) as usize];
-            (0..=levels)
-                .map(|l| {
-                    let s = 1 << (levels - l);
-                    let squares: f32 = lattice_points(n)
-                        .map(|[i, j]| (at(i, j) - coarse_point(&at, [i, j], s)).length_squared())
-                        .sum();
-                    (squares / lattice_points(n).count() as f32).sqrt()
-                })
-                .collect()
-        })
-        .collect()
+/// What decides the levels.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LevelTarget {
+    /// The symmetric RMS distance between the reference and the micro-mesh (samples of each
+    /// surface to the other), in the reference's units, in the fewest bytes.
+    MaxError(f32),
+    /// The packed values' bytes, at the least distance.
+    MaxBytes(u64),
 }
 
-/// Where level-`L` lattice point `p` lies on the surface of the level whose lattice step is
-/// `s` level-`L` steps: in the coarse micro-triangle that holds it, interpolated from that
-/// micro-triangle's corners (`at` gives a level-`L` point's position).
-fn coarse_point(at: &impl Fn(u32, u32) -> Vec3, p: [u32; 2], s: u32) -> Vec3 {
-    let ([i, j], [ri, rj]) = ([p[0] / s, p[1] / s], [p[0] % s, p[1] % s]);
-    let (x, y, s) = (ri as f32, rj as f32, s as f32);
-    let corner = |a: u32, b: u32| at(a * s as u32, b * s as u32);
-    if ri + rj <= s as u32 {
-        // The upright cell at (i, j); a point of the coarse lattice itself when ri = rj = 0.
-        let c = corner(i, j);
-        if ri == 0 && rj == 0 {
-            return c;
-        }
-        c * ((s - x - y) / s) + corner(i + 1, j) * (x / s) + corner(i, j + 1) * (y / s)
-    } else {
-        // The inverted cell between (i + 1, j), (i, j + 1) and (i + 1, j + 1).
-        corner(i + 1, j + 1) * ((x + y - s) / s) + corner(i, j + 1) * ((s - x) / s) + corner(i + 1, j) * ((s - y) / s)
+/// Bakes `reference` as `options` say, then gives each base triangle a level up to
+/// `options.levels` for `target` (see the module docs).
+pub fn bake_levels(reference: &Mesh, options: &BakeOptions, target: LevelTarget) -> Result<Baked> {
+    let crossed = super::cross(reference, options)?;
+    let fits = fit_levels(reference, &crossed, options);
+    let levels = choose_levels(&crossed.triangles, &fits, target);
+    let mesh = fitted_together(reference, &crossed, &fits, &levels, options);
+    mesh.check()?;
+    let mut report = crossed.report;
+    report.micro_triangles = level_counts(&mesh).iter().sum();
+    Ok(Baked { mesh, report })
+}
+
+/// The fits of every level, level 0 first, and how many samples (of both surfaces) measured
+/// each.
+pub struct LevelFits {
+    pub levels: Vec<LevelFit>,
+    pub samples: usize,
+}
+
+/// One level's fit: per base triangle, its values (u-major, in `[0, 1]`) and the sum of the
+/// squared distances between it and the reference (see [`squared_error_by_triangle`]).
+pub struct LevelFit {
+    pub values: Vec<Vec<f32>>,
+    pub squared_error: Vec<f64>,
+}
+
+/// The fits of every level `0 ..= options.levels`, measured with as many reference samples
+/// per finest micro-triangle as refinement takes.
+fn fit_levels(reference: &Mesh, crossed: &Crossed, options: &BakeOptions) -> LevelFits {
+    let finest = options.levels;
+    let per_micro = options.refinement.samples.max(1) as usize;
+    let sampling = Sampling {
+        samples: per_micro * crossed.triangles.len() * triangle_count(finest) as usize,
+        seed: 0x1e7e15,
+    };
+    let samples = area_samples(reference, &sampling);
+    let surface = NearestTriangles::new(reference);
+    let levels = (0..=finest)
+        .map(|level| {
+            let (positions, directions, triangles) = crossed.folded();
+            let lines = MicroLines::new(positions, directions, triangles, level);
+            let (n, big, step) = (grid_size(level), grid_size(finest), 1 << (finest - level));
+            let mut values = vec![0.0f32; lines.origins.len()];
+            for (of_triangle, crossings) in lines.of_triangle.iter().zip(&crossed.second) {
+                for p in lattice_points(n) {
+                    let line = of_triangle[u_major_index(p, n) as usize] as usize;
+                    let at = u_major_index([p[0] * step, p[1] * step], big) as usize;
+                    values[line] = crossings[at].t.clamp(0.0, 1.0);
+                }
+            }
+            // As many samples as the finest level's fit, however few the micro-triangles.
+            let refinement = refine::Refinement {
+                samples: options.refinement.samples << (2 * (finest - level)),
+                ..options.refinement
+            };
+            refine::refine(reference, &lines, &mut values, &refinement);
+            LevelFit {
+                squared_error: squared_error_by_triangle(&lines, &values, (&samples, &surface)),
+                values: (lines.of_triangle.iter())
+                    .map(|of_triangle| of_triangle.iter().map(|&line| values[line as usize]).collect())
+                    .collect(),
+            }
+        })
+        .collect();
+    LevelFits {
+        levels,
+        samples: 2 * samples.len(),
     }
 }
 
-/// Each triangle's level: the coarsest whose error (see [`coarsening_errors`]) is at most
-/// `max_error`, then raised until the levels across every edge differ by at most one.
-pub fn choose_levels(triangles: &[[u32; 3]], errors: &[Vec<f32>], max_error: f32) -> Vec<u32> {
-    let mut levels: Vec<u32> = (errors.iter())
-        .map(|e| e.iter().position(|&x| x <= max_error).unwrap_or(e.len() - 1) as u32)
-        .collect();
-    let edges = edge_triangles(triangles);
-    // Raising only ever increases levels, up to the finest: this ends.
+/// Per base triangle, the summed squared distances between the micro-mesh of `values` on
+/// `lines` and the reference, both ways: each of `samples` (on the reference) counted on the
+/// micro-triangle closest to it, and as many samples of the micro-mesh, each counted on its
+/// own, to the reference (`reference`).
+fn squared_error_by_triangle(
+    lines: &MicroLines,
+    values: &[f32],
+    (samples, reference): (&[DVec3], &NearestTriangles),
+) -> Vec<f64> {
+    let micro = lines.mesh(values);
+    let nearest = NearestTriangles::new(&micro);
+    let to_micro = (samples.par_iter()).filter_map(|&r| {
+        let c = nearest.closest(r)?;
+        Some((lines.owners[c.triangle], (c.point - r).length_squared()))
+    });
+    let sampling = Sampling {
+        samples: samples.len(),
+        seed: 0x0b5e55ed,
+    };
+    let on_micro = area_samples_on_triangles(&micro, &sampling);
+    let to_reference = (on_micro.par_iter()).filter_map(|&(p, t)| {
+        let q = reference.closest_point(p)?;
+        Some((lines.owners[t as usize], (q - p).length_squared()))
+    });
+    let found: Vec<(u32, f64)> = to_micro.chain(to_reference).collect();
+    let mut sums = vec![0.0; lines.of_triangle.len()];
+    for (t, d2) in found {
+        sums[t as usize] += d2;
+    }
+    sums
+}
+
+/// Each triangle's level for `target` (see the module docs), levels across every edge at
+/// most one apart.
+pub fn choose_levels(triangles: &[[u32; 3]], fits: &LevelFits, target: LevelTarget) -> Vec<u32> {
+    let edges: Vec<Vec<usize>> = edge_triangles(triangles).into_values().collect();
+    let pick = |rate: f64| -> (Vec<u32>, f64, u64) {
+        let levels: Vec<u32> = (0..triangles.len())
+            .map(|t| {
+                (0..fits.levels.len() as u32)
+                    .min_by(|&a, &b| {
+                        let price = |l: u32| fits.levels[l as usize].squared_error[t] + rate * packed_bytes(l) as f64;
+                        price(a).total_cmp(&price(b))
+                    })
+                    .unwrap_or(0)
+            })
+            .collect();
+        let levels = balanced(&edges, levels);
+        let error = (levels.iter().enumerate())
+            .map(|(t, &l)| fits.levels[l as usize].squared_error[t])
+            .sum();
+        let bytes = levels.iter().map(|&l| packed_bytes(l) as u64).sum();
+        (levels, error, bytes)
+    };
+    // A larger rate trades more error for fewer bytes: the largest rate within the bound, or
+    // the smallest within the budget.
+    let fits_target = |(_, error, bytes): &(Vec<u32>, f64, u64)| match target {
+        LevelTarget::MaxError(e) => *error <= (e as f64).powi(2) * fits.samples as f64,
+        LevelTarget::MaxBytes(b) => *bytes <= b,
+    };
+    let low_fits = matches!(target, LevelTarget::MaxError(_));
+    let (mut low, mut high) = (1e-30f64, 1e30f64);
+    for _ in 0..100 {
+        let mid = (low * high).sqrt();
+        if fits_target(&pick(mid)) == low_fits {
+            low = mid;
+        } else {
+            high = mid;
+        }
+    }
+    pick(if low_fits { low } else { high }).0
+}
+
+/// Levels raised until those across every edge (`edges`: the triangles around each) differ
+/// by at most one. Raising only ever increases levels, up to the finest given: this ends.
+fn balanced(edges: &[Vec<usize>], mut levels: Vec<u32>) -> Vec<u32> {
     loop {
         let mut changed = false;
-        for around in edges.values() {
+        for around in edges {
             let finest = around.iter().map(|&t| levels[t]).max().unwrap_or(0);
             for &t in around {
                 if levels[t] + 1 < finest {
@@ -125,40 +241,49 @@ pub fn decimated_edges(triangles: &[[u32; 3]], levels: &[u32]) -> Vec<u8> {
         .collect()
 }
 
-/// `mesh` (one level, ranges folded) with triangle `t` at `levels[t]` (at most its own),
-/// its values taken from its own, and its edges towards coarser neighbours decimated.
-pub fn with_levels(mesh: &DisplacedMesh, levels: &[u32]) -> DisplacedMesh {
-    let finest = mesh.uniform_level().expect("one level");
-    let group = mesh.micromap.groups[0];
-    let flags = decimated_edges(&mesh.triangles, levels);
-    let triangles: Vec<(u32, Vec<u16>)> = (0..mesh.triangles.len())
-        .map(|t| {
-            let (l, own) = (levels[t], mesh.micromap.triangle_values(t));
-            let (n, s, big) = (grid_size(l), 1 << (finest - l), grid_size(finest));
-            let mut values = vec![0; lattice_points(n).count()];
-            for p in lattice_points(n) {
-                if decimated_point(p, n, flags[t] as u32) == p {
-                    values[u_major_index(p, n) as usize] = own[u_major_index([p[0] * s, p[1] * s], big) as usize];
-                }
+/// The micro-mesh of `levels`, its edges towards coarser neighbours decimated, its values
+/// those of each triangle's level fit, fitted once more as a whole.
+fn fitted_together(
+    reference: &Mesh,
+    crossed: &Crossed,
+    fits: &LevelFits,
+    levels: &[u32],
+    options: &BakeOptions,
+) -> DisplacedMesh {
+    let flags = decimated_edges(&crossed.triangles, levels);
+    let (positions, directions, triangles) = crossed.folded();
+    let lines = MicroLines::with_levels(positions, directions, triangles, (levels, &flags));
+    // A point the decoder moves takes the value of the point it moves to, from that point's
+    // own triangle.
+    let moved = |t: usize, p| decimated_point(p, grid_size(levels[t]), flags[t] as u32) != p;
+    let mut values = vec![0.0f32; lines.origins.len()];
+    for (t, of_triangle) in lines.of_triangle.iter().enumerate() {
+        let (own, n) = (&fits.levels[levels[t] as usize].values[t], grid_size(levels[t]));
+        for p in lattice_points(n).filter(|&p| !moved(t, p)) {
+            let k = u_major_index(p, n) as usize;
+            values[of_triangle[k] as usize] = own[k];
+        }
+    }
+    refine::refine(reference, &lines, &mut values, &options.refinement);
+    let stored: Vec<(u32, Vec<u16>)> = (lines.of_triangle.iter().enumerate())
+        .map(|(t, of_triangle)| {
+            let n = grid_size(levels[t]);
+            let mut own = vec![0u16; of_triangle.len()];
+            for p in lattice_points(n).filter(|&p| !moved(t, p)) {
+                let k = u_major_index(p, n) as usize;
+                own[k] = fit::quantize(values[of_triangle[k] as usize]);
             }
-            (l, values)
+            (levels[t], own)
         })
         .collect();
     let decimated = flags.iter().any(|&f| f != 0);
     DisplacedMesh {
-        micromap: Micromap::from_triangles(group.bias, group.scale, &triangles),
+        positions: crossed.positions.clone(),
+        directions: crossed.directions.clone(),
+        triangles: crossed.triangles.clone(),
+        micromap: Micromap::from_triangles(0.0, 1.0, &stored),
         decimated_edges: if decimated { flags } else { Vec::new() },
-        ..mesh.clone()
     }
-}
-
-/// `mesh` (one level, ranges folded) with each triangle at the coarsest level whose surface
-/// stays within `max_error` (in the mesh's units) of its own (see the module docs).
-pub fn adaptive(mesh: &DisplacedMesh, max_error: f32) -> DisplacedMesh {
-    let finest = mesh.uniform_level().expect("one level");
-    let errors = coarsening_errors(mesh, finest);
-    let levels = choose_levels(&mesh.triangles, &errors, max_error);
-    with_levels(mesh, &levels)
 }
 
 /// Micro-triangles of each level `0 ..= 6` in `mesh`.
@@ -173,64 +298,98 @@ pub fn level_counts(mesh: &DisplacedMesh) -> Vec<u64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bary::values_per_triangle;
+    use crate::bake::tests::{border_edges, sphere, symmetric_rms};
+    use crate::bake::Base;
+    use crate::mesh::WorldMesh;
 
-    /// A flat strip of four triangles at level 3, bumpy only in the last one.
-    fn strip() -> DisplacedMesh {
-        let positions = (0..6)
-            .map(|k| Vec3::new((k / 2) as f32, (k % 2) as f32, 0.0))
-            .collect::<Vec<_>>();
-        let triangles = vec![[0, 2, 1], [1, 2, 3], [2, 4, 3], [3, 4, 5]];
-        let n = grid_size(3);
-        let values = |t: usize| {
-            let mut v = vec![1000u16; values_per_triangle(3)];
-            if t == 3 {
-                for [i, j] in lattice_points(n) {
-                    if i > 0 && j > 0 && i + j < n {
-                        v[u_major_index([i, j], n) as usize] = 1000 + ((i * 7 + j * 13) % 5) as u16 * 200;
-                    }
-                }
-            }
-            (3, v)
-        };
-        DisplacedMesh {
-            directions: vec![Vec3::Z; 6],
-            positions,
-            triangles,
-            micromap: Micromap::from_triangles(0.0, 0.1, &(0..4).map(values).collect::<Vec<_>>()),
-            decimated_edges: Vec::new(),
-        }
+    /// Fits of a strip of four triangles (0-1-2-3 in a row) at levels 0 to 3: the first two
+    /// flat (level 0 as good as any), the third gaining little past level 1, the last
+    /// everything up to level 3.
+    fn strip_fits() -> ([[u32; 3]; 4], LevelFits) {
+        let triangles = [[0, 2, 1], [1, 2, 3], [2, 4, 3], [3, 4, 5]];
+        let errors = [
+            [0.0, 0.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0, 0.0],
+            [8.0, 1.0, 0.9, 0.85],
+            [900.0, 400.0, 100.0, 1.0],
+        ];
+        let levels = (0..4)
+            .map(|l| LevelFit {
+                values: vec![vec![0.0; crate::bary::values_per_triangle(l as u32)]; 4],
+                squared_error: errors.iter().map(|e| e[l]).collect(),
+            })
+            .collect();
+        (triangles, LevelFits { levels, samples: 100 })
     }
 
-    /// Flat triangles go as coarse as their neighbours allow; the bumpy one stays fine; levels
-    /// step by one across edges, and the finer side of each step decimates it.
+    /// Flat triangles go as coarse as their neighbours allow, the detailed one as fine as the
+    /// budget allows; levels step by one across edges, and the finer side of each step
+    /// decimates it.
     #[test]
-    fn flat_triangles_coarsen_and_neighbours_stay_within_a_level() {
-        let mesh = strip();
-        let errors = coarsening_errors(&mesh, 3);
-        assert!(errors[0].iter().all(|&e| e < 1e-6), "{:?}", errors[0]);
-        assert!(errors[3][2] > 0.01);
-        let levels = choose_levels(&mesh.triangles, &errors, 1e-4);
-        assert_eq!(levels, vec![0, 1, 2, 3]);
-        let adaptive = adaptive(&mesh, 1e-4);
-        adaptive.check().unwrap();
-        // Each finer triangle flags its edge towards the coarser one: 1-2 is triangle 1's
-        // edge 0, 3-2 triangle 2's edge 2, 3-4 triangle 3's edge 0.
-        assert_eq!(adaptive.decimated_edges, vec![0, 0b001, 0b100, 0b001]);
-        // The surface is the same up to the bound, and watertight where levels change.
-        let (welded, _) = crate::mesh::WorldMesh::from(adaptive.decoded())
-            .validate("adaptive")
-            .unwrap();
-        let mut uses: HashMap<(u32, u32), u32> = HashMap::new();
-        for t in &welded.triangles {
-            for e in 0..3 {
-                let (a, b) = (t[e], t[(e + 1) % 3]);
-                *uses.entry((a.min(b), a.max(b))).or_default() += 1;
+    fn levels_follow_the_error_and_step_by_one() {
+        let (triangles, fits) = strip_fits();
+        let bytes = |levels: &[u32]| levels.iter().map(|&l| packed_bytes(l) as u64).sum::<u64>();
+        // A sum of squares of 2.05 over 100 samples: the last triangle at level 3, the third
+        // at level 1, raised to 2 beside it, and so on down the strip.
+        let fine = choose_levels(
+            &triangles,
+            &fits,
+            LevelTarget::MaxError(0.2050f32.sqrt() / 10f32.sqrt()),
+        );
+        assert_eq!(fine, vec![0, 1, 2, 3]);
+        assert_eq!(decimated_edges(&triangles, &fine), vec![0, 0b001, 0b100, 0b001]);
+        // A byte less takes the detailed triangle down a level, and its neighbours with it.
+        let budget = bytes(&fine) - 1;
+        let fewer = choose_levels(&triangles, &fits, LevelTarget::MaxBytes(budget));
+        assert!(bytes(&fewer) <= budget, "{fewer:?}");
+        assert_eq!(fewer, vec![0, 0, 1, 2]);
+        // A loose bound leaves everything at level 0.
+        let coarse = choose_levels(&triangles, &fits, LevelTarget::MaxError(10.0));
+        assert_eq!(coarse, vec![0, 0, 0, 0]);
+    }
+
+    /// A unit hemisphere, bumpy, on a flat disc.
+    fn bumpy_dome() -> Mesh {
+        let mut mesh = sphere(5);
+        for p in &mut mesh.positions {
+            if p.z > 0.0 {
+                let bump = 0.03 * (14.0 * p.x).sin() * (14.0 * p.y).sin() * p.z;
+                *p *= 1.0 + bump;
+            } else {
+                p.z = 0.0;
             }
         }
-        // The strip's outline only, each side at its triangle's level: triangle 0's bottom
-        // and left (1 + 1), 1's top (2), 2's bottom (4), 3's right and top (8 + 8).
-        let boundary = uses.values().filter(|&&u| u == 1).count();
-        assert_eq!(boundary, 1 + 1 + 2 + 4 + 8 + 8);
+        mesh
+    }
+
+    /// At the bytes of a uniform bake, levels per triangle come closer to a surface of
+    /// uneven detail, and stay watertight.
+    #[test]
+    fn at_equal_bytes_levels_per_triangle_beat_one_level() {
+        let reference = bumpy_dome();
+        let options = BakeOptions {
+            base: Base::Decimated { triangles: 128 },
+            ..BakeOptions::for_reference(&reference, 2)
+        };
+        let uniform = crate::bake::bake(&reference, &options).unwrap().mesh;
+        let budget = (uniform.triangles.len() * packed_bytes(2)) as u64;
+        let finer = BakeOptions { levels: 3, ..options };
+        let mixed = bake_levels(&reference, &finer, LevelTarget::MaxBytes(budget)).unwrap();
+        let stored: u64 = (mixed.mesh.micromap.triangles.iter())
+            .map(|t| packed_bytes(t.level) as u64)
+            .sum();
+        assert!(stored <= budget, "{stored} > {budget}");
+        let (mixed_error, uniform_error) = (
+            symmetric_rms(&reference, &mixed.mesh),
+            symmetric_rms(&reference, &uniform),
+        );
+        assert!(mixed_error < 0.9 * uniform_error, "{mixed_error} vs {uniform_error}");
+
+        // It spends bytes saved on some triangles on others.
+        let levels: Vec<u32> = mixed.mesh.micromap.triangles.iter().map(|t| t.level).collect();
+        assert!(levels.contains(&3) && levels.iter().any(|&l| l < 2), "{levels:?}");
+        assert!(!mixed.mesh.decimated_edges.is_empty());
+        let (welded, _) = WorldMesh::from(mixed.mesh.decoded()).validate("mixed").unwrap();
+        assert_eq!(border_edges(&welded.triangles), 0);
     }
 }

@@ -140,6 +140,49 @@ pub struct BakeReport {
 
 /// Bakes `reference` (a mesh in its local frame) as `options` say.
 pub fn bake(reference: &Mesh, options: &BakeOptions) -> Result<Baked> {
+    let crossed = cross(reference, options)?;
+    let fitted = refined(reference, crossed.folded(), &crossed.second, options);
+    let values: Vec<(u32, Vec<u16>)> = fitted
+        .iter()
+        .map(|c| (options.levels, c.iter().map(|&u| fit::quantize(u)).collect()))
+        .collect();
+    let mesh = DisplacedMesh {
+        positions: crossed.positions,
+        directions: crossed.directions,
+        triangles: crossed.triangles,
+        micromap: Micromap::from_triangles(0.0, 1.0, &values),
+        decimated_edges: Vec::new(),
+    };
+    mesh.check()?;
+    Ok(Baked {
+        mesh,
+        report: crossed.report,
+    })
+}
+
+/// A base mesh with its ranges folded in, and where its level-`L` lines meet the reference
+/// (steps 1 to 5 of the module docs).
+struct Crossed {
+    triangles: Vec<[u32; 3]>,
+    positions: Vec<Vec3>,
+    directions: Vec<Vec3>,
+    /// The second pass's crossings, per triangle in u-major order.
+    second: Vec<Vec<Crossing>>,
+    report: BakeReport,
+}
+
+impl Crossed {
+    fn folded(&self) -> FoldedBase<'_> {
+        (&self.positions, &self.directions, &self.triangles)
+    }
+}
+
+/// A folded base mesh's positions, directions and triangles.
+type FoldedBase<'a> = (&'a [Vec3], &'a [Vec3], &'a [[u32; 3]]);
+
+/// Steps 1 to 5 of the module docs: the base mesh, its directions, both passes and the fit
+/// of the ranges between them.
+fn cross(reference: &Mesh, options: &BakeOptions) -> Result<Crossed> {
     if options.levels > displaced::MAX_LEVEL {
         fail!(
             Options,
@@ -197,26 +240,19 @@ pub fn bake(reference: &Mesh, options: &BakeOptions) -> Result<Baked> {
         misses: first.iter().flatten().filter(|c| !c.hit).count() as u64,
         clamped: second.iter().flatten().filter(|c| fit::clipped(c.t)).count() as u64,
     };
-    let fitted = refined(reference, (&positions, &folded, &base.triangles), &second, options);
-    let values: Vec<(u32, Vec<u16>)> = fitted
-        .iter()
-        .map(|c| (options.levels, c.iter().map(|&u| fit::quantize(u)).collect()))
-        .collect();
-    let mesh = DisplacedMesh {
+    Ok(Crossed {
+        triangles: base.triangles,
         positions,
         directions: folded,
-        triangles: base.triangles,
-        micromap: Micromap::from_triangles(0.0, 1.0, &values),
-        decimated_edges: Vec::new(),
-    };
-    mesh.check()?;
-    Ok(Baked { mesh, report })
+        second,
+        report,
+    })
 }
 
 /// The second pass's values, per triangle in u-major order, refined as `options` say.
 fn refined(
     reference: &Mesh,
-    (positions, directions, triangles): (&[Vec3], &[Vec3], &[[u32; 3]]),
+    (positions, directions, triangles): FoldedBase,
     crossings: &[Vec<Crossing>],
     options: &BakeOptions,
 ) -> Vec<Vec<f32>> {
@@ -346,7 +382,7 @@ mod tests {
 
     /// A unit sphere of `8 * 4^levels` triangles: the octahedron subdivided flat, its
     /// vertices pushed onto the sphere.
-    fn sphere(levels: u32) -> Mesh {
+    pub(super) fn sphere(levels: u32) -> Mesh {
         let octahedron = crate::mesh::scene::octahedron();
         let sub = subdivide(&octahedron, levels, Scheme::Flat);
         let mesh = Mesh {
@@ -358,7 +394,7 @@ mod tests {
         world.to_f32()
     }
 
-    fn border_edges(triangles: &[[u32; 3]]) -> usize {
+    pub(super) fn border_edges(triangles: &[[u32; 3]]) -> usize {
         let mut edges = std::collections::HashMap::new();
         for t in triangles {
             for k in 0..3 {
@@ -369,7 +405,7 @@ mod tests {
         edges.values().filter(|&&c| c == 1).count()
     }
 
-    fn symmetric_rms(reference: &Mesh, baked: &DisplacedMesh) -> f64 {
+    pub(super) fn symmetric_rms(reference: &Mesh, baked: &DisplacedMesh) -> f64 {
         let sampling = Sampling {
             samples: 20_000,
             ..Sampling::default()

@@ -22,7 +22,7 @@
 
 use std::collections::HashMap;
 
-use gridrt_shared::displacement::{interpolated, u_major_index, DisplacedTriangle};
+use gridrt_shared::displacement::{decimated_point, interpolated, u_major_index, DisplacedTriangle};
 use gridrt_shared::glam::{DVec3, Vec3};
 use gridrt_shared::grid_index::{grid_size, lattice_points, sub_triangle, triangle_count};
 use rayon::prelude::*;
@@ -53,14 +53,17 @@ const TANGENT: f64 = 0.01;
 /// How many samples are found at once before they are summed (bounds the memory they take).
 const CHUNK: usize = 1 << 18;
 
-/// The micro-vertex lines of a base mesh's level-`L` lattice, each line once.
+/// The micro-vertex lines of a base mesh's lattices, each line once.
 pub struct MicroLines {
     pub origins: Vec<Vec3>,
     pub directions: Vec<Vec3>,
-    /// Per base triangle, the line of each of its values, in u-major order.
+    /// Per base triangle, the line of each of its values, in u-major order (a point of a
+    /// decimated edge that the decoder moves takes the line of the point it moves to).
     pub of_triangle: Vec<Vec<u32>>,
-    /// The micro-triangles, as lines.
+    /// The micro-triangles, as lines (those a decimated edge collapses left out).
     pub micro_triangles: Vec<[u32; 3]>,
+    /// The base triangle of each micro-triangle.
+    pub owners: Vec<u32>,
 }
 
 impl MicroLines {
@@ -68,22 +71,40 @@ impl MicroLines {
     /// whose interpolated position and direction have the same bits are one line (a shared
     /// edge's or corner's points, seen from each side).
     pub fn new(positions: &[Vec3], directions: &[Vec3], triangles: &[[u32; 3]], level: u32) -> MicroLines {
-        let n = grid_size(level);
-        let per_triangle: Vec<Vec<(Vec3, Vec3)>> = (triangles.par_iter())
-            .map(|&ids| {
+        let levels = vec![level; triangles.len()];
+        MicroLines::with_levels(positions, directions, triangles, (&levels, &[]))
+    }
+
+    /// The lines of `triangles`, triangle `t` at `levels.0[t]` with the edges of
+    /// `levels.1[t]` decimated (as `DisplacedMesh::decimated_edges`; empty for none). Points
+    /// are one line where their positions and directions at the finest level's lattice have
+    /// the same bits, so a coarse triangle's points are the lines its finer neighbours see.
+    pub fn with_levels(
+        positions: &[Vec3],
+        directions: &[Vec3],
+        triangles: &[[u32; 3]],
+        (levels, decimated): (&[u32], &[u8]),
+    ) -> MicroLines {
+        let finest = levels.iter().copied().max().unwrap_or(0);
+        let big = grid_size(finest);
+        let per_triangle: Vec<Vec<(Vec3, Vec3)>> = (triangles.par_iter().enumerate())
+            .map(|(t, &ids)| {
                 let triangle = DisplacedTriangle {
                     positions: ids.map(|i| positions[i as usize]),
                     directions: ids.map(|i| directions[i as usize]),
                     ids,
                 };
-                let mut lines = vec![(Vec3::ZERO, Vec3::ZERO); values_per_triangle(level)];
+                let (n, step) = (grid_size(levels[t]), 1 << (finest - levels[t]));
+                let flags = decimated.get(t).copied().unwrap_or(0) as u32;
+                let mut lines = vec![(Vec3::ZERO, Vec3::ZERO); values_per_triangle(levels[t])];
                 for p in lattice_points(n) {
-                    lines[u_major_index(p, n) as usize] = interpolated(&triangle, p, n);
+                    let [i, j] = decimated_point(p, n, flags);
+                    lines[u_major_index(p, n) as usize] = interpolated(&triangle, [i * step, j * step], big);
                 }
                 lines
             })
             .collect();
-        let mut ids = HashMap::with_capacity(triangles.len() * values_per_triangle(level) / 2);
+        let mut ids = HashMap::with_capacity(per_triangle.iter().map(Vec::len).sum::<usize>() / 2);
         let (mut origins, mut line_directions) = (Vec::new(), Vec::new());
         let of_triangle: Vec<Vec<u32>> = (per_triangle.iter())
             .map(|lines| {
@@ -99,17 +120,23 @@ impl MicroLines {
                     .collect()
             })
             .collect();
-        let micro_triangles = (of_triangle.iter())
-            .flat_map(|lines| {
-                (0..triangle_count(level))
-                    .map(move |k| sub_triangle(n, level, k).map(|p| lines[u_major_index(p, n) as usize]))
-            })
-            .collect();
+        let (mut micro_triangles, mut owners) = (Vec::new(), Vec::new());
+        for (t, lines) in of_triangle.iter().enumerate() {
+            let (l, n) = (levels[t], grid_size(levels[t]));
+            for k in 0..triangle_count(l) {
+                let [a, b, c] = sub_triangle(n, l, k).map(|p| lines[u_major_index(p, n) as usize]);
+                if a != b && b != c && c != a {
+                    micro_triangles.push([a, b, c]);
+                    owners.push(t as u32);
+                }
+            }
+        }
         MicroLines {
             origins,
             directions: line_directions,
             of_triangle,
             micro_triangles,
+            owners,
         }
     }
 
@@ -122,7 +149,7 @@ impl MicroLines {
     }
 
     /// The points that `values` (one per line) decode to.
-    fn positions(&self, values: &[f32]) -> Vec<Vec3> {
+    pub fn positions(&self, values: &[f32]) -> Vec<Vec3> {
         (self.origins.iter().zip(&self.directions).zip(values))
             .map(|((&o, &d), &u)| o + d * u)
             .collect()

@@ -99,15 +99,14 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
         ..defaults
     };
     let started = std::time::Instant::now();
-    let mut baked = stages.run("bake", || bake::bake(&reference_mesh, &options))?;
-    if let Some(max_error) = args.max_error {
-        let (lo, hi) = reference_mesh.bounds();
-        let bound = max_error * (hi - lo).length();
-        baked.mesh = stages.run("levels", || {
-            bake::levels::adaptive(&baked.mesh.with_ranges_folded(), bound)
-        });
-        baked.report.micro_triangles = bake::levels::level_counts(&baked.mesh).iter().sum();
-    }
+    let baked = match args.max_error {
+        None => stages.run("bake", || bake::bake(&reference_mesh, &options))?,
+        Some(max_error) => {
+            let (lo, hi) = reference_mesh.bounds();
+            let target = bake::levels::LevelTarget::MaxError(max_error * (hi - lo).length());
+            stages.run("bake", || bake::levels::bake_levels(&reference_mesh, &options, target))?
+        }
+    };
     let bake_seconds = started.elapsed().as_secs_f64();
     let sampling = Sampling {
         samples: args.samples,

@@ -660,13 +660,13 @@ pub struct BakeArgs {
     /// hardware's displacement blocks with the hierarchy on top; none below level 3].
     #[arg(long, value_name = "BYTES", value_parser = parse_byte_budget, conflicts_with = "plain_values")]
     pub max_bytes: Option<f64>,
-    /// Give each base triangle its own level, up to --levels: the coarsest whose surface stays
-    /// within this RMS distance (a fraction of the reference's bounding-box diagonal) of the
-    /// one baked at --levels, neighbours within a level of each other, the finer side
-    /// decimating the edge between them (glTF's primitiveFlags). Such micro-meshes keep their
-    /// values plain and render as decoded triangles for now; their coarse levels keep the
-    /// values fitted at --levels, so at equal bytes they are not yet closer to the reference
-    /// than one level for all.
+    /// Give each base triangle its own level, up to --levels, in the fewest bytes that keep
+    /// the symmetric RMS distance from the reference within this fraction of its
+    /// bounding-box diagonal: every level is fitted to the reference, each triangle takes the
+    /// one where a byte saved costs more error than a rate all share, neighbours within a
+    /// level of each other, the finer side decimating the edge between them (glTF's
+    /// primitiveFlags). Such micro-meshes keep their values plain and render as decoded
+    /// triangles for now.
     #[arg(long, value_name = "MAX_ERROR", value_parser = parse_value_error, conflicts_with_all = ["compress_values", "max_bytes"])]
     pub max_error: Option<f32>,
     /// Points sampled on each surface, by area, to measure the baked mesh's distance from
