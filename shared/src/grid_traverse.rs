@@ -370,11 +370,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     /// Spheres per grid in the radius area (see [`GridParams::stored_spheres`]).
     #[inline(always)]
     fn stored_spheres(&self) -> u32 {
-        if W::SPLIT {
-            self.params.sphere_count
-        } else {
-            self.params.stored_spheres()
-        }
+        self.params.spheres_in_radius_area(self.leaf_pairs())
     }
 
     /// Radius of sphere `node` (breadth-first id) of `grid`.

@@ -293,7 +293,14 @@ impl GridParams {
     /// leaves' radii are in their bytes.
     #[inline]
     pub fn stored_spheres(&self) -> u32 {
-        if self.leaf_pairs() {
+        self.spheres_in_radius_area(self.leaf_pairs())
+    }
+
+    /// Spheres per grid in the radius area of a buffer whose leaves do (`leaf_pairs`) or do
+    /// not hold their radii in their bytes.
+    #[inline]
+    pub fn spheres_in_radius_area(&self, leaf_pairs: bool) -> u32 {
+        if leaf_pairs {
             sphere_count(self.leaf_level - 1)
         } else {
             self.sphere_count
