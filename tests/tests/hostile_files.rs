@@ -327,6 +327,8 @@ const GLTF_SEEDS: &[(&str, Option<&str>)] = &[
     ("deep_1000.glb", None),
     ("displaced_dome.glb", None),
     ("displaced_decimated_edges.glb", None),
+    ("displaced_half_float_directions.glb", None),
+    ("displaced_bary_mesh_properties.glb", None),
     ("embedded.gltf", None),
     ("matrix_far.glb", None),
     ("scene.glb", None),

@@ -8,18 +8,26 @@
 //! value ranges, the subdivision levels used, and the bias and scale that map a stored value
 //! to a displacement) and the triangles (each its values' offset within its group, its
 //! subdivision level and a block format). Other properties are skipped when reading, except
-//! gridrt's own value code (see [`Micromap::value_code`]): the widths of the compressed code
-//! whose decoder gives exactly these values, so that a reader that knows the code traces them
-//! compressed, while any other reads the same values plain.
+//! the mesh properties ([`mesh_properties`]) and gridrt's own value code (see
+//! [`Micromap::value_code`]): the widths of the compressed code whose decoder gives exactly
+//! these values, so that a reader that knows the code traces them compressed, while any other
+//! reads the same values plain.
 //!
 //! What is supported: per-vertex scalar displacements as 11-bit unorm values, packed
 //! (`eR11_unorm_packed_align32`: each triangle's values one LSB-first bit stream over
 //! little-endian 32-bit words, padded to a whole word, offsets and counts in bytes) or one to
 //! 16 bits (`eR11_unorm_pack16`), in u-major order: for `u` in `0..=N`, for `v` in `0..=N-u`,
-//! the vertex with barycentrics `(N-u-v, u, v)` on the triangle's corners, `N = 2^level`.
-//! Compressed blocks, the bird-curve order and per-triangle values are refused by name. Every
+//! the vertex with barycentrics `(N-u-v, u, v)` on the triangle's corners, `N = 2^level`, or
+//! in bird-curve order ([`bird_curve`]). Compressed blocks and per-triangle values are
+//! refused by name. Every
 //! offset, count and level in a file is checked against the bytes there are before anything
 //! is read, so a damaged file gives a one-line error, never a panic or a huge allocation.
+
+pub mod bird_curve;
+pub mod mesh_properties;
+
+pub use mesh_properties::MeshProperties;
+use mesh_properties::MeshProperty;
 
 use crate::bit_writer::BitWriter;
 use crate::error::{error, fail, Result};
@@ -193,6 +201,11 @@ fn range(file: &Reader, at: usize, what: &str) -> Result<std::ops::Range<usize>>
 
 /// Reads a `.bary` file's bytes. Errors carry no file name; the caller adds it.
 pub fn read(bytes: &[u8]) -> Result<Micromap> {
+    Ok(read_with_mesh(bytes)?.0)
+}
+
+/// Reads a `.bary` file's bytes: its micromap, and the mesh properties it carries.
+pub fn read_with_mesh(bytes: &[u8]) -> Result<(Micromap, MeshProperties)> {
     let file = Reader(bytes);
     if bytes.len() < HEADER_BYTES || bytes[..16] != MAGIC {
         let shown = String::from_utf8_lossy(&bytes[..bytes.len().min(16)])
@@ -227,8 +240,25 @@ pub fn read(bytes: &[u8]) -> Result<Micromap> {
         );
     }
     let (mut values, mut groups, mut triangles, mut code) = (None, None, None, None);
+    let mut mesh = MeshProperties::default();
+    let mut mesh_seen = Vec::new();
     for at in table.clone().step_by(PROPERTY_INFO_BYTES) {
         let id = [0, 4, 8, 12].map(|k| file.u32(at + k).unwrap_or(0));
+        if let Some(&(property, _)) = MeshProperty::ALL.iter().find(|(_, i)| *i == id) {
+            let name = property.name();
+            if file.u32(at + 32)? != 0 {
+                fail!(
+                    Input,
+                    "its {name} property is supercompressed, which no reader supports"
+                );
+            }
+            if mesh_seen.contains(&property) {
+                fail!(Input, "its {name} property appears twice");
+            }
+            mesh_seen.push(property);
+            mesh.read(&file, property, range(&file, at + 16, &format!("its {name} property"))?)?;
+            continue;
+        }
         let slot = match id {
             VALUES_ID => &mut values,
             GROUPS_ID => &mut groups,
@@ -257,7 +287,7 @@ pub fn read(bytes: &[u8]) -> Result<Micromap> {
     if let Some(code) = code {
         map.value_code = value_code(&file, code, &map.triangles)?;
     }
-    Ok(map)
+    Ok((map, mesh))
 }
 
 fn property_name(id: [u32; 4]) -> &'static str {
@@ -313,6 +343,8 @@ struct ValueStream<'a> {
     /// 11-bit values packed into words (offsets in bytes), or one value to two bytes
     /// (offsets in values).
     packed: bool,
+    /// Each triangle's values in bird-curve order ([`bird_curve`]) rather than u-major.
+    bird_curve: bool,
     bytes: &'a [u8],
 }
 
@@ -339,14 +371,11 @@ fn value_stream<'a>(file: &Reader<'a>, values: std::ops::Range<usize>) -> Result
             "its values have format {other}: gridrt reads 11-bit unorm displacements (eR11_unorm_packed_align32 or eR11_unorm_pack16)"
         ),
     };
-    match layout {
-        LAYOUT_U_MAJOR => {}
-        LAYOUT_BIRD_CURVE => fail!(
-            Input,
-            "its values are in bird-curve order, which gridrt does not read yet"
-        ),
+    let bird_curve = match layout {
+        LAYOUT_U_MAJOR => false,
+        LAYOUT_BIRD_CURVE => true,
         other => fail!(Input, "its values have an unknown layout {other}"),
-    }
+    };
     if frequency != FREQUENCY_PER_VERTEX {
         fail!(
             Input,
@@ -379,7 +408,11 @@ fn value_stream<'a>(file: &Reader<'a>, values: std::ops::Range<usize>) -> Result
             values.len()
         )
     })?;
-    Ok(ValueStream { packed, bytes })
+    Ok(ValueStream {
+        packed,
+        bird_curve,
+        bytes,
+    })
 }
 
 /// The groups and triangles, each triangle's values read from the stream.
@@ -400,6 +433,7 @@ fn decode(
     let triangle_count = triangles.len() / TRIANGLE_BYTES;
     let mut map = Micromap::default();
     let mut next_triangle = 0u32;
+    let mut bird_positions: Vec<Option<Vec<u32>>> = vec![None; MAX_LEVEL as usize + 1];
     for (g, at) in groups.step_by(GROUP_BYTES).enumerate() {
         let [first, count, value_first, value_count] = [0, 4, 8, 12].map(|k| file.u32(at + k).unwrap_or(0));
         if first != next_triangle || first as usize + count as usize > triangle_count {
@@ -441,8 +475,17 @@ fn decode(
                     "triangle {t}'s values at {offset} overlap the triangle before it's"
                 );
             }
-            let values = triangle_values(stream.packed, group_values, offset, level)
+            let mut values = triangle_values(stream.packed, group_values, offset, level)
                 .map_err(|e| error!(Input, "triangle {t}: {e}"))?;
+            if stream.bird_curve {
+                let positions =
+                    bird_positions[level as usize].get_or_insert_with(|| bird_curve::u_major_positions(level));
+                let mut u_major = vec![0; values.len()];
+                for (&p, &value) in positions.iter().zip(&values) {
+                    u_major[p as usize] = value;
+                }
+                values = u_major;
+            }
             free_from = offset
                 + if stream.packed {
                     packed_bytes(level)
@@ -708,20 +751,45 @@ mod tests {
             ("pack16_levels_1_2.bary", vec![1, 2]),
             ("uniform_level_3.bary", vec![3; 4]),
             ("uniform_level_3_value_code.bary", vec![3; 4]),
+            ("packed_levels_0_to_3_bird_curve.bary", vec![0, 1, 2, 3]),
         ] {
             let map = read(&std::fs::read(seeds.join(name)).unwrap()).unwrap_or_else(|e| panic!("{name}: {e}"));
             let read_levels: Vec<u32> = map.triangles.iter().map(|t| t.level).collect();
             assert_eq!(read_levels, levels, "{name}");
-            // The script's values: (37 i + 101 k) mod 2048 for value i of triangle k.
+            // The script's values: (37 i + 101 k) mod 2048 for value i of triangle k, stored
+            // i-th in the file's layout.
             for (k, &level) in levels.iter().enumerate() {
-                let expected: Vec<u16> = (0..values_per_triangle(level))
-                    .map(|i| ((37 * i + 101 * k) % 2048) as u16)
-                    .collect();
+                let mut expected = vec![0u16; values_per_triangle(level)];
+                let positions = match name.contains("bird_curve") {
+                    true => bird_curve::u_major_positions(level),
+                    false => (0..expected.len() as u32).collect(),
+                };
+                for (i, &p) in positions.iter().enumerate() {
+                    expected[p as usize] = ((37 * i + 101 * k) % 2048) as u16;
+                }
                 assert_eq!(map.triangle_values(k), expected, "{name} triangle {k}");
             }
             assert_eq!((map.groups[0].bias, map.groups[0].scale), (0.0, 1.0));
             let code = map.value_code.map(|c| (c.levels, c.widths));
             assert_eq!(code, name.contains("value_code").then_some((3, 0x456)), "{name}");
+        }
+    }
+
+    /// The same bytes in bird-curve order are the same values, each where the curve puts it.
+    #[test]
+    fn bird_curve_values_read_in_u_major_order() {
+        let good = write(&sample_map());
+        let values_at = u64::from_le_bytes(good[56..64].try_into().unwrap()) as usize;
+        let mut bird = good.clone();
+        bird[values_at + 4] = LAYOUT_BIRD_CURVE as u8;
+        let (u_major, bird) = (read(&good).unwrap(), read(&bird).unwrap());
+        for t in 0..u_major.triangles.len() {
+            let level = u_major.triangles[t].level;
+            let positions = bird_curve::u_major_positions(level);
+            let stored = u_major.triangle_values(t);
+            for (k, &p) in positions.iter().enumerate() {
+                assert_eq!(bird.triangle_values(t)[p as usize], stored[k], "triangle {t} value {k}");
+            }
         }
     }
 
@@ -738,9 +806,9 @@ mod tests {
         let values_at = u64::from_le_bytes(good[56..64].try_into().unwrap()) as usize;
         compressed[values_at..values_at + 4].copy_from_slice(&FORMAT_DISP_C1_BLOCK.to_le_bytes());
         expect(&compressed, "compressed blocks");
-        let mut bird = good.clone();
-        bird[values_at + 4] = 2;
-        expect(&bird, "bird-curve order");
+        let mut unknown_layout = good.clone();
+        unknown_layout[values_at + 4] = 7;
+        expect(&unknown_layout, "unknown layout 7");
         let mut deep = good.clone();
         let triangles_at = u64::from_le_bytes(good[184..192].try_into().unwrap()) as usize;
         deep[triangles_at + 4] = 40;

@@ -126,7 +126,16 @@ pub(super) struct OpenedGltf {
     pub raw: Value,
     pub buffers: Vec<Vec<u8>>,
     pub drawn: Vec<(usize, DMat4)>,
+    /// The accessors of half floats (see [`HALF_FLOAT`]): the crate reads their bits as
+    /// unsigned shorts.
+    pub half_floats: Vec<usize>,
 }
+
+/// The component type `NV_displacement_micromap` adds for half floats (IEEE binary16), for
+/// its directions and direction bounds.
+const HALF_FLOAT: u64 = 5131;
+/// What the crate, which knows no half floats, is told such an accessor holds instead.
+const UNSIGNED_SHORT: u64 = 5123;
 
 /// Parses and checks a document (the JSON, and a GLB's binary chunk if any).
 pub(super) fn open_document(json: &[u8], bin: Option<&[u8]>, folder: Option<&Path>) -> Result<OpenedGltf> {
@@ -134,7 +143,19 @@ pub(super) fn open_document(json: &[u8], bin: Option<&[u8]>, folder: Option<&Pat
     // for what the crate's validation would index without checking.
     let raw: Value = serde_json::from_slice(json).map_err(|e| error!(Input, "{e}"))?;
     check_position_accessors_exist(&raw)?;
-    let document = gltf::Gltf::from_slice(json).map_err(|e| error!(Input, "{e}"))?.document;
+    let half_floats = half_float_accessors(&raw)?;
+    let document = match half_floats.is_empty() {
+        true => gltf::Gltf::from_slice(json),
+        false => {
+            let mut patched = raw.clone();
+            for &a in &half_floats {
+                patched["accessors"][a]["componentType"] = UNSIGNED_SHORT.into();
+            }
+            let text = serde_json::to_vec(&patched).map_err(|e| error!(Input, "{e}"))?;
+            gltf::Gltf::from_slice(&text)
+        }
+    };
+    let document = document.map_err(|e| error!(Input, "{e}"))?.document;
     let transforms = node_transforms(&raw, document.nodes().len())?;
     let roots = node_roots(&document)?;
     let buffers = load_buffers(&document, bin, folder)?;
@@ -144,7 +165,37 @@ pub(super) fn open_document(json: &[u8], bin: Option<&[u8]>, folder: Option<&Pat
         raw,
         buffers,
         drawn,
+        half_floats,
     })
+}
+
+/// The accessors of half floats, checked to be used by nothing but the displacement
+/// extension, which reads them as such (a mesh attribute or index of them is refused).
+fn half_float_accessors(raw: &Value) -> Result<Vec<usize>> {
+    let accessors = raw.get("accessors").and_then(Value::as_array);
+    let halves: Vec<usize> = (accessors.into_iter().flatten().enumerate())
+        .filter(|(_, a)| a.get("componentType").and_then(Value::as_u64) == Some(HALF_FLOAT))
+        .map(|(k, _)| k)
+        .collect();
+    let meshes = raw.get("meshes").and_then(Value::as_array);
+    let primitives = (meshes.into_iter().flatten())
+        .filter_map(|m| m.get("primitives").and_then(Value::as_array))
+        .flatten();
+    for p in primitives {
+        let targets = p.get("targets").and_then(Value::as_array).into_iter().flatten();
+        let attributes = p.get("attributes").into_iter().chain(targets);
+        let used = (attributes.filter_map(Value::as_object))
+            .flat_map(|a| a.values())
+            .chain(p.get("indices"))
+            .filter_map(Value::as_u64);
+        if let Some(a) = used.map(|a| a as usize).find(|a| halves.contains(a)) {
+            fail!(
+                Input,
+                "accessor {a} holds half floats (componentType 5131), which only NV_displacement_micromap's directions and direction bounds may"
+            );
+        }
+    }
+    Ok(halves)
 }
 
 /// The JSON and binary chunk of a `.gltf` or `.glb` file's bytes.

@@ -5,12 +5,15 @@
 //! units and double precision.
 //!
 //! Read as the extension describes: a primitive's triangle `t` takes the group's triangle
-//! `mapIndices[t]` (or `t + mapOffset`); `directionBounds` (per vertex bias and scale) move
-//! the position and scale the direction before anything is interpolated; the node transform
-//! moves positions and turns directions; `primitiveFlags` decimate the edges towards coarser
-//! neighbours (see `gridrt_shared::displacement::decimated_point`). Refused by name for now:
-//! primitives without `directions` (the vertex normals would stand in), strips and fans,
-//! mirroring node transforms, and a scene that mixes displaced and plain primitives.
+//! `mapIndices[t] + mapOffset` (or `t + mapOffset`); `directionBounds` (per vertex bias and
+//! scale) move the position and scale the direction before anything is interpolated; the
+//! node transform moves positions and turns directions; `primitiveFlags` decimate the edges
+//! towards coarser neighbours (see `gridrt_shared::displacement::decimated_point`). Where a
+//! primitive has no accessor of its own for the directions, bounds, mapping or flags, those
+//! the `.bary` carries hold (from the extension's `*Offset`), and directions default to the
+//! vertex normals last. Directions and bounds may be half floats (component type 5131, which
+//! the extension adds), directions `VEC3` or `VEC4`. Refused by name for now: strips and
+//! fans, mirroring node transforms, and a scene that mixes displaced and plain primitives.
 
 use std::path::Path;
 
@@ -21,7 +24,7 @@ use super::gltf::{
     add_primitive, describe, open_document, read_accessor, read_uri, split_file, view_bytes, OpenedGltf,
 };
 use super::WorldMesh;
-use crate::bary::{self, Micromap, MicromapGroup, MicromapTriangle};
+use crate::bary::{self, MeshProperties, Micromap, MicromapGroup, MicromapTriangle};
 use crate::displaced::DisplacedMesh;
 use crate::error::{error, fail, Result};
 use crate::mesh::frame::LocalFrame;
@@ -99,7 +102,7 @@ pub fn parse_displaced(bytes: &[u8], folder: Option<&Path>) -> Result<Option<Dis
     let Some(micromaps) = opened.raw.pointer("/extensions/NV_micromaps/micromaps") else {
         return Ok(None);
     };
-    let micromaps: Vec<Micromap> = (micromaps.as_array().into_iter().flatten().enumerate())
+    let micromaps: Vec<(Micromap, MeshProperties)> = (micromaps.as_array().into_iter().flatten().enumerate())
         .map(|(k, entry)| read_micromap(entry, &opened, folder).map_err(|e| error!(Input, "micromap {k}: {e}")))
         .collect::<Result<_>>()?;
     let nodes: Vec<gltf::Node> = opened.document.nodes().collect();
@@ -135,15 +138,16 @@ pub fn parse_displaced(bytes: &[u8], folder: Option<&Path>) -> Result<Option<Dis
     Ok(Some(out))
 }
 
-/// A micromap's `.bary` bytes, from its `uri` or its `bufferView`, read.
-fn read_micromap(entry: &Value, opened: &OpenedGltf, folder: Option<&Path>) -> Result<Micromap> {
+/// A micromap's `.bary` bytes, from its `uri` or its `bufferView`, read with the mesh
+/// properties it carries.
+fn read_micromap(entry: &Value, opened: &OpenedGltf, folder: Option<&Path>) -> Result<(Micromap, MeshProperties)> {
     let uri = entry.get("uri").and_then(Value::as_str);
     match (uri, entry.get("bufferView").and_then(Value::as_u64)) {
-        (Some(uri), _) => bary::read(&read_uri(uri, folder)?.0),
+        (Some(uri), _) => bary::read_with_mesh(&read_uri(uri, folder)?.0),
         (None, Some(v)) => {
             let view = (opened.document.views().nth(v as usize))
                 .ok_or_else(|| error!(Input, "its bufferView {v} does not exist"))?;
-            bary::read(view_bytes(&view, &opened.buffers)?)
+            bary::read_with_mesh(view_bytes(&view, &opened.buffers)?)
         }
         _ => fail!(Input, "it has neither a uri nor a bufferView"),
     }
@@ -155,7 +159,7 @@ struct Primitive<'a> {
     primitive: &'a gltf::Primitive<'a>,
     extension: &'a Value,
     transform: DMat4,
-    micromaps: &'a [Micromap],
+    micromaps: &'a [(Micromap, MeshProperties)],
 }
 
 impl Primitive<'_> {
@@ -163,28 +167,91 @@ impl Primitive<'_> {
         self.extension.get(key).and_then(Value::as_u64).map(|v| v as usize)
     }
 
-    /// Accessor `key` of the extension, checked to be `dimensions` of FLOAT (or, with
-    /// `integers`, of an unsigned integer type), read as `N` components per element.
-    fn accessor<const N: usize>(
-        &self,
-        key: &str,
-        dimensions: Dimensions,
-        integers: bool,
-    ) -> Result<Option<Vec<[f64; N]>>> {
+    /// The micromap the extension names, and its mesh properties.
+    fn micromap(&self) -> Result<&(Micromap, MeshProperties)> {
+        let k = self
+            .index("micromap")
+            .ok_or_else(|| error!(Input, "its extension names no micromap"))?;
+        self.micromaps
+            .get(k)
+            .ok_or_else(|| error!(Input, "micromap {k} does not exist"))
+    }
+
+    /// The extension's accessor `key`, if it names one.
+    fn accessor_of(&self, key: &str) -> Result<Option<(gltf::Accessor<'_>, bool)>> {
         let Some(a) = self.index(key) else { return Ok(None) };
         let accessor = (self.opened.document.accessors().nth(a))
             .ok_or_else(|| error!(Input, "its {key} accessor {a} does not exist"))?;
-        let ty = accessor.data_type();
-        let fits = match integers {
-            true => matches!(ty, DataType::U8 | DataType::U16 | DataType::U32),
-            false => ty == DataType::F32,
+        Ok(Some((accessor, self.opened.half_floats.contains(&a))))
+    }
+
+    /// Accessor `key` of the extension, checked to be `dimensions` of unsigned integers.
+    fn integers(&self, key: &str) -> Result<Option<Vec<u64>>> {
+        let Some((accessor, half)) = self.accessor_of(key)? else {
+            return Ok(None);
         };
-        if accessor.dimensions() != dimensions || !fits || accessor.normalized() {
-            fail!(Input, "its {key} accessor {a} is {}", describe(&accessor));
+        let integer = matches!(accessor.data_type(), DataType::U8 | DataType::U16 | DataType::U32);
+        if accessor.dimensions() != Dimensions::Scalar || !integer || half || accessor.normalized() {
+            let what = if half {
+                "of half floats".into()
+            } else {
+                describe(&accessor)
+            };
+            fail!(Input, "its {key} accessor {} is {what}", accessor.index());
         }
-        let values = read_accessor::<N>(&accessor, &self.opened.buffers)
-            .map_err(|e| error!(Input, "{key} accessor {a}: {e}"))?;
-        Ok(Some(values))
+        let values = read_accessor::<1>(&accessor, &self.opened.buffers)
+            .map_err(|e| error!(Input, "{key} accessor {}: {e}", accessor.index()))?;
+        Ok(Some(values.iter().map(|&[v]| v as u64).collect()))
+    }
+
+    /// Accessor `key` of the extension, checked to be one of `dimensions` of floats or half
+    /// floats, each element's first `N` components.
+    fn floats<const N: usize>(&self, key: &str, dimensions: &[Dimensions]) -> Result<Option<Vec<[f64; N]>>> {
+        let Some((accessor, half)) = self.accessor_of(key)? else {
+            return Ok(None);
+        };
+        let float = half || accessor.data_type() == DataType::F32;
+        if !dimensions.contains(&accessor.dimensions()) || !float || accessor.normalized() {
+            fail!(
+                Input,
+                "its {key} accessor {} is {}",
+                accessor.index(),
+                describe(&accessor)
+            );
+        }
+        let widened = match accessor.dimensions() {
+            Dimensions::Vec2 => widen(read_accessor::<2>(&accessor, &self.opened.buffers)),
+            Dimensions::Vec3 => widen(read_accessor::<3>(&accessor, &self.opened.buffers)),
+            _ => widen(read_accessor::<4>(&accessor, &self.opened.buffers)),
+        }
+        .map_err(|e| error!(Input, "{key} accessor {}: {e}", accessor.index()))?;
+        let value = |x: f64| match half {
+            true => half::f16::from_bits(x as u16).to_f64(),
+            false => x,
+        };
+        Ok(Some(
+            widened.iter().map(|e| std::array::from_fn(|c| value(e[c]))).collect(),
+        ))
+    }
+
+    /// `count` elements of one of the micromap's mesh properties from the element the
+    /// extension's `key` names (0 by default).
+    fn micromap_elements<'p, T>(
+        &self,
+        property: Option<&'p Vec<T>>,
+        key: &str,
+        count: usize,
+    ) -> Result<Option<&'p [T]>> {
+        let Some(all) = property else { return Ok(None) };
+        let first = self.index(key).unwrap_or(0);
+        match all.get(first..first.saturating_add(count)) {
+            Some(some) => Ok(Some(some)),
+            None => fail!(
+                Input,
+                "its micromap holds {} elements where its {key} of {first} needs {count}",
+                all.len()
+            ),
+        }
     }
 
     fn append_to(&self, out: &mut DisplacedWorld) -> Result<()> {
@@ -200,36 +267,12 @@ impl Primitive<'_> {
                 "its node transform mirrors it, which displaced primitives do not support yet"
             );
         }
-        let directions = self
-            .accessor::<3>("directions", Dimensions::Vec3, false)?
-            .ok_or_else(|| {
-                error!(
-                    Input,
-                    "it has no directions accessor (vertex normals as directions are not supported yet)"
-                )
-            })?;
-        let flags = self.primitive_flags()?;
         let mut base = WorldMesh::default();
         add_primitive(&mut base, self.primitive, &DMat4::IDENTITY, &self.opened.buffers)?;
-        if directions.len() != base.positions.len() {
-            fail!(
-                Input,
-                "{} directions for {} positions",
-                directions.len(),
-                base.positions.len()
-            );
-        }
+        let flags = self.primitive_flags(base.triangles.len())?;
         let mut positions = base.positions;
-        let mut directions: Vec<DVec3> = directions.into_iter().map(DVec3::from_array).collect();
-        if let Some(bounds) = self.accessor::<2>("directionBounds", Dimensions::Vec2, false)? {
-            if bounds.len() != positions.len() {
-                fail!(
-                    Input,
-                    "{} direction bounds for {} positions",
-                    bounds.len(),
-                    positions.len()
-                );
-            }
+        let mut directions = self.directions(positions.len())?;
+        if let Some(bounds) = self.direction_bounds(positions.len())? {
             for ((p, d), [bias, scale]) in positions.iter_mut().zip(&mut directions).zip(bounds) {
                 *p += *d * bias;
                 *d *= scale;
@@ -243,49 +286,133 @@ impl Primitive<'_> {
         let first_triangle = out.triangles.len();
         out.triangles
             .extend(base.triangles.iter().map(|t| t.map(|i| first_vertex + i)));
-        if flags.as_ref().is_some_and(|f| f.len() != base.triangles.len()) {
-            fail!(
-                Input,
-                "its primitiveFlags hold {} flags for {} triangles",
-                flags.as_ref().map_or(0, Vec::len),
-                base.triangles.len()
-            );
-        }
         out.add_decimated_edges(first_triangle, &flags.unwrap_or_default());
         self.append_values(base.triangles.len(), &mut out.micromap)
     }
 
-    /// The `primitiveFlags` accessor: one unsigned byte per triangle, bit `e` set when the
-    /// neighbour across edge `e` is a level coarser.
-    fn primitive_flags(&self) -> Result<Option<Vec<u8>>> {
-        let Some(flags) = self.accessor::<1>("primitiveFlags", Dimensions::Scalar, true)? else {
+    /// Each of the primitive's `vertices` vertices' direction: from the `directions`
+    /// accessor, else from the micromap's, else the vertex normals, as the extension says.
+    fn directions(&self, vertices: usize) -> Result<Vec<DVec3>> {
+        let found = match self.floats::<3>("directions", &[Dimensions::Vec3, Dimensions::Vec4])? {
+            Some(d) => Some(d),
+            None => {
+                let property = self.micromap()?.1.directions.as_ref();
+                (self.micromap_elements(property, "directionsOffset", vertices)?)
+                    .map(|d| d.iter().map(|v| v.map(f64::from)).collect())
+            }
+        };
+        let directions = match found {
+            Some(d) => d,
+            None => self.normals()?.ok_or_else(|| {
+                error!(
+                    Input,
+                    "it has no directions: no directions accessor, none in its micromap, and no vertex normals"
+                )
+            })?,
+        };
+        if directions.len() != vertices {
+            fail!(Input, "{} directions for {vertices} positions", directions.len());
+        }
+        Ok(directions.into_iter().map(DVec3::from_array).collect())
+    }
+
+    /// The primitive's `NORMAL` attribute, which directions default to.
+    fn normals(&self) -> Result<Option<Vec<[f64; 3]>>> {
+        let Some(accessor) = self.primitive.get(&gltf::Semantic::Normals) else {
             return Ok(None);
         };
-        if let Some(&[bad]) = flags.iter().find(|&&[f]| f > 255.0) {
+        let a = accessor.index();
+        if accessor.dimensions() != Dimensions::Vec3 || accessor.data_type() != DataType::F32 || accessor.normalized() {
+            fail!(
+                Input,
+                "its NORMAL accessor {a}, which its directions default to, is {}",
+                describe(&accessor)
+            );
+        }
+        let normals = read_accessor::<3>(&accessor, &self.opened.buffers)
+            .map_err(|e| error!(Input, "NORMAL accessor {a}: {e}"))?;
+        Ok(Some(normals))
+    }
+
+    /// Each vertex's bias and scale: from the `directionBounds` accessor, else from the
+    /// micromap's; none when neither has them.
+    fn direction_bounds(&self, vertices: usize) -> Result<Option<Vec<[f64; 2]>>> {
+        let bounds = match self.floats::<2>("directionBounds", &[Dimensions::Vec2])? {
+            Some(b) => b,
+            None => {
+                let property = self.micromap()?.1.direction_bounds.as_ref();
+                match self.micromap_elements(property, "directionBoundsOffset", vertices)? {
+                    Some(b) => b.iter().map(|v| v.map(f64::from)).collect(),
+                    None => return Ok(None),
+                }
+            }
+        };
+        if bounds.len() != vertices {
+            fail!(Input, "{} direction bounds for {vertices} positions", bounds.len());
+        }
+        Ok(Some(bounds))
+    }
+
+    /// Each of the primitive's `count` triangles' flags (bit `e` set when the neighbour
+    /// across edge `e` is a level coarser): from the `primitiveFlags` accessor, else from the
+    /// micromap's.
+    fn primitive_flags(&self, count: usize) -> Result<Option<Vec<u8>>> {
+        let flags: Vec<u64> = match self.integers("primitiveFlags")? {
+            Some(f) => f,
+            None => {
+                let property = self.micromap()?.1.triangle_flags.as_ref();
+                match self.micromap_elements(property, "primitiveFlagsOffset", count)? {
+                    Some(f) => f.iter().map(|&f| f as u64).collect(),
+                    None => return Ok(None),
+                }
+            }
+        };
+        if flags.len() != count {
+            fail!(
+                Input,
+                "its primitiveFlags hold {} flags for {count} triangles",
+                flags.len()
+            );
+        }
+        if let Some(bad) = flags.iter().find(|&&f| f > 255) {
             fail!(Input, "its primitiveFlags hold {bad}, more than a byte");
         }
-        Ok(Some(flags.iter().map(|&[f]| f as u8).collect()))
+        Ok(Some(flags.iter().map(|&f| f as u8).collect()))
+    }
+
+    /// Each of the primitive's `count` triangles' triangle within its group, before
+    /// `mapOffset`: from the `mapIndices` accessor, else from the micromap's mappings; none
+    /// (the triangle's own index) when neither has them.
+    fn mapping(&self, count: usize) -> Result<Option<Vec<u64>>> {
+        let mapping = match self.integers("mapIndices")? {
+            Some(m) => m,
+            None => {
+                let property = self.micromap()?.1.triangle_mappings.as_ref();
+                match self.micromap_elements(property, "mapIndicesOffset", count)? {
+                    Some(m) => m.iter().map(|&m| m as u64).collect(),
+                    None => return Ok(None),
+                }
+            }
+        };
+        if mapping.len() < count {
+            fail!(Input, "its mapIndices hold fewer than its {count} triangles");
+        }
+        Ok(Some(mapping))
     }
 
     /// Each of the primitive's `count` triangles' values, taken from its micromap group.
     fn append_values(&self, count: usize, out: &mut Micromap) -> Result<()> {
-        let k = self
-            .index("micromap")
-            .ok_or_else(|| error!(Input, "its extension names no micromap"))?;
-        let map = self
-            .micromaps
-            .get(k)
-            .ok_or_else(|| error!(Input, "micromap {k} does not exist"))?;
+        let map = &self.micromap()?.0;
         let g = self.index("groupIndex").unwrap_or(0);
-        let group = map
-            .groups
-            .get(g)
-            .ok_or_else(|| error!(Input, "micromap {k} has no group {g}"))?;
+        let group = map.groups.get(g).ok_or_else(|| {
+            error!(
+                Input,
+                "micromap {} has no group {g}",
+                self.index("micromap").unwrap_or(0)
+            )
+        })?;
         let offset = self.index("mapOffset").unwrap_or(0);
-        let mapping = self.accessor::<1>("mapIndices", Dimensions::Scalar, true)?;
-        if mapping.as_ref().is_some_and(|m| m.len() < count) {
-            fail!(Input, "its mapIndices hold fewer than its {count} triangles");
-        }
+        let mapping = self.mapping(count)?;
         // A compressed code describes each triangle's values on their own (the grids'
         // layout checks them against it), so it holds for any selection of them.
         out.join_value_code(map.value_code);
@@ -296,8 +423,9 @@ impl Primitive<'_> {
             scale: group.scale,
         });
         for t in 0..count {
+            // The offset applies to mapped triangles too.
             let within = match &mapping {
-                Some(m) => m[t][0] as usize,
+                Some(m) => (m[t] as usize).saturating_add(offset),
                 None => t + offset,
             };
             if within >= group.triangle_count as usize {
@@ -316,6 +444,14 @@ impl Primitive<'_> {
         }
         Ok(())
     }
+}
+
+/// Elements of fewer components padded to four with zeros.
+fn widen<const M: usize>(values: Result<Vec<[f64; M]>>) -> Result<Vec<[f64; 4]>> {
+    Ok(values?
+        .iter()
+        .map(|e| std::array::from_fn(|c| e.get(c).copied().unwrap_or(0.0)))
+        .collect())
 }
 
 #[cfg(test)]
@@ -459,5 +595,202 @@ mod tests {
             (read.micromap.groups[0].bias, read.micromap.groups[0].scale),
             (0.5, 2.0)
         );
+    }
+
+    /// A `.bary` laid out by hand from the BaryFile headers: its properties (identifier and
+    /// bytes) after the header and the property table.
+    fn hand_bary(properties: &[([u32; 4], Vec<u8>)]) -> Vec<u8> {
+        let table = 64 * properties.len();
+        let mut payload = Vec::new();
+        let mut entries = Vec::new();
+        for (id, bytes) in properties {
+            let at = 40 + table + payload.len();
+            entries.extend(id.iter().flat_map(|w| w.to_le_bytes()));
+            entries.extend((at as u64).to_le_bytes());
+            entries.extend((bytes.len() as u64).to_le_bytes());
+            entries.extend([0u8; 32]);
+            payload.extend(bytes);
+            payload.resize(payload.len().next_multiple_of(4), 0);
+        }
+        let mut file = bary::MAGIC.to_vec();
+        file.extend(((40 + table + payload.len()) as u64).to_le_bytes());
+        file.extend(40u64.to_le_bytes());
+        file.extend((table as u64).to_le_bytes());
+        file.extend(entries);
+        file.extend(payload);
+        file
+    }
+
+    fn words(w: &[u32]) -> Vec<u8> {
+        w.iter().flat_map(|x| x.to_le_bytes()).collect()
+    }
+
+    /// Two level-1 triangles of values one to two bytes (`eR11_unorm_pack16`), u-major:
+    /// triangle `t`'s values are `100 * (t + 1) + k`.
+    fn two_triangle_properties() -> Vec<([u32; 4], Vec<u8>)> {
+        let mut values = words(&[1_000_397_001, 1, 1, 12, 2, 4]);
+        values.extend((0..12u16).flat_map(|k| (100 * (k / 6 + 1) + k % 6).to_le_bytes()));
+        let mut group = words(&[0, 2, 0, 12, 1, 1]);
+        group.extend(
+            [0.0f32, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0]
+                .iter()
+                .flat_map(|f| f.to_le_bytes()),
+        );
+        let triangles = words(&[0, 1, 6, 1]);
+        vec![
+            ([0xb44d_aa04, 0xc9e0_44d5, 0x9a94_4de0, 0xcfd8_fe35], values),
+            ([0x39ee_40d0, 0x9dc4_4517, 0x8e5a_b15d, 0xb09c_74bc], group),
+            ([0x0045_8e68, 0xee59_426c, 0xb3bf_1b7f, 0x749d_eb8e], triangles),
+        ]
+    }
+
+    /// A GLB of a unit square in two triangles (with `normals`, vertex normals +z), displaced
+    /// by `bary` with `extension`'s settings; `extra` bytes follow the square's for accessors
+    /// 3 on (`accessors`, their views in `views`).
+    fn square_glb(bary: &[u8], extension: Value, extra: (&[u8], Value, Value), normals: bool) -> Vec<u8> {
+        let floats = |v: &[f32]| v.iter().flat_map(|f| f.to_le_bytes()).collect::<Vec<u8>>();
+        let mut bin = floats(&[0., 0., 0., 1., 0., 0., 0., 1., 0., 1., 1., 0.]); // 48: positions
+        bin.extend(floats(&[0., 0., 1.].repeat(4))); // 48: normals
+        bin.extend(words(&[0, 1, 2, 1, 3, 2])); // 24: indices
+        let (extra_bytes, accessors, views) = extra;
+        bin.extend(extra_bytes);
+        let bary_at = bin.len();
+        bin.extend(bary);
+        let mut all_views = vec![
+            serde_json::json!({"buffer": 0, "byteOffset": 0, "byteLength": 48}),
+            serde_json::json!({"buffer": 0, "byteOffset": 48, "byteLength": 48}),
+            serde_json::json!({"buffer": 0, "byteOffset": 96, "byteLength": 24}),
+        ];
+        all_views.extend(views.as_array().unwrap().iter().cloned());
+        let micromap_view = all_views.len();
+        all_views.push(serde_json::json!({"buffer": 0, "byteOffset": bary_at, "byteLength": bary.len()}));
+        let mut all_accessors = vec![
+            serde_json::json!({"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}),
+            serde_json::json!({"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC3"}),
+            serde_json::json!({"bufferView": 2, "componentType": 5125, "count": 6, "type": "SCALAR"}),
+        ];
+        all_accessors.extend(accessors.as_array().unwrap().iter().cloned());
+        let attributes = match normals {
+            true => serde_json::json!({"POSITION": 0, "NORMAL": 1}),
+            false => serde_json::json!({"POSITION": 0}),
+        };
+        let json = serde_json::json!({
+            "asset": {"version": "2.0"},
+            "extensionsUsed": ["NV_micromaps", "NV_displacement_micromap"],
+            "extensions": {"NV_micromaps": {"micromaps": [{"bufferView": micromap_view, "mimeType": "model/vnd.bary"}]}},
+            "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+            "meshes": [{"primitives": [{"attributes": attributes, "indices": 2,
+                "extensions": {"NV_displacement_micromap": extension}}]}],
+            "buffers": [{"byteLength": bin.len()}],
+            "bufferViews": all_views,
+            "accessors": all_accessors,
+        });
+        crate::mesh::gltf::glb_container(&serde_json::to_vec(&json).unwrap(), &bin)
+    }
+
+    fn halves(v: &[f32]) -> Vec<u8> {
+        v.iter().flat_map(|&f| half::f16::from_f32(f).to_le_bytes()).collect()
+    }
+
+    /// Directions as VEC4 half floats and bounds as VEC2 half floats (the component type
+    /// the extension adds), and mapIndices with a mapOffset, which applies to them too.
+    #[test]
+    fn half_float_directions_and_bounds_read() {
+        let mut properties = two_triangle_properties();
+        // Three triangles, so that mapIndices [1, 0] and mapOffset 1 take triangles 2 and 1.
+        let mut values = words(&[1_000_397_001, 1, 1, 18, 2, 4]);
+        values.extend((0..18u16).flat_map(|k| (100 * (k / 6 + 1) + k % 6).to_le_bytes()));
+        properties[0].1 = values;
+        properties[1].1[4..8].copy_from_slice(&3u32.to_le_bytes());
+        properties[1].1[12..16].copy_from_slice(&18u32.to_le_bytes());
+        properties[2].1 = words(&[0, 1, 6, 1, 12, 1]);
+        let mut extra = halves(&[0.0, 0.0, 2.0, 0.0].repeat(4)); // 32: directions
+        extra.extend(halves(&[0.5, 3.0].repeat(4))); // 16: bounds
+        extra.extend([1u8, 0]); // 2: map indices
+        let glb = square_glb(
+            &hand_bary(&properties),
+            serde_json::json!({"micromap": 0, "directions": 3, "directionBounds": 4,
+                "mapIndices": 5, "mapOffset": 1}),
+            (
+                &extra,
+                serde_json::json!([
+                    {"bufferView": 3, "componentType": 5131, "count": 4, "type": "VEC4"},
+                    {"bufferView": 4, "componentType": 5131, "count": 4, "type": "VEC2"},
+                    {"bufferView": 5, "componentType": 5121, "count": 2, "type": "SCALAR"},
+                ]),
+                serde_json::json!([
+                    {"buffer": 0, "byteOffset": 120, "byteLength": 32},
+                    {"buffer": 0, "byteOffset": 152, "byteLength": 16},
+                    {"buffer": 0, "byteOffset": 168, "byteLength": 2},
+                ]),
+            ),
+            true,
+        );
+        let read = parse_displaced(&glb, None).unwrap().unwrap();
+        // Bias 0.5 along (0, 0, 2), scale 3.
+        assert_eq!(read.positions[1], DVec3::new(1.0, 0.0, 1.0));
+        assert_eq!(read.directions[1], DVec3::new(0.0, 0.0, 6.0));
+        assert_eq!(read.micromap.triangle_values(0)[0], 300);
+        assert_eq!(read.micromap.triangle_values(1)[0], 200);
+    }
+
+    /// Without a directions accessor, the micromap's own directions (from directionsOffset),
+    /// triangle mappings and flags hold; without those, the vertex normals; without normals
+    /// either, the file is refused.
+    #[test]
+    fn directions_default_to_the_micromaps_then_the_normals() {
+        let mut properties = two_triangle_properties();
+        let mut directions = words(&[106, 5, 12, 4]);
+        for d in 0..5 {
+            directions.extend([0.0f32, d as f32, 1.0].iter().flat_map(|f| f.to_le_bytes()));
+        }
+        properties.push(([0xf262_d687, 0xb928_4aeb, 0xa706_803c, 0xcbed_ae52], directions));
+        let mut mappings = words(&[74, 2, 2, 4]);
+        mappings.extend([1u8, 0, 0, 0]);
+        properties.push(([0x9cdc_3ad0, 0x92bb_4a8a, 0xb465_8759, 0x42d4_1d54], mappings));
+        let mut flags = words(&[13, 2, 1, 4]);
+        flags.extend([0u8, 0b100]);
+        properties.push(([0x90f9_eed3, 0x4ec3_4974, 0x970c_755c, 0xaf5b_53a3], flags));
+        let no_extra = || (&[][..], serde_json::json!([]), serde_json::json!([]));
+        let extension = serde_json::json!({"micromap": 0, "directionsOffset": 1});
+        let glb = square_glb(&hand_bary(&properties), extension, no_extra(), true);
+        let read = parse_displaced(&glb, None).unwrap().unwrap();
+        assert_eq!(read.directions[3], DVec3::new(0.0, 4.0, 1.0));
+        assert_eq!(read.micromap.triangle_values(0)[0], 200);
+        assert_eq!(read.decimated_edges, vec![0, 0b100]);
+
+        let plain = two_triangle_properties();
+        let glb = square_glb(&hand_bary(&plain), serde_json::json!({"micromap": 0}), no_extra(), true);
+        let read = parse_displaced(&glb, None).unwrap().unwrap();
+        assert_eq!(read.directions, vec![DVec3::Z; 4]);
+        assert_eq!(read.micromap.triangle_values(0)[0], 100);
+
+        let glb = square_glb(
+            &hand_bary(&plain),
+            serde_json::json!({"micromap": 0}),
+            no_extra(),
+            false,
+        );
+        let e = parse_displaced(&glb, None).unwrap_err().to_string();
+        assert!(
+            e.contains("no directions accessor, none in its micromap, and no vertex normals"),
+            "{e}"
+        );
+    }
+
+    /// Half floats anywhere else than the extension's directions and bounds are refused.
+    #[test]
+    fn half_floats_elsewhere_are_refused() {
+        let mut glb = square_glb(
+            &hand_bary(&two_triangle_properties()),
+            serde_json::json!({"micromap": 0}),
+            (&[][..], serde_json::json!([]), serde_json::json!([])),
+            true,
+        );
+        // The normals' component type 5126 becomes 5131.
+        let at = glb.windows(4).rposition(|w| w == b"5126").unwrap();
+        glb[at..at + 4].copy_from_slice(b"5131");
+        let e = parse_displaced(&glb, None).unwrap_err().to_string();
+        assert!(e.contains("accessor 1 holds half floats"), "{e}");
     }
 }
