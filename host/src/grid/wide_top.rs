@@ -2,17 +2,18 @@
 //! layout and the walk).
 //!
 //! Collapse: sibling leaves of one grid each first become one leaf of two; then the fewest
-//! wide nodes that hold the binary hierarchy, each node's children a cut
-//! of its binary subtree (found by dynamic programming, see [`Plan`]). Nodes are numbered
-//! breadth first, so each node's inner children are consecutive, and the grids are reordered
-//! so that each node's leaf children name consecutive grids.
+//! wide nodes that hold the binary hierarchy, each node's children a cut of its binary
+//! subtree (found by dynamic programming, see [`Plan`]), at the widest width whose walk keeps
+//! within its stack. Nodes are numbered breadth first, so each node's inner children are
+//! consecutive, and the grids are reordered so that each node's leaf children name
+//! consecutive grids.
 //!
 //! Encoding: each node's frame origin is rounded down to the scene's code lattice, its step per
 //! axis is the smallest power of two that reaches the node's far corner in 255 codes, and each
 //! child's codes are rounded outwards; every decoded box is then checked, with the decoder the
-//! traversal runs, to hold its child. A hierarchy that fails anywhere (a code, the stack
-//! bound, the grid count) is left binary: wide packing is a saving, never a change of what
-//! the traversal finds.
+//! traversal runs, to hold its child. A hierarchy that fails anywhere (a code, the stack bound
+//! at every width, the grid count) is left binary: wide packing is a saving, never a change of
+//! what the traversal finds.
 
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::layout::BvhNode;
@@ -39,11 +40,17 @@ pub fn pack(bvh: &Bvh) -> Option<WideTop> {
     }
     let merged = merge_sibling_leaves(binary);
     let binary = merged.as_slice();
-    let groups = collapse(binary);
-    let first_inner = first_inner_children(&groups, binary);
-    if stack_need(&groups, binary, &first_inner) > STACK_ENTRIES {
-        return None;
-    }
+    // The widest nodes whose walk keeps within its stack: each wide level leaves up to its
+    // width less one entries waiting, so a deep hierarchy takes narrower nodes, which are
+    // still far fewer bytes than binary ones.
+    let (groups, first_inner) = (2..=WIDTH as usize)
+        .rev()
+        .map(|width| {
+            let groups = collapse(binary, width);
+            let first_inner = first_inner_children(&groups, binary);
+            (groups, first_inner)
+        })
+        .find(|(groups, first_inner)| stack_need(groups, binary, first_inner) <= STACK_ENTRIES)?;
     let scene = scene_frame_of(&aabb(root))?;
     let mut nodes = vec![BvhNode {
         min: scene.origin.to_array(),
@@ -92,9 +99,10 @@ fn merge_sibling_leaves(binary: &[BvhNode]) -> Vec<BvhNode> {
     merged
 }
 
-/// The wide nodes as lists of binary nodes (their children), breadth first from the root.
-fn collapse(binary: &[BvhNode]) -> Vec<Vec<u32>> {
-    let plan = Plan::new(binary);
+/// The wide nodes of at most `width` children as lists of binary nodes (their children),
+/// breadth first from the root.
+fn collapse(binary: &[BvhNode], width: usize) -> Vec<Vec<u32>> {
+    let plan = Plan::new(binary, width);
     let mut groups = vec![];
     let mut queue = std::collections::VecDeque::from([0u32]);
     while let Some(n) = queue.pop_front() {
@@ -124,7 +132,8 @@ struct Plan {
 }
 
 impl Plan {
-    fn new(binary: &[BvhNode]) -> Plan {
+    /// The plan for nodes of at most `width` children (`2 ..= WIDTH`).
+    fn new(binary: &[BvhNode], width: usize) -> Plan {
         let mut nodes = vec![[UNREACHABLE; SLOTS]; binary.len()];
         let mut choice = vec![[0u8; SLOTS]; binary.len()];
         // Children come after their parent (depth-first order), so backwards is bottom-up.
@@ -135,7 +144,7 @@ impl Plan {
                 continue;
             }
             let (l, r) = (node.first as usize, node.first as usize + 1);
-            for k in 2..SLOTS {
+            for k in 2..=width {
                 for left in 1..k {
                     let cost = nodes[l][left] + nodes[r][k - left];
                     if cost < nodes[n][k] {
@@ -145,7 +154,7 @@ impl Plan {
                 }
             }
             // Of equally few nodes, the widest: fewer levels to walk.
-            for k in (2..SLOTS).rev() {
+            for k in (2..=width).rev() {
                 if nodes[n][k] + 1 < nodes[n][1] {
                     nodes[n][1] = nodes[n][k] + 1;
                     choice[n][1] = k as u8;
@@ -506,11 +515,8 @@ mod tests {
         assert_eq!(exponent_for(3.0), 129);
     }
 
-    /// A hierarchy too deep for the walk's stack (a chain: every node one leaf and one node)
-    /// stays binary.
-    #[test]
-    fn a_hierarchy_too_deep_for_the_stack_stays_binary() {
-        let leaves = 100u32;
+    /// A chain of `leaves` leaves: every inner node one leaf and one node.
+    fn chain(leaves: u32) -> Bvh {
         let mut nodes = vec![];
         for i in 0..leaves {
             let lo = [i as f32; 3];
@@ -533,10 +539,58 @@ mod tests {
             }
         }
         // Node `at`'s children: the leaf at `at + 1` and the next node at `at + 2`.
-        let chain = Bvh {
+        Bvh {
             nodes,
             order: (0..leaves).collect(),
-        };
-        assert!(pack(&chain).is_none());
+        }
+    }
+
+    /// A hierarchy too deep for the walk's stack at any width stays binary.
+    #[test]
+    fn a_hierarchy_too_deep_for_the_stack_stays_binary() {
+        assert!(pack(&chain(100)).is_none());
+    }
+
+    /// One too deep for the widest nodes (small boxes all over a sphere, as the grids of a
+    /// large scan lie) takes narrower ones, within the stack, and the walk still finds what
+    /// the binary walk finds.
+    #[test]
+    fn a_deep_hierarchy_takes_narrower_nodes() {
+        let n = 40_000;
+        let boxes: Vec<Aabb> = (0..n)
+            .map(|i| {
+                let z = 1.0 - 2.0 * (i as f32 + 0.5) / n as f32;
+                let (r, a) = ((1.0 - z * z).sqrt(), i as f32 * 2.399_963);
+                let c = Vec3::new(r * a.cos(), r * a.sin(), z);
+                Aabb {
+                    min: c - Vec3::splat(0.01),
+                    max: c + Vec3::splat(0.01),
+                }
+            })
+            .collect();
+        let bvh = build(&boxes, &top_level_params());
+        let merged = merge_sibling_leaves(&bvh.nodes);
+        let widest = collapse(&merged, WIDTH as usize);
+        let need = stack_need(&widest, &merged, &first_inner_children(&widest, &merged));
+        assert!(need > STACK_ENTRIES, "{need}");
+        let wide = pack(&bvh).expect("packs narrower");
+        assert!(wide.nodes.len() * 2 < bvh.nodes.len(), "{} elements", wide.nodes.len());
+        let binary = in_order(&boxes, &bvh.order);
+        let order: Vec<u32> = wide.order.iter().map(|&k| bvh.order[k as usize]).collect();
+        let grids = in_order(&boxes, &order);
+        let top = TopNodes::new(wide.nodes.as_slice());
+        let mut hits = 0;
+        for i in 0..2000 {
+            let a = i as f32 * 0.618;
+            let origin = Vec3::new(3.0 * a.cos(), 3.0 * (1.3 * a).sin(), 2.0 * (0.7 * a).cos());
+            let ray = Ray::new(origin, -origin + Vec3::new(0.1 * a.sin(), 0.0, 0.05));
+            let mut want = Hit::miss(1e30);
+            bvh.nodes.as_slice().search(&binary, &ray, &mut want, &mut Uncounted);
+            let mut got = Hit::miss(1e30);
+            top.search(&grids, &ray, &mut got, &mut Uncounted);
+            assert_eq!((got.t, got.prim), (want.t, want.prim), "ray {i}");
+            hits += want.is_hit() as u32;
+        }
+        assert!(hits > 1000, "{hits} hits");
     }
 }
