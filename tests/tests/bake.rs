@@ -196,9 +196,28 @@ fn bake_keeps_to_a_byte_budget_and_mixes_levels() {
         "{tight}"
     );
     assert!(c["added_error"].as_f64() > c["max_added_error"].as_f64(), "{tight}");
-    // One that the rest of the bytes alone exceed is said to be out of reach.
+    // One that the rest of the bytes alone exceed is said to be out of reach, and the values
+    // take their fewest bits.
     let (out_of_reach, _) = bake("unreachable.gltf", &["--max-bytes", "0.05"]);
-    assert_eq!(out_of_reach["compression"]["budget_met"], false, "{out_of_reach}");
+    let c = &out_of_reach["compression"];
+    assert_eq!(
+        (&c["budget_met"], &c["budget_default"]),
+        (&false.into(), &false.into()),
+        "{out_of_reach}"
+    );
+    assert!(
+        c["added_error"].as_f64() > c["max_added_error"].as_f64(),
+        "{out_of_reach}"
+    );
+    // The level's default budget is met, or, out of reach, not worth the error: the values
+    // keep their bound.
+    let (default, _) = bake("default.gltf", &[]);
+    let c = &default["compression"];
+    assert_eq!(c["budget_default"], true, "{default}");
+    match c["budget_met"].as_bool().unwrap() {
+        true => assert!(default["grid_bytes"].as_f64().unwrap() <= micro, "{default}"),
+        false => assert!(c["added_error"].as_f64() <= c["max_added_error"].as_f64(), "{default}"),
+    }
 
     let (mixed, out) = bake("mixed.gltf", &["--max-error", "2e-3"]);
     let levels: Vec<u64> = (mixed["level_micro_triangles"].as_array().unwrap().iter())

@@ -59,9 +59,11 @@ struct CompressionReport {
     max_added_error: f32,
     added_error: f32,
     /// The byte budget per micro-triangle (everything the GPU gets), where one applies,
-    /// whether the bound gave way to it, and whether it was met (the rest of the bytes may
-    /// take more than a budget allows: the values then take their fewest bits).
+    /// whether it is the level's default, whether the bound gave way to it, and whether it
+    /// was met (the rest of the bytes may take more than a budget allows: the values then
+    /// take their fewest bits for a budget asked for, and keep their bound for a default).
     max_bytes: Option<f64>,
+    budget_default: bool,
     budget_binds: bool,
     budget_met: bool,
     /// The symmetric distance before compression, as `symmetric` is given.
@@ -122,7 +124,11 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
     let (mesh, compression, d) = match compression_bound(args, &baked.mesh, &plain) {
         None => (baked.mesh, None, plain),
         Some(options) => {
-            let budget = byte_budget(args).map(|b| (b, baked.report.micro_triangles));
+            let budget = byte_budget(args).map(|per_micro| ByteBudget {
+                per_micro,
+                micro_triangles: baked.report.micro_triangles,
+                asked: args.max_bytes.is_some(),
+            });
             let (compressed, budget) = stages.run("compress", || compress_within(&baked.mesh, options, budget))?;
             let d = measure(stages, &compressed.mesh);
             let report = CompressionReport {
@@ -131,6 +137,7 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
                 max_added_error: options.max_added_error,
                 added_error: compressed.added_error,
                 max_bytes: budget.max_bytes,
+                budget_default: args.max_bytes.is_none(),
                 budget_binds: budget.binds,
                 budget_met: budget.met,
                 uncompressed_symmetric: plain.symmetric.relative_to(plain.a_diagonal),
@@ -195,20 +202,36 @@ struct BudgetOutcome {
     met: bool,
 }
 
+/// A byte budget per micro-triangle, for so many micro-triangles; `asked` when the user set it
+/// rather than the level's default.
+#[derive(Clone, Copy)]
+struct ByteBudget {
+    per_micro: f64,
+    micro_triangles: u64,
+    asked: bool,
+}
+
 /// `mesh`'s values compressed within `options`' bound, or, where everything the GPU gets
-/// would then take more than `budget` (bytes per micro-triangle, and micro-triangles), within
-/// the bits that fit it; and what the budget did.
+/// would then take more than `budget`, within the bits that fit it; and what the budget did.
+/// A budget out of reach (the values at their fewest bits do not fit it either) is kept as
+/// closely as the fewest bits allow when asked for; a default one out of reach is not worth
+/// the error, and the values keep their bound.
 fn compress_within(
     mesh: &DisplacedMesh,
     options: ValueCompression,
-    budget: Option<(f64, u64)>,
+    budget: Option<ByteBudget>,
 ) -> Result<(CompressedMesh, BudgetOutcome)> {
     let unbudgeted = |max_bytes| BudgetOutcome {
         max_bytes,
         binds: false,
         met: true,
     };
-    let Some((per_micro, micro_triangles)) = budget else {
+    let Some(ByteBudget {
+        per_micro,
+        micro_triangles,
+        asked,
+    }) = budget
+    else {
         return Ok((compress(mesh, &options)?, unbudgeted(None)));
     };
     let allowed = (per_micro * micro_triangles as f64).floor() as u64;
@@ -249,6 +272,9 @@ fn compress_within(
     }
     if let (true, Some(fits)) = (miss < 0, fitting) {
         (compressed, miss) = (fits, 0);
+    }
+    if miss < 0 && !asked {
+        compressed = compressor.within(None);
     }
     let outcome = BudgetOutcome {
         max_bytes: Some(per_micro),
@@ -350,14 +376,18 @@ fn summary(r: &Report) -> String {
                 c.widths,
                 c.added_error,
                 c.max_added_error,
-                match (c.max_bytes, c.budget_binds, c.budget_met) {
-                    (Some(b), _, false) => format!(
+                match (c.max_bytes, c.budget_default, c.budget_met, c.budget_binds) {
+                    (Some(b), false, false, _) => format!(
                         "; the budget of {b} B per micro-triangle (--max-bytes) is out of reach: the rest of the \
-                         bytes take more, and the values their fewest bits"
+                         bytes take too many, and the values their fewest bits"
                     ),
-                    (Some(b), true, true) =>
+                    (Some(b), true, false, _) => format!(
+                        "; the default budget of {b} B per micro-triangle is out of reach (the rest of the bytes \
+                         take too many), so the values keep their bound"
+                    ),
+                    (Some(b), _, true, true) =>
                         format!(", exceeded to fit the budget of {b} B per micro-triangle (--max-bytes)"),
-                    (Some(b), false, true) => format!("; budget {b} B per micro-triangle"),
+                    (Some(b), _, true, false) => format!("; budget {b} B per micro-triangle"),
                     (None, ..) => String::new(),
                 }
             ),
