@@ -471,6 +471,27 @@ mod tests {
         }
     }
 
+    /// Checks that the wide walk of `wide` finds the binary walk's closest box for 2,000 rays
+    /// (`ray(i)`), and gives how many hit.
+    fn same_hits(boxes: &[Aabb], bvh: &Bvh, wide: &WideTop, ray: impl Fn(u32) -> Ray) -> u32 {
+        let binary = in_order(boxes, &bvh.order);
+        let order: Vec<u32> = wide.order.iter().map(|&k| bvh.order[k as usize]).collect();
+        let grids = in_order(boxes, &order);
+        let top = TopNodes::new(wide.nodes.as_slice());
+        assert!(top.is_wide());
+        let mut hits = 0;
+        for i in 0..2000 {
+            let ray = ray(i);
+            let mut want = Hit::miss(1e30);
+            bvh.nodes.as_slice().search(&binary, &ray, &mut want, &mut Uncounted);
+            let mut got = Hit::miss(1e30);
+            top.search(&grids, &ray, &mut got, &mut Uncounted);
+            assert_eq!((got.t, got.prim), (want.t, want.prim), "ray {i}");
+            hits += want.is_hit() as u32;
+        }
+        hits
+    }
+
     /// The wide walk finds the binary walk's closest box for every ray, and each grid is named
     /// by exactly one leaf.
     #[test]
@@ -482,24 +503,12 @@ mod tests {
         seen.sort_unstable();
         assert_eq!(seen, (0..boxes.len() as u32).collect::<Vec<_>>());
         assert!(wide.nodes.len() * 2 < bvh.nodes.len(), "{} elements", wide.nodes.len());
-        let binary = in_order(&boxes, &bvh.order);
-        let order: Vec<u32> = wide.order.iter().map(|&k| bvh.order[k as usize]).collect();
-        let grids = in_order(&boxes, &order);
-        let top = TopNodes::new(wide.nodes.as_slice());
-        assert!(top.is_wide());
-        let mut hits = 0;
-        for i in 0..2000 {
+        let hits = same_hits(&boxes, &bvh, &wide, |i| {
             let a = i as f32 * 0.618;
             let origin = Vec3::new(1020.0 + 60.0 * a.cos(), 30.0 * (1.3 * a).sin(), -20.0);
             let target = Vec3::new(1000.0 + (i % 41) as f32, -5.0 + (i % 11) as f32, 1.5);
-            let ray = Ray::new(origin, target - origin);
-            let mut want = Hit::miss(1e30);
-            bvh.nodes.as_slice().search(&binary, &ray, &mut want, &mut Uncounted);
-            let mut got = Hit::miss(1e30);
-            top.search(&grids, &ray, &mut got, &mut Uncounted);
-            assert_eq!((got.t, got.prim), (want.t, want.prim), "ray {i}");
-            hits += want.is_hit() as u32;
-        }
+            Ray::new(origin, target - origin)
+        });
         assert!(hits > 1000, "{hits} hits");
         assert!(bounds(&wide.nodes).contains(&aabb(&bvh.nodes[0])));
     }
@@ -575,22 +584,11 @@ mod tests {
         assert!(need > STACK_ENTRIES, "{need}");
         let wide = pack(&bvh).expect("packs narrower");
         assert!(wide.nodes.len() * 2 < bvh.nodes.len(), "{} elements", wide.nodes.len());
-        let binary = in_order(&boxes, &bvh.order);
-        let order: Vec<u32> = wide.order.iter().map(|&k| bvh.order[k as usize]).collect();
-        let grids = in_order(&boxes, &order);
-        let top = TopNodes::new(wide.nodes.as_slice());
-        let mut hits = 0;
-        for i in 0..2000 {
+        let hits = same_hits(&boxes, &bvh, &wide, |i| {
             let a = i as f32 * 0.618;
             let origin = Vec3::new(3.0 * a.cos(), 3.0 * (1.3 * a).sin(), 2.0 * (0.7 * a).cos());
-            let ray = Ray::new(origin, -origin + Vec3::new(0.1 * a.sin(), 0.0, 0.05));
-            let mut want = Hit::miss(1e30);
-            bvh.nodes.as_slice().search(&binary, &ray, &mut want, &mut Uncounted);
-            let mut got = Hit::miss(1e30);
-            top.search(&grids, &ray, &mut got, &mut Uncounted);
-            assert_eq!((got.t, got.prim), (want.t, want.prim), "ray {i}");
-            hits += want.is_hit() as u32;
-        }
+            Ray::new(origin, -origin + Vec3::new(0.1 * a.sin(), 0.0, 0.05))
+        });
         assert!(hits > 1000, "{hits} hits");
     }
 }
