@@ -47,6 +47,7 @@ pub mod gpu;
 pub mod grid;
 pub mod heat_map;
 pub mod image_io;
+pub mod lagrangian;
 pub mod limits;
 pub mod lod;
 pub mod mesh;

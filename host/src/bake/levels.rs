@@ -90,28 +90,15 @@ fn fit_levels(reference: &Mesh, crossed: &Crossed, options: &BakeOptions) -> Lev
     let surface = NearestTriangles::new(reference);
     let levels = (0..=finest)
         .map(|level| {
-            let (positions, directions, triangles) = crossed.folded();
-            let lines = MicroLines::new(positions, directions, triangles, level);
-            let (n, big, step) = (grid_size(level), grid_size(finest), 1 << (finest - level));
-            let mut values = vec![0.0f32; lines.origins.len()];
-            for (of_triangle, crossings) in lines.of_triangle.iter().zip(&crossed.second) {
-                for p in lattice_points(n) {
-                    let line = of_triangle[u_major_index(p, n) as usize] as usize;
-                    let at = u_major_index([p[0] * step, p[1] * step], big) as usize;
-                    values[line] = crossings[at].t.clamp(0.0, 1.0);
-                }
-            }
             // As many samples as the finest level's fit, however few the micro-triangles.
             let refinement = refine::Refinement {
                 samples: options.refinement.samples << (2 * (finest - level)),
                 ..options.refinement
             };
-            refine::refine(reference, &lines, &mut values, &refinement);
+            let (lines, values) = crossed.fitted(reference, level, &refinement);
             LevelFit {
                 squared_error: squared_error_by_triangle(&lines, &values, (&samples, &surface)),
-                values: (lines.of_triangle.iter())
-                    .map(|of_triangle| of_triangle.iter().map(|&line| values[line as usize]).collect())
-                    .collect(),
+                values: lines.per_triangle(&values),
             }
         })
         .collect();
@@ -182,16 +169,8 @@ pub fn choose_levels(triangles: &[[u32; 3]], fits: &LevelFits, target: LevelTarg
         LevelTarget::MaxBytes(b) => *bytes <= b,
     };
     let low_fits = matches!(target, LevelTarget::MaxError(_));
-    let (mut low, mut high) = (1e-30f64, 1e30f64);
-    for _ in 0..100 {
-        let mid = (low * high).sqrt();
-        if fits_target(&pick(mid)) == low_fits {
-            low = mid;
-        } else {
-            high = mid;
-        }
-    }
-    pick(if low_fits { low } else { high }).0
+    let rate = crate::lagrangian::bisect_rate(low_fits, |rate| fits_target(&pick(rate)));
+    pick(rate).0
 }
 
 /// Levels raised until those across every edge (`edges`: the triangles around each) differ

@@ -141,7 +141,15 @@ pub struct BakeReport {
 /// Bakes `reference` (a mesh in its local frame) as `options` say.
 pub fn bake(reference: &Mesh, options: &BakeOptions) -> Result<Baked> {
     let crossed = cross(reference, options)?;
-    let fitted = refined(reference, crossed.folded(), &crossed.second, options);
+    let fitted = match options.refinement.rounds {
+        0 => (crossed.second.iter())
+            .map(|c| c.iter().map(|x| x.t).collect())
+            .collect(),
+        _ => {
+            let (lines, values) = crossed.fitted(reference, options.levels, &options.refinement);
+            lines.per_triangle(&values)
+        }
+    };
     let values: Vec<(u32, Vec<u16>)> = fitted
         .iter()
         .map(|c| (options.levels, c.iter().map(|&u| fit::quantize(u)).collect()))
@@ -174,6 +182,25 @@ struct Crossed {
 impl Crossed {
     fn folded(&self) -> FoldedBase<'_> {
         (&self.positions, &self.directions, &self.triangles)
+    }
+
+    /// The lines of the base's level-`level` lattice (at most the crossings' level), and
+    /// their values: the crossings at the lattice's points, refined as `refinement` says.
+    fn fitted(&self, reference: &Mesh, level: u32, refinement: &Refinement) -> (MicroLines, Vec<f32>) {
+        let (positions, directions, triangles) = self.folded();
+        let lines = MicroLines::new(positions, directions, triangles, level);
+        let (n, big) = (grid_size(level), grid_size(self.report.levels));
+        let step = 1 << (self.report.levels - level);
+        let mut values = vec![0.0f32; lines.origins.len()];
+        for (of_triangle, crossings) in lines.of_triangle.iter().zip(&self.second) {
+            for p in lattice_points(n) {
+                let line = of_triangle[u_major_index(p, n) as usize] as usize;
+                let at = u_major_index([p[0] * step, p[1] * step], big) as usize;
+                values[line] = crossings[at].t.clamp(0.0, 1.0);
+            }
+        }
+        refine::refine(reference, &lines, &mut values, refinement);
+        (lines, values)
     }
 }
 
@@ -247,29 +274,6 @@ fn cross(reference: &Mesh, options: &BakeOptions) -> Result<Crossed> {
         second,
         report,
     })
-}
-
-/// The second pass's values, per triangle in u-major order, refined as `options` say.
-fn refined(
-    reference: &Mesh,
-    (positions, directions, triangles): FoldedBase,
-    crossings: &[Vec<Crossing>],
-    options: &BakeOptions,
-) -> Vec<Vec<f32>> {
-    if options.refinement.rounds == 0 {
-        return crossings.iter().map(|c| c.iter().map(|x| x.t).collect()).collect();
-    }
-    let lines = MicroLines::new(positions, directions, triangles, options.levels);
-    let mut values = vec![0.0f32; lines.origins.len()];
-    for (of_triangle, c) in lines.of_triangle.iter().zip(crossings) {
-        for (&line, x) in of_triangle.iter().zip(c) {
-            values[line as usize] = x.t.clamp(0.0, 1.0);
-        }
-    }
-    refine::refine(reference, &lines, &mut values, &options.refinement);
-    (lines.of_triangle.iter())
-        .map(|of_triangle| of_triangle.iter().map(|&line| values[line as usize]).collect())
-        .collect()
 }
 
 /// The micro-vertex lines of every base triangle at one level, in u-major order.

@@ -148,8 +148,15 @@ impl MicroLines {
         }
     }
 
+    /// `values` (one per line) per base triangle, each triangle's in u-major order.
+    pub fn per_triangle(&self, values: &[f32]) -> Vec<Vec<f32>> {
+        (self.of_triangle.iter())
+            .map(|of_triangle| of_triangle.iter().map(|&line| values[line as usize]).collect())
+            .collect()
+    }
+
     /// The points that `values` (one per line) decode to.
-    pub fn positions(&self, values: &[f32]) -> Vec<Vec3> {
+    fn positions(&self, values: &[f32]) -> Vec<Vec3> {
         (self.origins.iter().zip(&self.directions).zip(values))
             .map(|((&o, &d), &u)| o + d * u)
             .collect()

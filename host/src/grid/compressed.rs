@@ -292,16 +292,8 @@ impl Allocation {
     /// The rate that `fits` says is the last to fit, where rates below it (`low_fits`) or
     /// above it do, by bisection of its logarithm.
     fn bisect(&self, low_fits: bool, fits: impl Fn(&(f64, u64, Vec<ValueCode>)) -> bool) -> Vec<ValueCode> {
-        let (mut low, mut high) = (1e-30f64, 1e30f64);
-        for _ in 0..100 {
-            let mid = (low * high).sqrt();
-            if fits(&self.pick(mid)) == low_fits {
-                low = mid;
-            } else {
-                high = mid;
-            }
-        }
-        self.pick(if low_fits { low } else { high }).2
+        let rate = crate::lagrangian::bisect_rate(low_fits, |rate| fits(&self.pick(rate)));
+        self.pick(rate).2
     }
 
     /// The widths whose squared error, with the base edges', stays within `budget` in the
