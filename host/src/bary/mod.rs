@@ -240,33 +240,18 @@ pub fn read_with_mesh(bytes: &[u8]) -> Result<(Micromap, MeshProperties)> {
         );
     }
     let (mut values, mut groups, mut triangles, mut code) = (None, None, None, None);
-    let mut mesh = MeshProperties::default();
-    let mut mesh_seen = Vec::new();
+    let mut mesh_ranges: [Option<std::ops::Range<usize>>; MeshProperty::ALL.len()] = Default::default();
     for at in table.clone().step_by(PROPERTY_INFO_BYTES) {
         let id = [0, 4, 8, 12].map(|k| file.u32(at + k).unwrap_or(0));
-        if let Some(&(property, _)) = MeshProperty::ALL.iter().find(|(_, i)| *i == id) {
-            let name = property.name();
-            if file.u32(at + 32)? != 0 {
-                fail!(
-                    Input,
-                    "its {name} property is supercompressed, which no reader supports"
-                );
-            }
-            if mesh_seen.contains(&property) {
-                fail!(Input, "its {name} property appears twice");
-            }
-            mesh_seen.push(property);
-            mesh.read(&file, property, range(&file, at + 16, &format!("its {name} property"))?)?;
-            continue;
-        }
-        let slot = match id {
-            VALUES_ID => &mut values,
-            GROUPS_ID => &mut groups,
-            TRIANGLES_ID => &mut triangles,
-            VALUE_CODE_ID => &mut code,
+        let mesh = MeshProperty::ALL.iter().position(|(_, i)| *i == id);
+        let (slot, name) = match (id, mesh) {
+            (_, Some(k)) => (&mut mesh_ranges[k], MeshProperty::ALL[k].0.name()),
+            (VALUES_ID, _) => (&mut values, "values"),
+            (GROUPS_ID, _) => (&mut groups, "groups"),
+            (TRIANGLES_ID, _) => (&mut triangles, "triangles"),
+            (VALUE_CODE_ID, _) => (&mut code, "gridrt value code"),
             _ => continue,
         };
-        let name = property_name(id);
         if file.u32(at + 32)? != 0 {
             fail!(
                 Input,
@@ -276,6 +261,12 @@ pub fn read_with_mesh(bytes: &[u8]) -> Result<(Micromap, MeshProperties)> {
         let bytes = range(&file, at + 16, &format!("its {name} property"))?;
         if slot.replace(bytes).is_some() {
             fail!(Input, "its {name} property appears twice");
+        }
+    }
+    let mut mesh = MeshProperties::default();
+    for (&(property, _), bytes) in MeshProperty::ALL.iter().zip(mesh_ranges) {
+        if let Some(bytes) = bytes {
+            mesh.read(&file, property, bytes)?;
         }
     }
     let missing = |name: &str| error!(Input, "it has no {name} property");
@@ -288,15 +279,6 @@ pub fn read_with_mesh(bytes: &[u8]) -> Result<(Micromap, MeshProperties)> {
         map.value_code = value_code(&file, code, &map.triangles)?;
     }
     Ok((map, mesh))
-}
-
-fn property_name(id: [u32; 4]) -> &'static str {
-    match id {
-        VALUES_ID => "values",
-        GROUPS_ID => "groups",
-        TRIANGLES_ID => "triangles",
-        _ => "gridrt value code",
-    }
 }
 
 /// gridrt's value code property, checked against the triangles' levels. A code of another

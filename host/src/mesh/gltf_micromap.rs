@@ -234,21 +234,29 @@ impl Primitive<'_> {
         ))
     }
 
-    /// `count` elements of one of the micromap's mesh properties from the element the
-    /// extension's `key` names (0 by default).
-    fn micromap_elements<'p, T>(
+    /// The primitive's own elements (`own`, read from an accessor of the extension), else
+    /// `count` elements of the micromap's mesh property that `property` picks, from the element
+    /// the extension's `offset_key` names (0 by default), each made one of the primitive's by
+    /// `convert`; `None` where neither has them.
+    fn own_or_micromaps<T, U>(
         &self,
-        property: Option<&'p Vec<T>>,
-        key: &str,
+        own: Option<Vec<U>>,
+        (property, offset_key): (impl Fn(&MeshProperties) -> Option<&Vec<T>>, &str),
         count: usize,
-    ) -> Result<Option<&'p [T]>> {
-        let Some(all) = property else { return Ok(None) };
-        let first = self.index(key).unwrap_or(0);
+        convert: impl Fn(&T) -> U,
+    ) -> Result<Option<Vec<U>>> {
+        if own.is_some() {
+            return Ok(own);
+        }
+        let Some(all) = property(&self.micromap()?.1) else {
+            return Ok(None);
+        };
+        let first = self.index(offset_key).unwrap_or(0);
         match all.get(first..first.saturating_add(count)) {
-            Some(some) => Ok(Some(some)),
+            Some(some) => Ok(Some(some.iter().map(convert).collect())),
             None => fail!(
                 Input,
-                "its micromap holds {} elements where its {key} of {first} needs {count}",
+                "its micromap holds {} elements where its {offset_key} of {first} needs {count}",
                 all.len()
             ),
         }
@@ -293,14 +301,12 @@ impl Primitive<'_> {
     /// Each of the primitive's `vertices` vertices' direction: from the `directions`
     /// accessor, else from the micromap's, else the vertex normals, as the extension says.
     fn directions(&self, vertices: usize) -> Result<Vec<DVec3>> {
-        let found = match self.floats::<3>("directions", &[Dimensions::Vec3, Dimensions::Vec4])? {
-            Some(d) => Some(d),
-            None => {
-                let property = self.micromap()?.1.directions.as_ref();
-                (self.micromap_elements(property, "directionsOffset", vertices)?)
-                    .map(|d| d.iter().map(|v| v.map(f64::from)).collect())
-            }
-        };
+        let found = self.own_or_micromaps(
+            self.floats::<3>("directions", &[Dimensions::Vec3, Dimensions::Vec4])?,
+            (|m| m.directions.as_ref(), "directionsOffset"),
+            vertices,
+            |d| d.map(f64::from),
+        )?;
         let directions = match found {
             Some(d) => d,
             None => self.normals()?.ok_or_else(|| {
@@ -337,15 +343,14 @@ impl Primitive<'_> {
     /// Each vertex's bias and scale: from the `directionBounds` accessor, else from the
     /// micromap's; none when neither has them.
     fn direction_bounds(&self, vertices: usize) -> Result<Option<Vec<[f64; 2]>>> {
-        let bounds = match self.floats::<2>("directionBounds", &[Dimensions::Vec2])? {
-            Some(b) => b,
-            None => {
-                let property = self.micromap()?.1.direction_bounds.as_ref();
-                match self.micromap_elements(property, "directionBoundsOffset", vertices)? {
-                    Some(b) => b.iter().map(|v| v.map(f64::from)).collect(),
-                    None => return Ok(None),
-                }
-            }
+        let Some(bounds) = self.own_or_micromaps(
+            self.floats::<2>("directionBounds", &[Dimensions::Vec2])?,
+            (|m| m.direction_bounds.as_ref(), "directionBoundsOffset"),
+            vertices,
+            |b| b.map(f64::from),
+        )?
+        else {
+            return Ok(None);
         };
         if bounds.len() != vertices {
             fail!(Input, "{} direction bounds for {vertices} positions", bounds.len());
@@ -357,15 +362,14 @@ impl Primitive<'_> {
     /// across edge `e` is a level coarser): from the `primitiveFlags` accessor, else from the
     /// micromap's.
     fn primitive_flags(&self, count: usize) -> Result<Option<Vec<u8>>> {
-        let flags: Vec<u64> = match self.integers("primitiveFlags")? {
-            Some(f) => f,
-            None => {
-                let property = self.micromap()?.1.triangle_flags.as_ref();
-                match self.micromap_elements(property, "primitiveFlagsOffset", count)? {
-                    Some(f) => f.iter().map(|&f| f as u64).collect(),
-                    None => return Ok(None),
-                }
-            }
+        let Some(flags) = self.own_or_micromaps(
+            self.integers("primitiveFlags")?,
+            (|m| m.triangle_flags.as_ref(), "primitiveFlagsOffset"),
+            count,
+            |&f| f as u64,
+        )?
+        else {
+            return Ok(None);
         };
         if flags.len() != count {
             fail!(
@@ -384,15 +388,14 @@ impl Primitive<'_> {
     /// `mapOffset`: from the `mapIndices` accessor, else from the micromap's mappings; none
     /// (the triangle's own index) when neither has them.
     fn mapping(&self, count: usize) -> Result<Option<Vec<u64>>> {
-        let mapping = match self.integers("mapIndices")? {
-            Some(m) => m,
-            None => {
-                let property = self.micromap()?.1.triangle_mappings.as_ref();
-                match self.micromap_elements(property, "mapIndicesOffset", count)? {
-                    Some(m) => m.iter().map(|&m| m as u64).collect(),
-                    None => return Ok(None),
-                }
-            }
+        let Some(mapping) = self.own_or_micromaps(
+            self.integers("mapIndices")?,
+            (|m| m.triangle_mappings.as_ref(), "mapIndicesOffset"),
+            count,
+            |&m| m as u64,
+        )?
+        else {
+            return Ok(None);
         };
         if mapping.len() < count {
             fail!(Input, "its mapIndices hold fewer than its {count} triangles");
