@@ -137,7 +137,7 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
                 max_added_error: options.max_added_error,
                 added_error: compressed.added_error,
                 max_bytes: budget.max_bytes,
-                budget_default: args.max_bytes.is_none(),
+                budget_default: budget.default,
                 budget_binds: budget.binds,
                 budget_met: budget.met,
                 uncompressed_symmetric: plain.symmetric.relative_to(plain.a_diagonal),
@@ -195,9 +195,11 @@ fn byte_budget(args: &BakeArgs) -> Option<f64> {
     }
 }
 
-/// What a byte budget did to a compression (see [`compress_within`]).
+/// What a byte budget did to a compression (see [`compress_within`]): the budget, whether it
+/// was the level's default, whether the bound gave way to it, whether it was met.
 struct BudgetOutcome {
     max_bytes: Option<f64>,
+    default: bool,
     binds: bool,
     met: bool,
 }
@@ -221,8 +223,9 @@ fn compress_within(
     options: ValueCompression,
     budget: Option<ByteBudget>,
 ) -> Result<(CompressedMesh, BudgetOutcome)> {
-    let unbudgeted = |max_bytes| BudgetOutcome {
-        max_bytes,
+    let unbudgeted = || BudgetOutcome {
+        max_bytes: None,
+        default: false,
         binds: false,
         met: true,
     };
@@ -232,12 +235,12 @@ fn compress_within(
         asked,
     }) = budget
     else {
-        return Ok((compress(mesh, &options)?, unbudgeted(None)));
+        return Ok((compress(mesh, &options)?, unbudgeted()));
     };
     let allowed = (per_micro * micro_triangles as f64).floor() as u64;
     let total = |parts: &[(&str, u64)]| parts.iter().map(|&(_, bytes)| bytes).sum::<u64>();
     let Some(plain) = grid_memory(mesh) else {
-        return Ok((compress(mesh, &options)?, unbudgeted(None)));
+        return Ok((compress(mesh, &options)?, unbudgeted()));
     };
     // What the values may take: the budget less the rest (base mesh, headers, radii, top
     // level), whose sizes the values do not change, less the block table with entries wide
@@ -278,6 +281,7 @@ fn compress_within(
     }
     let outcome = BudgetOutcome {
         max_bytes: Some(per_micro),
+        default: !asked,
         binds: compressed.added_error > options.max_added_error,
         met: miss >= 0,
     };
