@@ -115,12 +115,16 @@ fn distances(points: &[DVec3], surface: &NearestTriangles) -> Vec<f64> {
 
 /// `sampling.samples` points on the surface, stratified by area (see the module docs).
 pub fn area_samples(mesh: &Mesh, sampling: &Sampling) -> Vec<DVec3> {
-    let samples = area_samples_on_triangles(mesh, sampling);
-    samples.into_iter().map(|(point, _)| point).collect()
+    samples_as(mesh, sampling, |point, _| point)
 }
 
 /// [`area_samples`], each with the index of the triangle it lies on.
 pub fn area_samples_on_triangles(mesh: &Mesh, sampling: &Sampling) -> Vec<(DVec3, u32)> {
+    samples_as(mesh, sampling, |point, t| (point, t))
+}
+
+/// The samples of [`area_samples`], each `sample(point, triangle)`.
+fn samples_as<T: Send>(mesh: &Mesh, sampling: &Sampling, sample: impl Fn(DVec3, u32) -> T + Sync) -> Vec<T> {
     let corners = |t: &[u32; 3]| t.map(|i| mesh.positions[i as usize].as_dvec3());
     let mut cumulative = Vec::with_capacity(mesh.triangles.len());
     let mut total = 0.0f64;
@@ -142,7 +146,7 @@ pub fn area_samples_on_triangles(mesh: &Mesh, sampling: &Sampling) -> Vec<(DVec3
             let [a, b, c] = corners(&mesh.triangles[t]);
             // Uniform on the triangle: the square root folds the unit square onto it evenly.
             let (r1, r2) = (rng.unit().sqrt(), rng.unit());
-            (a * (1.0 - r1) + b * (r1 * (1.0 - r2)) + c * (r1 * r2), t as u32)
+            sample(a * (1.0 - r1) + b * (r1 * (1.0 - r2)) + c * (r1 * r2), t as u32)
         })
         .collect()
 }
