@@ -50,6 +50,13 @@ impl Scene {
         matches!(self, Scene::Grids(g) if g.params.displaced == DISPLACED_COMPRESSED)
     }
 
+    /// Whether the scene is of grids in a format made for displaced grids (their values, tight
+    /// headers, relative radii, a wide top level), which only kernels of their own read on the
+    /// GPU: plain grids' kernels leave those formats out.
+    pub fn uses_displaced_formats(&self) -> bool {
+        matches!(self, Scene::Grids(g) if g.params.uses_displaced_formats() || g.has_wide_top())
+    }
+
     /// Bytes of everything the traversal reads.
     pub fn memory(&self) -> usize {
         let parts = match self {

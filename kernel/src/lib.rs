@@ -3,12 +3,13 @@
 //!
 //! Every kernel exists twice: reading each scene buffer from one binding, and reading a scene
 //! split into chunks (descriptor set 1, see `gridrt_shared::buffer`) when a buffer is larger
-//! than one binding may be. Both run the same traversal. Grids of compressed displacement
-//! values have kernels of their own, the only ones that carry their decoder, and are never
-//! split.
+//! than one binding may be. Both run the same traversal. Grids in the formats made for
+//! displaced grids have whole-buffer kernels of their own, the only ones that carry those
+//! formats, and grids of compressed values others again, the only ones that carry their
+//! decoder (see `Buffer::DISPLACED_FORMATS`); neither is ever split.
 #![cfg_attr(target_arch = "spirv", no_std)]
 
-use gridrt_shared::buffer::{Chunks, CompressedWords, Split};
+use gridrt_shared::buffer::{Buffer, Chunks, CompressedWords, DisplacedWords, Split};
 use gridrt_shared::cost::Uncounted;
 use gridrt_shared::glam::{UVec3, Vec3};
 use gridrt_shared::grid_traverse::{leaf_test_class, GridScene, OneVisitGrids};
@@ -219,8 +220,9 @@ fn stacked<S>(scene: S) -> S {
     scene
 }
 
-/// A scene's words read as they are: every format but compressed values, whose kernels read
-/// them as [`CompressedWords`] and so carry the decoder (split scenes never hold them).
+/// A scene's words read as they are: plain grids' formats only. Kernels for the formats of
+/// displaced grids read them as [`DisplacedWords`], and those for compressed values as
+/// [`CompressedWords`] (split scenes never hold either).
 fn whole(words: &[u32]) -> &[u32] {
     words
 }
@@ -233,6 +235,9 @@ grid_image_kernels!(render_pixel, stacked: render_grids, render_grids_split);
 grid_image_kernels!(render_pixel, OneVisitGrids: render_grids_one_visit, render_grids_one_visit_split);
 triangle_image_kernels!(cost_pixel: cost_triangles, cost_triangles_split);
 grid_image_kernels!(cost_pixel, stacked: cost_grids, cost_grids_split);
+grid_image_kernel!(render_pixel, stacked, DisplacedWords: render_grids_displaced);
+grid_image_kernel!(render_pixel, OneVisitGrids, DisplacedWords: render_grids_one_visit_displaced);
+grid_image_kernel!(cost_pixel, stacked, DisplacedWords: cost_grids_displaced);
 grid_image_kernel!(render_pixel, stacked, CompressedWords: render_grids_compressed);
 grid_image_kernel!(render_pixel, OneVisitGrids, CompressedWords: render_grids_one_visit_compressed);
 grid_image_kernel!(cost_pixel, stacked, CompressedWords: cost_grids_compressed);
@@ -331,6 +336,8 @@ macro_rules! grid_ray_kernels {
 
 grid_ray_kernels!(stacked: trace_grids_rays, trace_grids_rays_split);
 grid_ray_kernels!(OneVisitGrids: trace_grids_rays_one_visit, trace_grids_rays_one_visit_split);
+grid_ray_kernel!(stacked, DisplacedWords: trace_grids_rays_displaced);
+grid_ray_kernel!(OneVisitGrids, DisplacedWords: trace_grids_rays_one_visit_displaced);
 grid_ray_kernel!(stacked, CompressedWords: trace_grids_rays_compressed);
 grid_ray_kernel!(OneVisitGrids, CompressedWords: trace_grids_rays_one_visit_compressed);
 
@@ -375,14 +382,15 @@ fn append(counter: &mut [u32], n: u32) -> u32 {
     first
 }
 
-/// The grids of a two-phase kernel's bindings, walked by their root's visit alone.
-fn one_visit_grids<'a>(
+/// The grids of a two-phase kernel's bindings, walked by their root's visit alone, their
+/// words read as `W`.
+fn one_visit_grids<'a, W: Buffer<u32>>(
     params: &TraceParams,
     headers: &'a [GridHeader],
-    vertices: &'a [u32],
-    radii: &'a [u32],
+    vertices: W,
+    radii: W,
     micro_triangles: &'a [u32],
-) -> OneVisitGrids<'a, &'a [GridHeader], &'a [u32]> {
+) -> OneVisitGrids<'a, &'a [GridHeader], W> {
     OneVisitGrids(GridScene {
         headers,
         vertices,
@@ -531,47 +539,6 @@ pub fn walk_rounds(
     out.leave(r, leaf, state);
 }
 
-/// The two-phase schedule's second phase, first half: one queued grid per thread, its spheres
-/// and footprints; the visits that need a leaf test are queued again, counted by size class
-/// (`leaf_test_class`), the others answer a miss.
-#[allow(clippy::too_many_arguments)] // one per binding
-#[spirv(compute(threads(64, 1, 1)))]
-pub fn visit_queued(
-    #[spirv(global_invocation_id)] id: UVec3,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[RayRecord],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] queue: &[QueueEntry],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] results: &mut [HitRecord],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] queue_count: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] headers: &[GridHeader],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] vertices: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] radii: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] leaves: &mut [LeafEntry],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 9)] leaf_count: &mut [u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 10)] class_counts: &mut [u32],
-) {
-    let i = id.x as usize;
-    if i >= queue_count[ITEMS] as usize {
-        return;
-    }
-    let entry = queue[i];
-    let ray = ray_of(&rays[entry.ray as usize]);
-    // The first half reads no cell table.
-    let grids = one_visit_grids(params, headers, vertices, radii, vertices);
-    let mut scratch = grids.scratch(&ray);
-    let window = grids.leaf_window(entry.grid, &ray, entry.t, &mut scratch, &mut Uncounted);
-    results[i] = HitRecord {
-        t: entry.t,
-        prim: NO_HIT,
-    };
-    if window[0] <= window[1] {
-        let class = leaf_test_class(&params.grid, window);
-        let rank = atomic_add(&mut class_counts[class as usize], 1);
-        let slot = append(leaf_count, 1);
-        leaves[slot as usize] = LeafEntry::new(i as u32, window, rank);
-    }
-}
-
 /// Where each size class of the queued leaf tests begins once they are sorted by class: the
 /// counts of the classes before it. One thread per class.
 #[spirv(compute(threads(64, 1, 1)))]
@@ -612,105 +579,169 @@ pub fn sort_queued_leaves(
     sorted[(class_starts[class as usize] + leaf.rank) as usize] = leaf;
 }
 
-/// The two-phase schedule's second phase, second half: one queued leaf test per thread, in the
-/// order of their size classes (`sort_queued_leaves`).
-#[allow(clippy::too_many_arguments)] // one per binding
-#[spirv(compute(threads(64, 1, 1)))]
-pub fn test_queued_leaves(
-    #[spirv(global_invocation_id)] id: UVec3,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[RayRecord],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] queue: &[QueueEntry],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] results: &mut [HitRecord],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] leaves: &[LeafEntry],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] leaf_count: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] micro_triangles: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] headers: &[GridHeader],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] vertices: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 9)] radii: &[u32],
-) {
-    let i = id.x as usize;
-    if i >= leaf_count[ITEMS] as usize {
-        return;
-    }
-    let leaf = leaves[i];
-    let entry = queue[leaf.slot as usize];
-    let ray = ray_of(&rays[entry.ray as usize]);
-    let grids = one_visit_grids(params, headers, vertices, radii, micro_triangles);
-    let mut hit = Hit::miss(entry.t);
-    let mut scratch = grids.scratch(&ray);
-    grids.test_leaf_window(entry.grid, leaf.window(), &ray, &mut hit, &mut scratch, &mut Uncounted);
-    results[leaf.slot as usize] = record(&hit);
+/// Declares the two-phase schedule's grid kernels, their scene's words read as `$words` wraps
+/// them (see [`whole`]).
+macro_rules! two_phase_grid_kernels {
+    ($words:path: $visit:ident, $test:ident, $finish:ident) => {
+        /// The two-phase schedule's second phase, first half: one queued grid per thread, its spheres
+        /// and footprints; the visits that need a leaf test are queued again, counted by size class
+        /// (`leaf_test_class`), the others answer a miss.
+        #[allow(clippy::too_many_arguments)] // one per binding
+        #[spirv(compute(threads(64, 1, 1)))]
+        pub fn $visit(
+            #[spirv(global_invocation_id)] id: UVec3,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[RayRecord],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] queue: &[QueueEntry],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] results: &mut [HitRecord],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] queue_count: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] headers: &[GridHeader],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] vertices: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] radii: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] leaves: &mut [LeafEntry],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 9)] leaf_count: &mut [u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 10)] class_counts: &mut [u32],
+        ) {
+            let i = id.x as usize;
+            if i >= queue_count[ITEMS] as usize {
+                return;
+            }
+            let entry = queue[i];
+            let ray = ray_of(&rays[entry.ray as usize]);
+            // The first half reads no cell table.
+            let grids = one_visit_grids(params, headers, $words(vertices), $words(radii), vertices);
+            let mut scratch = grids.scratch(&ray);
+            let window = grids.leaf_window(entry.grid, &ray, entry.t, &mut scratch, &mut Uncounted);
+            results[i] = HitRecord {
+                t: entry.t,
+                prim: NO_HIT,
+            };
+            if window[0] <= window[1] {
+                let class = leaf_test_class(&params.grid, window);
+                let rank = atomic_add(&mut class_counts[class as usize], 1);
+                let slot = append(leaf_count, 1);
+                leaves[slot as usize] = LeafEntry::new(i as u32, window, rank);
+            }
+        }
+
+        /// The two-phase schedule's second phase, second half: one queued leaf test per thread, in the
+        /// order of their size classes (`sort_queued_leaves`).
+        #[allow(clippy::too_many_arguments)] // one per binding
+        #[spirv(compute(threads(64, 1, 1)))]
+        pub fn $test(
+            #[spirv(global_invocation_id)] id: UVec3,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[RayRecord],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] queue: &[QueueEntry],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] results: &mut [HitRecord],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] leaves: &[LeafEntry],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] leaf_count: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] micro_triangles: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] headers: &[GridHeader],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] vertices: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 9)] radii: &[u32],
+        ) {
+            let i = id.x as usize;
+            if i >= leaf_count[ITEMS] as usize {
+                return;
+            }
+            let leaf = leaves[i];
+            let entry = queue[leaf.slot as usize];
+            let ray = ray_of(&rays[entry.ray as usize]);
+            let grids = one_visit_grids(params, headers, $words(vertices), $words(radii), micro_triangles);
+            let mut hit = Hit::miss(entry.t);
+            let mut scratch = grids.scratch(&ray);
+            grids.test_leaf_window(
+                entry.grid,
+                leaf.window(),
+                &ray,
+                &mut hit,
+                &mut scratch,
+                &mut Uncounted,
+            );
+            results[leaf.slot as usize] = record(&hit);
+        }
+
+        /// The two-phase schedule's tail: the rays still walking finish in one pass, their grids
+        /// visited in place, once too few are left to fill the queue's dispatches. A thread takes the
+        /// next ray of the list (`take_next`) as soon as its ray is done, one leaf a pass: in a SIMD
+        /// group no lane waits idle for the group's longest walk while rays are left. It takes at most
+        /// `FINISH_RAYS_PER_THREAD` rays, so that its SIMD group's loops stay within a driver's limit.
+        #[allow(clippy::too_many_arguments)] // one per binding
+        #[spirv(compute(threads(64, 1, 1)))]
+        pub fn $finish(
+            #[spirv(global_invocation_id)] id: UVec3,
+            #[spirv(num_workgroups)] groups: UVec3,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[RayRecord],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] hits: &mut [HitRecord],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[BvhNode],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] states: &[WalkState],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] stacks: &mut [u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] active_in: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] results: &[HitRecord],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] count_in: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 9)] micro_triangles: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 10)] headers: &[GridHeader],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 11)] vertices: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 12)] radii: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 13)] next: &mut [u32],
+        ) {
+            let count = count_in[ITEMS];
+            if id.x >= count {
+                return;
+            }
+            let grids = one_visit_grids(params, headers, $words(vertices), $words(radii), micro_triangles);
+            let top = TopNodes::new(nodes);
+            let mut r = active_in[id.x as usize] as usize;
+            let mut ray = ray_of(&rays[r]);
+            let mut state = states[r];
+            let mut scratch = grids.scratch(&ray);
+            let mut taken = 1;
+            loop {
+                let mut stack = BufferStack {
+                    words: stacks,
+                    ray: r,
+                    rays: rays.len(),
+                };
+                let leaf = walk_round(top, results, &ray, &mut state, &mut stack);
+                if leaf.count == 0 {
+                    hits[r] = HitRecord {
+                        t: state.t,
+                        prim: state.prim,
+                    };
+                    if taken == FINISH_RAYS_PER_THREAD {
+                        break;
+                    }
+                    taken += 1;
+                    let i = take_next(next, groups);
+                    if i >= count {
+                        break;
+                    }
+                    r = active_in[i as usize] as usize;
+                    ray = ray_of(&rays[r]);
+                    state = states[r];
+                    scratch.aim(&ray);
+                } else {
+                    let mut hit = Hit::miss(state.t);
+                    grids.intersect_leaf(
+                        leaf.first,
+                        leaf.count,
+                        &ray,
+                        &mut hit,
+                        &mut scratch,
+                        &mut Uncounted,
+                    );
+                    if hit.t < state.t {
+                        state.t = hit.t;
+                        state.prim = hit.prim;
+                    }
+                    state.entries = 0;
+                }
+            }
+        }
+    };
 }
 
-/// The two-phase schedule's tail: the rays still walking finish in one pass, their grids
-/// visited in place, once too few are left to fill the queue's dispatches. A thread takes the
-/// next ray of the list (`take_next`) as soon as its ray is done, one leaf a pass: in a SIMD
-/// group no lane waits idle for the group's longest walk while rays are left. It takes at most
-/// `FINISH_RAYS_PER_THREAD` rays, so that its SIMD group's loops stay within a driver's limit.
-#[allow(clippy::too_many_arguments)] // one per binding
-#[spirv(compute(threads(64, 1, 1)))]
-pub fn finish_walks(
-    #[spirv(global_invocation_id)] id: UVec3,
-    #[spirv(num_workgroups)] groups: UVec3,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[RayRecord],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] hits: &mut [HitRecord],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[BvhNode],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] states: &[WalkState],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] stacks: &mut [u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] active_in: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] results: &[HitRecord],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] count_in: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 9)] micro_triangles: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 10)] headers: &[GridHeader],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 11)] vertices: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 12)] radii: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 13)] next: &mut [u32],
-) {
-    let count = count_in[ITEMS];
-    if id.x >= count {
-        return;
-    }
-    let grids = one_visit_grids(params, headers, vertices, radii, micro_triangles);
-    let top = TopNodes::new(nodes);
-    let mut r = active_in[id.x as usize] as usize;
-    let mut ray = ray_of(&rays[r]);
-    let mut state = states[r];
-    let mut scratch = grids.scratch(&ray);
-    let mut taken = 1;
-    loop {
-        let mut stack = BufferStack {
-            words: stacks,
-            ray: r,
-            rays: rays.len(),
-        };
-        let leaf = walk_round(top, results, &ray, &mut state, &mut stack);
-        if leaf.count == 0 {
-            hits[r] = HitRecord {
-                t: state.t,
-                prim: state.prim,
-            };
-            if taken == FINISH_RAYS_PER_THREAD {
-                break;
-            }
-            taken += 1;
-            let i = take_next(next, groups);
-            if i >= count {
-                break;
-            }
-            r = active_in[i as usize] as usize;
-            ray = ray_of(&rays[r]);
-            state = states[r];
-            scratch.aim(&ray);
-        } else {
-            let mut hit = Hit::miss(state.t);
-            grids.intersect_leaf(leaf.first, leaf.count, &ray, &mut hit, &mut scratch, &mut Uncounted);
-            if hit.t < state.t {
-                state.t = hit.t;
-                state.prim = hit.prim;
-            }
-            state.entries = 0;
-        }
-    }
-}
+two_phase_grid_kernels!(whole: visit_queued, test_queued_leaves, finish_walks);
+two_phase_grid_kernels!(DisplacedWords: visit_queued_displaced, test_queued_leaves_displaced, finish_walks_displaced);

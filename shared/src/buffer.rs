@@ -25,6 +25,15 @@ pub trait Buffer<T>: Copy {
     /// SIMD hardware that runs both sides of a branch.
     const DECODES_COMPRESSED: bool = !cfg!(target_arch = "spirv");
 
+    /// Whether code reading this buffer carries the formats made for displaced grids (see
+    /// `GridParams::uses_displaced_formats`): natively always; a GPU kernel over whole buffers
+    /// only when it reads its words as [`DisplacedWords`] or [`CompressedWords`]. Plain grids'
+    /// kernels leave them out: lavapipe runs the code of branches that none of a group's lanes
+    /// takes, and spills the registers they need. Split buffers keep the formats plain grids
+    /// may ask for (tight headers, relative radii); split kernels leave out the others by
+    /// [`Self::SPLIT`].
+    const DISPLACED_FORMATS: bool = !cfg!(target_arch = "spirv");
+
     fn load(self, index: u32) -> T;
     fn is_empty(self) -> bool;
 
@@ -67,29 +76,51 @@ impl<T: Copy, const N: usize> Buffer<T> for &[T; N] {
     }
 }
 
-/// The words of a scene of compressed displacement values, each buffer whole: a GPU kernel
-/// that reads its scene through this type decodes them (see [`Buffer::DECODES_COMPRESSED`]).
-#[derive(Copy, Clone)]
-pub struct CompressedWords<'a>(pub &'a [u32]);
+/// Declares a wrapper of a scene's words, each buffer whole, through which a GPU kernel reads
+/// them with the formats its constants say it carries.
+macro_rules! scene_words {
+    ($(#[$attr:meta])* $name:ident, displaced: $displaced:expr, compressed: $compressed:expr) => {
+        $(#[$attr])*
+        #[derive(Copy, Clone)]
+        pub struct $name<'a>(pub &'a [u32]);
 
-impl Buffer<u32> for CompressedWords<'_> {
-    const DECODES_COMPRESSED: bool = true;
+        impl Buffer<u32> for $name<'_> {
+            const DISPLACED_FORMATS: bool = $displaced;
+            const DECODES_COMPRESSED: bool = $compressed;
 
-    #[inline(always)]
-    fn load(self, index: u32) -> u32 {
-        self.0.load(index)
-    }
+            #[inline(always)]
+            fn load(self, index: u32) -> u32 {
+                self.0.load(index)
+            }
 
-    #[inline(always)]
-    fn load3(self, first: u32) -> [u32; 3] {
-        self.0.load3(first)
-    }
+            #[inline(always)]
+            fn load3(self, first: u32) -> [u32; 3] {
+                self.0.load3(first)
+            }
 
-    #[inline(always)]
-    fn is_empty(self) -> bool {
-        self.0.is_empty()
-    }
+            #[inline(always)]
+            fn is_empty(self) -> bool {
+                self.0.is_empty()
+            }
+        }
+    };
 }
+
+scene_words!(
+    /// The words of a scene in the formats made for displaced grids, other than compressed
+    /// values (see [`Buffer::DISPLACED_FORMATS`]).
+    DisplacedWords,
+    displaced: true,
+    compressed: false
+);
+
+scene_words!(
+    /// The words of a scene of compressed displacement values: a GPU kernel that reads its
+    /// scene through this type decodes them (see [`Buffer::DECODES_COMPRESSED`]).
+    CompressedWords,
+    displaced: true,
+    compressed: true
+);
 
 /// Most chunks a split scene may use. Their bindings come after a kernel's own (parameters,
 /// static list, rays and hits, or image), in a set of their own: lavapipe allows 32 storage
@@ -194,6 +225,7 @@ impl<'a, T> Split<'a, T> {
 
 impl Buffer<u32> for Split<'_, u32> {
     const SPLIT: bool = true;
+    const DISPLACED_FORMATS: bool = true;
 
     #[inline(always)]
     fn load(self, index: u32) -> u32 {

@@ -136,7 +136,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     /// The base edge and corner ids of grid `grid`, from its packed or wide header.
     #[inline]
     pub fn ids(&self, grid: u32) -> GridIds {
-        if self.params.header_bits != 0 {
+        if W::DISPLACED_FORMATS && self.params.header_bits != 0 {
             return self.tight_ids(grid);
         }
         // The same two reads either way (the second is the first again for packed headers):
@@ -191,7 +191,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     /// frame its inner vertices are decoded in.
     #[inline]
     pub fn open(&self, grid: u32) -> OpenGrid {
-        if !W::SPLIT && self.params.displaced != 0 {
+        if self.displaced() {
             return self.open_displaced(grid);
         }
         let g = &self.params;
@@ -291,13 +291,21 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         self.stored_vertex(grid, p)
     }
 
+    /// Whether the grids hold displacement values, plain or compressed. Never in a split scene
+    /// (the host refuses to split one), nor in kernels built for plain grids (see
+    /// `Buffer::DISPLACED_FORMATS`).
+    #[inline(always)]
+    fn displaced(&self) -> bool {
+        !W::SPLIT && W::DISPLACED_FORMATS && self.params.displaced != 0
+    }
+
     /// Whether the grids hold compressed values, which the traversal decodes a sub-triangle
     /// at a time rather than a point at a time. Only kernels built for them carry the decoder
     /// (see `Buffer::DECODES_COMPRESSED`): lavapipe runs the code of a branch that none of its
     /// rays takes, so the decoder's loops at every vertex read slowed every grid kernel.
     #[inline(always)]
     fn compressed(&self) -> bool {
-        !W::SPLIT && W::DECODES_COMPRESSED && self.params.displaced == DISPLACED_COMPRESSED
+        self.displaced() && W::DECODES_COMPRESSED && self.params.displaced == DISPLACED_COMPRESSED
     }
 
     /// Position of lattice point `p` of an opened grid whose vertices or values are stored
@@ -305,7 +313,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     /// innermost loops, where a call per vertex shows in the CPU backend's speed.)
     #[inline(always)]
     fn stored_vertex(&self, grid: &OpenGrid, p: Lattice) -> Vec3 {
-        if !W::SPLIT && self.params.displaced != 0 {
+        if self.displaced() {
             // A value may run on into the next word, always there: the base vertices follow
             // the values.
             return self.displaced_at(grid, p, read_bits(self.vertices, grid.slots.slot(p), DISPLACEMENT_BITS));
@@ -364,7 +372,14 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     /// reads out, since every read of a split buffer is a branch per chunk.
     #[inline(always)]
     fn leaf_pairs(&self) -> bool {
-        !W::SPLIT && self.params.leaf_pairs()
+        !W::SPLIT && W::DISPLACED_FORMATS && self.params.leaf_pairs()
+    }
+
+    /// Whether the radii are bytes relative to each grid's root ([`RADII_RELATIVE`]), a
+    /// format of displaced grids' kernels (see `Buffer::DISPLACED_FORMATS`).
+    #[inline(always)]
+    fn relative_radii(&self) -> bool {
+        W::DISPLACED_FORMATS && self.params.radius_format == RADII_RELATIVE
     }
 
     /// Spheres per grid in the radius area (see [`GridParams::stored_spheres`]).
@@ -376,7 +391,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     /// Radius of sphere `node` (breadth-first id) of `grid`.
     #[inline]
     pub fn radius(&self, grid: u32, node: u32) -> f32 {
-        if self.params.radius_format == RADII_RELATIVE {
+        if self.relative_radii() {
             let first = grid * relative_radius_words(self.stored_spheres());
             let first_leaf = level_start(self.params.leaf_level);
             if self.leaf_pairs() && node >= first_leaf {
@@ -410,7 +425,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                 leaf_radius(parent_radius, word >> 24),
             ];
         }
-        if self.params.radius_format == RADII_RELATIVE {
+        if self.relative_radii() {
             // The four bytes of one word.
             let first = grid * relative_radius_words(self.stored_spheres());
             let word = self.radii.load(first + 1 + (first_child - 1) / 4);
@@ -1106,6 +1121,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
 
 /// Grid primitives of any hierarchy depth: each grid walked with a stack of sub-triangles.
 impl<H: Buffer<GridHeader>, W: Buffer<u32>> LeafPrimitives for GridScene<'_, H, W> {
+    const DISPLACED_FORMATS: bool = W::DISPLACED_FORMATS;
     type Scratch = GridScratch;
 
     fn scratch(&self, ray: &Ray) -> GridScratch {
@@ -1184,6 +1200,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> OneVisitGrids<'_, H, W> {
 }
 
 impl<H: Buffer<GridHeader>, W: Buffer<u32>> LeafPrimitives for OneVisitGrids<'_, H, W> {
+    const DISPLACED_FORMATS: bool = W::DISPLACED_FORMATS;
     type Scratch = GridScratch;
 
     fn scratch(&self, ray: &Ray) -> GridScratch {

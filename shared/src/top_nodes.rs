@@ -75,8 +75,9 @@ impl<N: Buffer<BvhNode>> Hierarchy for TopNodes<N> {
     #[inline(always)]
     fn search<P: LeafPrimitives, T: Tally>(self, prims: &P, ray: &Ray, hit: &mut Hit, tally: &mut T) {
         // Split kernels leave the wide walk out: with it their first compile takes far longer.
-        // Split scenes never hold a wide top level (the host refuses to split one).
-        if !N::SPLIT && self.wide {
+        // Split scenes never hold a wide top level (the host refuses to split one), and plain
+        // grids' kernels leave it out too (see `LeafPrimitives::DISPLACED_FORMATS`).
+        if !N::SPLIT && P::DISPLACED_FORMATS && self.wide {
             traverse_wide(self.nodes, prims, ray, hit, tally)
         } else {
             traverse_bvh(self, prims, ray, hit, tally)

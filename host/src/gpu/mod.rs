@@ -55,12 +55,13 @@ pub struct Gpu {
     pub adapter: wgpu::AdapterInfo,
     module: wgpu::ShaderModule,
     whole: Kernels,
-    /// The kernels for split scenes, grids of compressed values and the heat map's, each made
-    /// the first time it runs: the split ones bind more buffers than some adapters allow, and
-    /// all take drivers long to compile.
-    on_demand: [std::sync::OnceLock<wgpu::ComputePipeline>; 15],
-    /// The two-phase schedule's kernels, made on first use.
-    two_phase: std::sync::OnceLock<two_phase::Kernels>,
+    /// The kernels for split scenes, grids in displaced grids' formats or of compressed values,
+    /// and the heat map's, each made the first time it runs: the split ones bind more buffers
+    /// than some adapters allow, and all take drivers long to compile.
+    on_demand: [std::sync::OnceLock<wgpu::ComputePipeline>; 20],
+    /// The two-phase schedule's kernels, for plain grids' formats and for displaced grids',
+    /// each made on first use.
+    two_phase: [std::sync::OnceLock<two_phase::Kernels>; 2],
     /// Most workgroups the two-phase schedule's finish launches (see
     /// `two_phase::finish_groups_for`).
     finish_groups: u32,
@@ -236,11 +237,12 @@ impl Gpu {
         Ok(())
     }
 
-    /// A kernel made on first use: any for a split scene or grids of compressed values, or
-    /// the heat map's.
+    /// A kernel made on first use: any for a split scene, grids in displaced grids' formats or
+    /// of compressed values, or the heat map's.
     fn on_demand_pipeline(&self, scene: &Scene, job: Job, split: bool) -> Result<&wgpu::ComputePipeline> {
         let one_visit = matches!(scene, Scene::Grids(s) if s.params.one_visit());
         let compressed = scene.has_compressed_values();
+        let displaced = !split && scene.uses_displaced_formats();
         let (index, entry) = match (scene, job, split) {
             // Never split: `crate::split` refuses displaced grids that need it.
             (Scene::Grids(_), Job::Render, _) if compressed && one_visit => (10, "render_grids_one_visit_compressed"),
@@ -250,6 +252,11 @@ impl Gpu {
             (Scene::Grids(_), Job::Render, _) if compressed => (12, "render_grids_compressed"),
             (Scene::Grids(_), Job::Trace, _) if compressed => (13, "trace_grids_rays_compressed"),
             (Scene::Grids(_), Job::Cost, _) if compressed => (14, "cost_grids_compressed"),
+            (Scene::Grids(_), Job::Render, _) if displaced && one_visit => (15, "render_grids_one_visit_displaced"),
+            (Scene::Grids(_), Job::Trace, _) if displaced && one_visit => (16, "trace_grids_rays_one_visit_displaced"),
+            (Scene::Grids(_), Job::Render, _) if displaced => (17, "render_grids_displaced"),
+            (Scene::Grids(_), Job::Trace, _) if displaced => (18, "trace_grids_rays_displaced"),
+            (Scene::Grids(_), Job::Cost, _) if displaced => (19, "cost_grids_displaced"),
             (Scene::Triangles(_), Job::Render, _) => (0, "render_triangles_split"),
             (Scene::Triangles(_), Job::Trace, _) => (1, "trace_triangles_rays_split"),
             (Scene::Grids(_), Job::Render, _) if one_visit => (8, "render_grids_one_visit_split"),
@@ -377,7 +384,7 @@ impl Gpu {
         };
         Ok(match job {
             _ if scene.is_split() => self.on_demand_pipeline(scene.scene, job, true)?,
-            _ if scene.scene.has_compressed_values() => self.on_demand_pipeline(scene.scene, job, false)?,
+            _ if scene.scene.uses_displaced_formats() => self.on_demand_pipeline(scene.scene, job, false)?,
             Job::Render => &kernels.render,
             Job::Trace => &kernels.trace,
             Job::Cost => self.on_demand_pipeline(scene.scene, job, false)?,

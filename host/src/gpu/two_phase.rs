@@ -53,6 +53,8 @@ pub(super) struct Kernels {
 /// and written for the next.
 pub(super) struct Batch {
     rays: u32,
+    /// Whether the scene's grids take the kernels of displaced grids' formats.
+    displaced_formats: bool,
     hits: wgpu::Buffer,
     readback: wgpu::Buffer,
     /// Each an indirect dispatch's three group counts, then the number of items.
@@ -135,15 +137,21 @@ impl Gpu {
             .max(1) as usize)
     }
 
-    fn two_phase_kernels(&self) -> &Kernels {
-        self.two_phase.get_or_init(|| Kernels {
-            walk_first: compute_pipeline(&self.device, &self.module, "walk_first_rounds"),
-            walk: compute_pipeline(&self.device, &self.module, "walk_rounds"),
-            visit: compute_pipeline(&self.device, &self.module, "visit_queued"),
-            order_classes: compute_pipeline(&self.device, &self.module, "order_leaf_classes"),
-            sort_leaves: compute_pipeline(&self.device, &self.module, "sort_queued_leaves"),
-            test_leaves: compute_pipeline(&self.device, &self.module, "test_queued_leaves"),
-            finish: compute_pipeline(&self.device, &self.module, "finish_walks"),
+    /// The schedule's kernels for grids in plain grids' formats, or in those of displaced
+    /// grids (see `Scene::uses_displaced_formats`), made on first use.
+    fn two_phase_kernels(&self, displaced_formats: bool) -> &Kernels {
+        let (index, suffix) = if displaced_formats { (1, "_displaced") } else { (0, "") };
+        self.two_phase[index].get_or_init(|| {
+            let pipeline = |entry: &str| compute_pipeline(&self.device, &self.module, entry);
+            Kernels {
+                walk_first: pipeline("walk_first_rounds"),
+                walk: pipeline("walk_rounds"),
+                visit: pipeline(&format!("visit_queued{suffix}")),
+                order_classes: pipeline("order_leaf_classes"),
+                sort_leaves: pipeline("sort_queued_leaves"),
+                test_leaves: pipeline(&format!("test_queued_leaves{suffix}")),
+                finish: pipeline(&format!("finish_walks{suffix}")),
+            }
         })
     }
 
@@ -196,7 +204,8 @@ impl Gpu {
         });
         let (_, params) = self.trace_params(scene, n as u32);
         let params = self.buffer("trace parameters", bytemuck::bytes_of(&params));
-        let kernels = self.two_phase_kernels();
+        let displaced_formats = scene.scene.uses_displaced_formats();
+        let kernels = self.two_phase_kernels(displaced_formats);
         // The scene's bindings: static index list, top-level BVH, headers, vertices, radii.
         let [micro_triangles, nodes, headers, vertices, radii] = [0, 1, 2, 3, 4].map(|k| &scene.buffers[k]);
         let walk = |from: usize| {
@@ -300,6 +309,7 @@ impl Gpu {
         let (walk, finish) = ([walk(0), walk(1)], [finish(0), finish(1)]);
         Ok(Batch {
             rays: n as u32,
+            displaced_formats,
             hits,
             readback,
             counts,
@@ -330,7 +340,7 @@ impl Gpu {
         round: usize,
         queries: Option<&super::Queries>,
     ) {
-        let kernels = self.two_phase_kernels();
+        let kernels = self.two_phase_kernels(batch.displaced_formats);
         let from = round % 2;
         encoder.clear_buffer(&batch.counts[1 - from], 0, None);
         encoder.clear_buffer(&batch.queue_count, 0, None);
@@ -380,7 +390,7 @@ impl Gpu {
     /// Runs the rounds of one batch until no ray walks on; returns their seconds.
     pub(super) fn run_rounds(&self, batch: &Batch) -> Result<f64> {
         let n = batch.rays;
-        let kernels = self.two_phase_kernels();
+        let kernels = self.two_phase_kernels(batch.displaced_formats);
         let queries = batch.queries.as_ref();
         self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         self.queue.write_buffer(
