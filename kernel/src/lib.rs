@@ -21,9 +21,7 @@ use gridrt_shared::layout::{
 use gridrt_shared::ray::Ray;
 use gridrt_shared::shade::{cost_pixel, render_pixel};
 use gridrt_shared::top_nodes::TopNodes;
-use gridrt_shared::traverse::{
-    closest_hit, walk_first_round, walk_round, BufferStack, Hierarchy, LeafPrimitives, TriangleMesh,
-};
+use gridrt_shared::traverse::{closest_hit, BufferStack, Hierarchy, LeafPrimitives, TriangleMesh};
 use spirv_std::spirv;
 
 /// Where this thread's pixel goes in the tile's image buffer, or `None` outside the tile.
@@ -444,100 +442,103 @@ impl WalkOutput<'_> {
     }
 }
 
-/// The two-phase schedule's first phase, first round: every ray of the batch (ray `i` is
-/// thread `i`) from the root down to its first leaf, queueing that leaf's grids. Its walk
-/// state is written, not read: nothing needs clearing before.
-#[allow(clippy::too_many_arguments)] // one per binding
-#[spirv(compute(threads(64, 1, 1)))]
-pub fn walk_first_rounds(
-    #[spirv(global_invocation_id)] id: UVec3,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] rays: &[RayRecord],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] hits: &mut [HitRecord],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] nodes: &[BvhNode],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] states: &mut [WalkState],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] stacks: &mut [u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] active_out: &mut [u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] queue: &mut [QueueEntry],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] count_in: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] count_out: &mut [u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 9)] queue_count: &mut [u32],
-) {
-    let r = id.x;
-    if r >= count_in[ITEMS] {
-        return;
-    }
-    let record = &rays[r as usize];
-    let mut state = WalkState::default();
-    let mut stack = BufferStack {
-        words: stacks,
-        ray: r as usize,
-        rays: rays.len(),
+/// Declares the two-phase schedule's top-level walk kernels; `$wide`: whether they carry the
+/// wide top level's walk (the kernels of displaced grids' formats).
+macro_rules! two_phase_walk_kernels {
+    ($wide:literal: $first:ident, $rounds:ident) => {
+        /// The two-phase schedule's first phase, first round: every ray of the batch (ray `i` is
+        /// thread `i`) from the root down to its first leaf, queueing that leaf's grids. Its walk
+        /// state is written, not read: nothing needs clearing before.
+        #[allow(clippy::too_many_arguments)] // one per binding
+        #[spirv(compute(threads(64, 1, 1)))]
+        pub fn $first(
+            #[spirv(global_invocation_id)] id: UVec3,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] rays: &[RayRecord],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] hits: &mut [HitRecord],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] nodes: &[BvhNode],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] states: &mut [WalkState],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] stacks: &mut [u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] active_out: &mut [u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] queue: &mut [QueueEntry],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] count_in: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] count_out: &mut [u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 9)] queue_count: &mut [u32],
+        ) {
+            let r = id.x;
+            if r >= count_in[ITEMS] {
+                return;
+            }
+            let record = &rays[r as usize];
+            let mut state = WalkState::default();
+            let mut stack = BufferStack {
+                words: stacks,
+                ray: r as usize,
+                rays: rays.len(),
+            };
+            let leaf =
+                TopNodes::new(nodes).first_round::<{ $wide }, _>(&ray_of(record), record.t_max, &mut state, &mut stack);
+            let mut out = WalkOutput {
+                hits,
+                states,
+                active_out,
+                count_out,
+                queue,
+                queue_count,
+            };
+            out.leave(r, leaf, state);
+        }
+
+        /// The two-phase schedule's first phase, every later round: one round of the top-level walk
+        /// for each ray still walking, queueing the grids of the leaf it reaches.
+        #[allow(clippy::too_many_arguments)] // one per binding
+        #[spirv(compute(threads(64, 1, 1)))]
+        pub fn $rounds(
+            #[spirv(global_invocation_id)] id: UVec3,
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] rays: &[RayRecord],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] hits: &mut [HitRecord],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] nodes: &[BvhNode],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] states: &mut [WalkState],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] stacks: &mut [u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] active_in: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] active_out: &mut [u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] queue: &mut [QueueEntry],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] results: &[HitRecord],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 9)] count_in: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 10)] count_out: &mut [u32],
+            #[spirv(storage_buffer, descriptor_set = 0, binding = 11)] queue_count: &mut [u32],
+        ) {
+            let i = id.x;
+            if i >= count_in[ITEMS] {
+                return;
+            }
+            let r = active_in[i as usize];
+            let mut state = states[r as usize];
+            let mut stack = BufferStack {
+                words: stacks,
+                ray: r as usize,
+                rays: rays.len(),
+            };
+            let leaf = TopNodes::new(nodes).next_round::<{ $wide }, _, _>(
+                results,
+                &ray_of(&rays[r as usize]),
+                &mut state,
+                &mut stack,
+            );
+            let mut out = WalkOutput {
+                hits,
+                states,
+                active_out,
+                count_out,
+                queue,
+                queue_count,
+            };
+            out.leave(r, leaf, state);
+        }
     };
-    let leaf = walk_first_round(
-        TopNodes::new(nodes),
-        &ray_of(record),
-        record.t_max,
-        &mut state,
-        &mut stack,
-    );
-    let mut out = WalkOutput {
-        hits,
-        states,
-        active_out,
-        count_out,
-        queue,
-        queue_count,
-    };
-    out.leave(r, leaf, state);
 }
 
-/// The two-phase schedule's first phase, every later round: one round of the top-level walk
-/// for each ray still walking, queueing the grids of the leaf it reaches.
-#[allow(clippy::too_many_arguments)] // one per binding
-#[spirv(compute(threads(64, 1, 1)))]
-pub fn walk_rounds(
-    #[spirv(global_invocation_id)] id: UVec3,
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] rays: &[RayRecord],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] hits: &mut [HitRecord],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] nodes: &[BvhNode],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] states: &mut [WalkState],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] stacks: &mut [u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] active_in: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] active_out: &mut [u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] queue: &mut [QueueEntry],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 8)] results: &[HitRecord],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 9)] count_in: &[u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 10)] count_out: &mut [u32],
-    #[spirv(storage_buffer, descriptor_set = 0, binding = 11)] queue_count: &mut [u32],
-) {
-    let i = id.x;
-    if i >= count_in[ITEMS] {
-        return;
-    }
-    let r = active_in[i as usize];
-    let mut state = states[r as usize];
-    let mut stack = BufferStack {
-        words: stacks,
-        ray: r as usize,
-        rays: rays.len(),
-    };
-    let leaf = walk_round(
-        TopNodes::new(nodes),
-        results,
-        &ray_of(&rays[r as usize]),
-        &mut state,
-        &mut stack,
-    );
-    let mut out = WalkOutput {
-        hits,
-        states,
-        active_out,
-        count_out,
-        queue,
-        queue_count,
-    };
-    out.leave(r, leaf, state);
-}
+two_phase_walk_kernels!(false: walk_first_rounds, walk_rounds);
+two_phase_walk_kernels!(true: walk_first_rounds_displaced, walk_rounds_displaced);
 
 /// Where each size class of the queued leaf tests begins once they are sorted by class: the
 /// counts of the classes before it. One thread per class.
@@ -580,9 +581,9 @@ pub fn sort_queued_leaves(
 }
 
 /// Declares the two-phase schedule's grid kernels, their scene's words read as `$words` wraps
-/// them (see [`whole`]).
+/// them (see [`whole`]); `$wide` as for [`two_phase_walk_kernels`].
 macro_rules! two_phase_grid_kernels {
-    ($words:path: $visit:ident, $test:ident, $finish:ident) => {
+    ($words:path, $wide:literal: $visit:ident, $test:ident, $finish:ident) => {
         /// The two-phase schedule's second phase, first half: one queued grid per thread, its spheres
         /// and footprints; the visits that need a leaf test are queued again, counted by size class
         /// (`leaf_test_class`), the others answer a miss.
@@ -704,7 +705,7 @@ macro_rules! two_phase_grid_kernels {
                     ray: r,
                     rays: rays.len(),
                 };
-                let leaf = walk_round(top, results, &ray, &mut state, &mut stack);
+                let leaf = top.next_round::<{ $wide }, _, _>(results, &ray, &mut state, &mut stack);
                 if leaf.count == 0 {
                     hits[r] = HitRecord {
                         t: state.t,
@@ -743,5 +744,5 @@ macro_rules! two_phase_grid_kernels {
     };
 }
 
-two_phase_grid_kernels!(whole: visit_queued, test_queued_leaves, finish_walks);
-two_phase_grid_kernels!(DisplacedWords: visit_queued_displaced, test_queued_leaves_displaced, finish_walks_displaced);
+two_phase_grid_kernels!(whole, false: visit_queued, test_queued_leaves, finish_walks);
+two_phase_grid_kernels!(DisplacedWords, true: visit_queued_displaced, test_queued_leaves_displaced, finish_walks_displaced);

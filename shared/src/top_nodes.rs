@@ -20,10 +20,10 @@
 use crate::buffer::Buffer;
 use crate::cost::Tally;
 use crate::glam::Vec3;
-use crate::layout::{BvhNode, Hit};
+use crate::layout::{BvhNode, Hit, HitRecord, WalkState};
 use crate::ray::Ray;
-use crate::traverse::{traverse_bvh, Hierarchy, LeafPrimitives};
-use crate::wide_nodes::{traverse_wide, WIDE};
+use crate::traverse::{traverse_bvh, walk_first_round, walk_round, Hierarchy, LeafPrimitives, WalkStack};
+use crate::wide_nodes::{traverse_wide, walk_first_round_wide, walk_round_wide, WIDE};
 
 /// `count` of the header element of a compact hierarchy (never a node's count).
 pub const COMPACT: u32 = u32::MAX;
@@ -64,10 +64,46 @@ impl<N: Buffer<BvhNode>> TopNodes<N> {
 }
 
 impl<N: Buffer<BvhNode>> TopNodes<N> {
-    /// Whether the nodes are wide, which only [`Hierarchy::search`] reads.
+    /// Whether the nodes are wide, which only [`Hierarchy::search`] and the two-phase rounds
+    /// read.
     #[inline]
     pub fn is_wide(self) -> bool {
         self.wide
+    }
+
+    /// The two-phase schedule's first round (see `crate::traverse::walk_first_round`) over
+    /// these nodes in their form. `WIDE_WALK`: whether the kernel carries the wide walk (plain
+    /// grids' kernels do not, see `LeafPrimitives::DISPLACED_FORMATS`).
+    #[inline(always)]
+    pub fn first_round<const WIDE_WALK: bool, S: WalkStack>(
+        self,
+        ray: &Ray,
+        t_max: f32,
+        state: &mut WalkState,
+        stack: &mut S,
+    ) -> BvhNode {
+        if WIDE_WALK && !N::SPLIT && self.wide {
+            walk_first_round_wide(self.nodes, ray, t_max, state, stack)
+        } else {
+            walk_first_round(self, ray, t_max, state, stack)
+        }
+    }
+
+    /// Every later round of the two-phase schedule (see `crate::traverse::walk_round`) over
+    /// these nodes in their form, as [`Self::first_round`].
+    #[inline(always)]
+    pub fn next_round<const WIDE_WALK: bool, R: Buffer<HitRecord>, S: WalkStack>(
+        self,
+        results: R,
+        ray: &Ray,
+        state: &mut WalkState,
+        stack: &mut S,
+    ) -> BvhNode {
+        if WIDE_WALK && !N::SPLIT && self.wide {
+            walk_round_wide(self.nodes, results, ray, state, stack)
+        } else {
+            walk_round(self, results, ray, state, stack)
+        }
     }
 }
 

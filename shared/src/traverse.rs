@@ -218,14 +218,7 @@ pub fn walk_first_round<N: Buffer<BvhNode>, S: WalkStack>(
     stack: &mut S,
 ) -> BvhNode {
     let done = BvhNode::default();
-    *state = WalkState {
-        t: t_max,
-        prim: NO_HIT,
-        sp: 0,
-        first_entry: 0,
-        entries: 0,
-        _pad: [0; 3],
-    };
+    *state = WalkState::begun(t_max);
     if nodes.is_empty() {
         return done;
     }
@@ -256,6 +249,40 @@ pub fn walk_round<N: Buffer<BvhNode>, R: Buffer<HitRecord>, S: WalkStack>(
 ) -> BvhNode {
     let done = BvhNode::default();
     let mut sp = state.sp as usize;
+    take_results(results, state);
+    let node = stack.pop_closer(&mut sp, state.t);
+    if node == NO_NODE {
+        state.sp = 0;
+        return done;
+    }
+    let n = descend(nodes, ray, state.t, nodes.load(node), stack, &mut sp, &mut Uncounted);
+    state.sp = sp as u32;
+    if n.is_leaf() {
+        n
+    } else {
+        done
+    }
+}
+
+impl WalkState {
+    /// A ray's walk state before its first round: no hit closer than `t_max`, nothing
+    /// waiting, nothing queued.
+    #[inline]
+    pub fn begun(t_max: f32) -> Self {
+        WalkState {
+            t: t_max,
+            prim: NO_HIT,
+            sp: 0,
+            first_entry: 0,
+            entries: 0,
+            _pad: [0; 3],
+        }
+    }
+}
+
+/// The results of the grids a ray queued in the last round (`results`), taken into its state.
+#[inline(always)]
+pub(crate) fn take_results<R: Buffer<HitRecord>>(results: R, state: &mut WalkState) {
     // In grid order, the first of equal distances kept: as the one-pass walk tests them.
     let mut k = 0;
     if state.entries > 0 {
@@ -270,18 +297,6 @@ pub fn walk_round<N: Buffer<BvhNode>, R: Buffer<HitRecord>, S: WalkStack>(
                 break;
             }
         }
-    }
-    let node = stack.pop_closer(&mut sp, state.t);
-    if node == NO_NODE {
-        state.sp = 0;
-        return done;
-    }
-    let n = descend(nodes, ray, state.t, nodes.load(node), stack, &mut sp, &mut Uncounted);
-    state.sp = sp as u32;
-    if n.is_leaf() {
-        n
-    } else {
-        done
     }
 }
 

@@ -40,10 +40,11 @@
 use crate::aabb::intersect_aabb;
 use crate::buffer::Buffer;
 use crate::cost::Tally;
+use crate::cost::Uncounted;
 use crate::glam::Vec3;
-use crate::layout::{BvhNode, Hit};
+use crate::layout::{BvhNode, Hit, HitRecord, WalkState};
 use crate::ray::{Ray, T_FAR};
-use crate::traverse::{LeafPrimitives, LocalStack, WalkStack, MAX_BVH_DEPTH, NO_NODE};
+use crate::traverse::{take_results, LeafPrimitives, LocalStack, WalkStack, MAX_BVH_DEPTH, NO_NODE};
 
 /// `count` of the header element of a wide hierarchy (never a node's count).
 pub const WIDE: u32 = u32::MAX - 1;
@@ -227,12 +228,12 @@ pub fn traverse_wide<N: Buffer<BvhNode>, P: LeafPrimitives, T: Tally>(
 /// Takes entries off `stack` until a leaf the ray may hit closer than `t`, opening the nodes
 /// on the way; the leaf's entry, or [`NO_NODE`] when the stack runs out.
 #[inline(always)]
-fn next_leaf<N: Buffer<BvhNode>, T: Tally>(
+fn next_leaf<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
     nodes: N,
     scene: &Frame,
     ray: &Ray,
     t: f32,
-    stack: &mut LocalStack,
+    stack: &mut S,
     sp: &mut usize,
     tally: &mut T,
 ) -> u32 {
@@ -280,7 +281,7 @@ fn next_leaf<N: Buffer<BvhNode>, T: Tally>(
 /// Pushes `entry` at distance `t` among the entries above `bottom`, which stay sorted with the
 /// nearest on top.
 #[inline(always)]
-fn push_sorted(stack: &mut LocalStack, bottom: usize, sp: &mut usize, entry: u32, t: f32) {
+fn push_sorted<S: WalkStack>(stack: &mut S, bottom: usize, sp: &mut usize, entry: u32, t: f32) {
     let mut at = *sp;
     while at > bottom && stack.t(at - 1) < t {
         stack.push(at, stack.node(at - 1), stack.t(at - 1));
@@ -288,4 +289,62 @@ fn push_sorted(stack: &mut LocalStack, bottom: usize, sp: &mut usize, entry: u32
     }
     stack.push(at, entry, t);
     *sp += 1;
+}
+
+/// The two-phase schedule's first round over a wide hierarchy, as
+/// `crate::traverse::walk_first_round` over a binary one: the ray's state begun, then down to
+/// the first leaf the ray may hit, returned as a node of its grids (`count` 0 when the ray
+/// misses the scene). The stack holds leaf entries too, sorted as the one-pass walk sorts them.
+pub fn walk_first_round_wide<N: Buffer<BvhNode>, S: WalkStack>(
+    nodes: N,
+    ray: &Ray,
+    t_max: f32,
+    state: &mut WalkState,
+    stack: &mut S,
+) -> BvhNode {
+    *state = WalkState::begun(t_max);
+    if nodes.is_empty() {
+        return BvhNode::default();
+    }
+    let scene = scene_frame(&nodes.load(0));
+    let (lo, hi) = frame_box(&node_frame(&load_node(nodes, 0), &scene));
+    let t_root = intersect_aabb(lo, hi, ray, t_max);
+    if t_root == T_FAR {
+        return BvhNode::default();
+    }
+    stack.push(0, 0, t_root);
+    let mut sp = 1;
+    let leaf = next_leaf(nodes, &scene, ray, t_max, stack, &mut sp, &mut Uncounted);
+    leaf_node(leaf, state, sp)
+}
+
+/// Every later round over a wide hierarchy, as `crate::traverse::walk_round` over a binary one.
+pub fn walk_round_wide<N: Buffer<BvhNode>, R: Buffer<HitRecord>, S: WalkStack>(
+    nodes: N,
+    results: R,
+    ray: &Ray,
+    state: &mut WalkState,
+    stack: &mut S,
+) -> BvhNode {
+    take_results(results, state);
+    let scene = scene_frame(&nodes.load(0));
+    let mut sp = state.sp as usize;
+    let leaf = next_leaf(nodes, &scene, ray, state.t, stack, &mut sp, &mut Uncounted);
+    leaf_node(leaf, state, sp)
+}
+
+/// A leaf entry of the wide walk as the node the two-phase schedule queues the grids of
+/// (`count` 0 for [`NO_NODE`]), the stack's height kept in `state`.
+#[inline(always)]
+fn leaf_node(entry: u32, state: &mut WalkState, sp: usize) -> BvhNode {
+    if entry == NO_NODE {
+        state.sp = 0;
+        return BvhNode::default();
+    }
+    state.sp = sp as u32;
+    BvhNode {
+        first: (entry & !LEAF) >> LEAF_SHIFT,
+        count: entry & ((1 << LEAF_SHIFT) - 1),
+        ..BvhNode::default()
+    }
 }

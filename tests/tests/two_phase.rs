@@ -3,6 +3,7 @@
 //! the first half found), driven here the way the GPU drives them, find the one-pass walk's
 //! hits bit for bit. Runs without a GPU, so the shared walk is checked on every machine.
 
+use gridrt::grid::{GridOptions, TopFormat};
 use gridrt::mesh::load_mesh;
 use gridrt::mesh::scene::default_scene;
 use gridrt::rays::{ao_rays, primary_rays, trace_cpu};
@@ -13,8 +14,8 @@ use gridrt_shared::glam::Vec3;
 use gridrt_shared::grid_traverse::{OneVisitGrids, EMPTY_WINDOW};
 use gridrt_shared::layout::{Hit, HitRecord, LeafEntry, RayRecord, WalkState, NO_HIT};
 use gridrt_shared::ray::Ray;
-use gridrt_shared::traverse::{walk_first_round, walk_round, BufferStack, LeafPrimitives, MAX_BVH_DEPTH};
-use gridrt_tests::{build_pair, meshes_dir_or_skip};
+use gridrt_shared::traverse::{BufferStack, LeafPrimitives, MAX_BVH_DEPTH};
+use gridrt_tests::{build_pair, build_pair_with, meshes_dir_or_skip, Pair};
 
 /// One ray through the rounds: each round walks to the next leaf, then every grid of that leaf
 /// is visited on its own from the closest distance known when it was queued.
@@ -33,7 +34,7 @@ fn two_phase_hit(scene: &Scene, record: &RayRecord) -> (HitRecord, u32) {
     };
     let mut state = WalkState::default();
     let nodes = grids.top();
-    let mut leaf = walk_first_round(nodes, &ray, record.t_max, &mut state, &mut stack);
+    let mut leaf = nodes.first_round::<true, _>(&ray, record.t_max, &mut state, &mut stack);
     let mut rounds = 0;
     loop {
         if leaf.count == 0 {
@@ -64,7 +65,7 @@ fn two_phase_hit(scene: &Scene, record: &RayRecord) -> (HitRecord, u32) {
             .collect::<Vec<HitRecord>>();
         state.first_entry = 0;
         state.entries = leaf.count;
-        leaf = walk_round(nodes, results.as_slice(), &ray, &mut state, &mut stack);
+        leaf = nodes.next_round::<true, _, _>(results.as_slice(), &ray, &mut state, &mut stack);
     }
 }
 
@@ -85,7 +86,10 @@ fn check(name: &str, scene: &Scene, rays: &[RayRecord]) {
 }
 
 fn check_mesh(name: &str, mesh: &gridrt::mesh::Mesh) {
-    let pair = build_pair(mesh, 3, 3, Scheme::Loop);
+    check_pair(name, &build_pair(mesh, 3, 3, Scheme::Loop));
+}
+
+fn check_pair(name: &str, pair: &Pair) {
     let primary = primary_rays(&pair.bounds, 2, 64, 48);
     let first = trace_cpu(&pair.triangles, &primary);
     let ao = ao_rays(&primary, &first, 2, &pair.bounds, |p| pair.triangles.normal(p));
@@ -96,6 +100,22 @@ fn check_mesh(name: &str, mesh: &gridrt::mesh::Mesh) {
 #[test]
 fn rounds_find_the_one_pass_hits_on_the_default_scene() {
     check_mesh("default scene", &default_scene());
+}
+
+/// The rounds over a wide top level (the default of displaced grids), whose walk keeps leaf
+/// entries on the stack beside nodes.
+#[test]
+fn rounds_find_the_one_pass_hits_under_a_wide_top_level() {
+    let options = GridOptions {
+        top: TopFormat::Wide,
+        ..GridOptions::default()
+    };
+    let pair = build_pair_with(&default_scene(), 3, 3, Scheme::Loop, &options);
+    let Scene::Grids(grids) = &pair.grids else {
+        panic!("grids expected");
+    };
+    assert!(grids.has_wide_top(), "the default scene keeps a wide top level");
+    check_pair("default scene, wide top level", &pair);
 }
 
 #[test]

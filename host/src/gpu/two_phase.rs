@@ -79,10 +79,9 @@ pub(super) struct Batch {
 
 impl GpuScene<'_> {
     /// Whether the two-phase schedule takes this scene: grids walked by their root's visit
-    /// alone, bound whole, under a binary top level (its walk reads nodes one by one), and not
-    /// of compressed values (whose decoder its kernels leave out).
+    /// alone, bound whole, and not of compressed values (whose decoder its kernels leave out).
     pub fn takes_two_phase(&self) -> bool {
-        matches!(self.scene, Scene::Grids(g) if g.params.one_visit() && !self.is_split() && !g.has_wide_top())
+        matches!(self.scene, Scene::Grids(g) if g.params.one_visit() && !self.is_split())
             && !self.scene.has_compressed_values()
     }
 }
@@ -116,8 +115,8 @@ impl Gpu {
             _ => fail!(
                 Options,
                 "the two-phase schedule traces grids walked by their root's visit alone (sphere levels down to 1, \
-                 as at the default --levels 3), bound whole, under a binary top level (--compact-top or \
-                 --full-top) and not of compressed values; this scene is not, use the one-pass schedule"
+                 as at the default --levels 3), bound whole, and not of compressed values; this scene is not, \
+                 use the one-pass schedule"
             ),
         }
     }
@@ -144,8 +143,8 @@ impl Gpu {
         self.two_phase[index].get_or_init(|| {
             let pipeline = |entry: &str| compute_pipeline(&self.device, &self.module, entry);
             Kernels {
-                walk_first: pipeline("walk_first_rounds"),
-                walk: pipeline("walk_rounds"),
+                walk_first: pipeline(&format!("walk_first_rounds{suffix}")),
+                walk: pipeline(&format!("walk_rounds{suffix}")),
                 visit: pipeline(&format!("visit_queued{suffix}")),
                 order_classes: pipeline("order_leaf_classes"),
                 sort_leaves: pipeline("sort_queued_leaves"),
