@@ -39,8 +39,7 @@
 
 use crate::aabb::intersect_aabb;
 use crate::buffer::Buffer;
-use crate::cost::Tally;
-use crate::cost::Uncounted;
+use crate::cost::{Tally, Uncounted};
 use crate::glam::Vec3;
 use crate::layout::{BvhNode, Hit, HitRecord, WalkState};
 use crate::ray::{Ray, T_FAR};
@@ -203,25 +202,50 @@ pub fn traverse_wide<N: Buffer<BvhNode>, P: LeafPrimitives, T: Tally>(
         return;
     }
     let scene = scene_frame(&nodes.load(0));
-    let root = node_frame(&load_node(nodes, 0), &scene);
-    let (lo, hi) = frame_box(&root);
-    tally.nodes(1);
-    let t_root = intersect_aabb(lo, hi, ray, hit.t);
-    if t_root == T_FAR {
+    let mut stack = LocalStack::new();
+    let mut sp = push_root(nodes, &scene, ray, hit.t, &mut stack, tally);
+    if sp == 0 {
         return;
     }
-    let mut stack = LocalStack::new();
-    stack.push(0, 0, t_root);
-    let mut sp = 1usize;
     let mut scratch = prims.scratch(ray);
     loop {
         let leaf = next_leaf(nodes, &scene, ray, hit.t, &mut stack, &mut sp, tally);
         if leaf == NO_NODE {
             break;
         }
-        let first = (leaf & !LEAF) >> LEAF_SHIFT;
-        let count = leaf & ((1 << LEAF_SHIFT) - 1);
-        prims.intersect_leaf(first, count, ray, hit, &mut scratch, tally);
+        let grids = leaf_grids(leaf);
+        prims.intersect_leaf(grids.first, grids.count, ray, hit, &mut scratch, tally);
+    }
+}
+
+/// Pushes the root on the empty `stack` where `ray` enters its box closer than `t`; returns
+/// the stack's height, 0 when the ray misses the scene.
+#[inline(always)]
+fn push_root<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
+    nodes: N,
+    scene: &Frame,
+    ray: &Ray,
+    t: f32,
+    stack: &mut S,
+    tally: &mut T,
+) -> usize {
+    let (lo, hi) = frame_box(&node_frame(&load_node(nodes, 0), scene));
+    tally.nodes(1);
+    let t_root = intersect_aabb(lo, hi, ray, t);
+    if t_root == T_FAR {
+        return 0;
+    }
+    stack.push(0, 0, t_root);
+    1
+}
+
+/// The grids a leaf entry names, as a node's range (`first`, `count`).
+#[inline(always)]
+fn leaf_grids(entry: u32) -> BvhNode {
+    BvhNode {
+        first: (entry & !LEAF) >> LEAF_SHIFT,
+        count: entry & ((1 << LEAF_SHIFT) - 1),
+        ..BvhNode::default()
     }
 }
 
@@ -307,13 +331,8 @@ pub fn walk_first_round_wide<N: Buffer<BvhNode>, S: WalkStack>(
         return BvhNode::default();
     }
     let scene = scene_frame(&nodes.load(0));
-    let (lo, hi) = frame_box(&node_frame(&load_node(nodes, 0), &scene));
-    let t_root = intersect_aabb(lo, hi, ray, t_max);
-    if t_root == T_FAR {
-        return BvhNode::default();
-    }
-    stack.push(0, 0, t_root);
-    let mut sp = 1;
+    // A ray that misses the root leaves nothing to pop: the walk is over at once.
+    let mut sp = push_root(nodes, &scene, ray, t_max, stack, &mut Uncounted);
     let leaf = next_leaf(nodes, &scene, ray, t_max, stack, &mut sp, &mut Uncounted);
     leaf_node(leaf, state, sp)
 }
@@ -342,9 +361,5 @@ fn leaf_node(entry: u32, state: &mut WalkState, sp: usize) -> BvhNode {
         return BvhNode::default();
     }
     state.sp = sp as u32;
-    BvhNode {
-        first: (entry & !LEAF) >> LEAF_SHIFT,
-        count: entry & ((1 << LEAF_SHIFT) - 1),
-        ..BvhNode::default()
-    }
+    leaf_grids(entry)
 }
