@@ -176,6 +176,24 @@ impl DisplacedMesh {
             .then_some(first)
     }
 
+    /// The deepest level of any triangle: the lattice displaced grids of mixed levels share
+    /// (see [`Self::own_levels`]). `None` without triangles.
+    pub fn deepest_level(&self) -> Option<u32> {
+        self.micromap.triangles.iter().map(|t| t.level).max()
+    }
+
+    /// Each triangle's own level and decimated edges as displaced grids of mixed levels hold
+    /// them (`gridrt_shared::layout::GridParams::level_element`): its decimated edges in the
+    /// low three bits, its level above. Empty when every triangle is of one level.
+    pub fn own_levels(&self) -> Vec<u8> {
+        if self.uniform_level().is_some() {
+            return Vec::new();
+        }
+        (0..self.triangles.len())
+            .map(|t| (self.decimated(t) | self.micromap.triangles[t].level << 3) as u8)
+            .collect()
+    }
+
     /// [`Self::decoded`] with the points that decode to the same bits (shared edges and
     /// corners, seen from each side) stored once; the triangles as they are, in order, less
     /// those a decimated edge collapsed.

@@ -36,28 +36,33 @@ impl LodReport {
     pub fn measure(scene: &GridScene, frame: &FrameParams) -> LodReport {
         let view = scene.view();
         let params = frame.grid;
-        let levels: Vec<u32> = (0..scene.grid_count() as u32)
-            .map(|g| grid_level(&params, view.open(g).origin, view.radius(g, 0)))
+        // A grid of mixed levels renders at most its own level, and at that level its decimated
+        // edges only at the level below, as its coarser neighbour does.
+        let opened: Vec<_> = (0..scene.grid_count() as u32).map(|g| view.open(g)).collect();
+        let levels: Vec<u32> = (opened.iter().enumerate())
+            .map(|(g, open)| grid_level(&params, open.origin, view.radius(g as u32, 0)).min(view.own_level(open)))
             .collect();
+        let edge_level = |g: u32, e: usize| {
+            let (level, open) = (levels[g as usize], &opened[g as usize]);
+            level - (level > 0 && level == view.own_level(open) && open.decimated >> e & 1 != 0) as u32
+        };
         let mut grids_per_level = vec![0; params.lod as usize + 1];
         for &level in &levels {
             grids_per_level[level as usize] += 1;
         }
         let screen = Screen::new(frame);
-        let mut first_grid_of_edge: HashMap<u32, u32> = HashMap::new();
+        let mut first_grid_of_edge: HashMap<u32, (u32, usize)> = HashMap::new();
         let mut mismatched_edges = 0;
         let mut widest_crack_pixels: f64 = 0.0;
         for g in 0..scene.grid_count() as u32 {
             let ids = view.ids(g);
             for (e, &edge) in ids.edges.iter().enumerate() {
-                let Some(&other) = first_grid_of_edge.get(&edge) else {
-                    first_grid_of_edge.insert(edge, g);
+                let Some(&(other, other_e)) = first_grid_of_edge.get(&edge) else {
+                    first_grid_of_edge.insert(edge, (g, e));
                     continue;
                 };
-                let (coarse, fine) = (
-                    levels[g as usize].min(levels[other as usize]),
-                    levels[g as usize].max(levels[other as usize]),
-                );
+                let (here, there) = (edge_level(g, e), edge_level(other, other_e));
+                let (coarse, fine) = (here.min(there), here.max(there));
                 if coarse == fine {
                     continue;
                 }

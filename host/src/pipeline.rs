@@ -99,15 +99,13 @@ impl Scene {
 
 impl Scene {
     /// Builds a displaced micro-mesh (in its local frame) as `options` say: displaced grids,
-    /// or the baseline over its decoded micro-triangles. The mesh's own level is built, so
+    /// or the baseline over its decoded micro-triangles. The mesh's own levels are built (of
+    /// mixed levels, each grid at its own within the deepest one's lattice), so
     /// `options.grid`'s levels and subdivision are not used; `options.lod` may render the
     /// grids shallower. [`BuildOptions::for_displaced`] gives the defaults the CLI uses.
     pub fn build_displaced(mesh: &DisplacedMesh, options: &BuildOptions) -> Result<Scene> {
-        let Some(levels) = mesh.uniform_level() else {
-            fail!(
-                Options,
-                "base triangles subdivided to different levels are traced as decoded triangles only"
-            );
+        let Some(levels) = mesh.deepest_level() else {
+            fail!(Input, "it has no base triangles");
         };
         let lod = rendered_depth(options, levels, "the micro-mesh's")?;
         match options.representation {

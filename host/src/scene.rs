@@ -95,6 +95,15 @@ impl Scene {
         }
     }
 
+    /// Corners of the triangle `hit` is on, at the depth it was rendered at (grids of mixed
+    /// levels or automatic levels of detail render some grids shallower than the scene's).
+    pub fn hit_triangle(&self, hit: &Hit) -> [Vec3; 3] {
+        match self {
+            Scene::Triangles(s) => s.view().corners(hit.prim),
+            Scene::Grids(s) => s.view().micro_triangle(hit.prim, hit.level),
+        }
+    }
+
     /// Unnormalised geometric normal of a hit's triangle, by its primitive id.
     pub fn normal(&self, prim: u32) -> Vec3 {
         let [a, b, c] = self.triangle(prim);

@@ -79,6 +79,20 @@ pub fn decimated_point(p: Lattice, n: u32, decimated: u32) -> Lattice {
     }
 }
 
+/// [`decimated_point`] for a grid of its own level within a scene's finer lattice: the scene's
+/// lattice has size `n`, and the grid's own is `2^shift` times coarser (its points are the
+/// multiples of `2^shift`), so its decimated edges snap odd points of its own lattice. Any
+/// other point of the scene's lattice is returned as it is.
+#[inline]
+pub fn decimated_grid_point(p: Lattice, n: u32, shift: u32, decimated: u32) -> Lattice {
+    let mask = (1u32 << shift) - 1;
+    if decimated == 0 || (p[0] | p[1]) & mask != 0 {
+        return p;
+    }
+    let [i, j] = decimated_point([p[0] >> shift, p[1] >> shift], n >> shift, decimated);
+    [i << shift, j << shift]
+}
+
 /// Lattice point `p` of `triangle`'s size-`n` lattice, displaced by `d`.
 #[inline]
 pub fn displaced_point(triangle: &DisplacedTriangle, p: Lattice, n: u32, d: f32) -> Vec3 {
@@ -250,6 +264,25 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Within a finer scene lattice, a coarser grid snaps its own odd points, at its own
+    /// spacing, and leaves the points it does not have alone.
+    #[test]
+    fn coarser_grids_snap_their_own_points() {
+        let (n, shift) = (16, 2);
+        for p in lattice_points(n) {
+            let moved = decimated_grid_point(p, n, shift, 1);
+            if p[0] % 4 != 0 || p[1] % 4 != 0 {
+                assert_eq!(moved, p);
+            } else {
+                let own = decimated_point([p[0] / 4, p[1] / 4], 4, 1);
+                assert_eq!(moved, [own[0] * 4, own[1] * 4]);
+            }
+        }
+        assert_eq!(decimated_grid_point([4, 0], n, shift, 1), [0, 0]);
+        assert_eq!(decimated_grid_point([12, 0], n, shift, 1), [16, 0]);
+        assert_eq!(decimated_grid_point([12, 0], n, shift, 0), [12, 0]);
     }
 
     #[test]

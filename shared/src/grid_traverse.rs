@@ -5,7 +5,7 @@
 use crate::buffer::{Buffer, Chunks, Split};
 use crate::compressed_values::{read_bits, CodedGrid, CodedScene, ValueCode};
 use crate::cost::Tally;
-use crate::displacement::{displaced_point, unorm11_displacement, DisplacedTriangle};
+use crate::displacement::{decimated_grid_point, displaced_point, unorm11_displacement, DisplacedTriangle};
 use crate::footprint::FootprintFrame;
 use crate::glam::Vec3;
 use crate::grid_index::{
@@ -50,19 +50,29 @@ pub struct GridScene<'a, H, W> {
 }
 
 /// A grid resolved for reading by [`GridScene::open`].
+///
+/// Laid out in order, the base triangle last: SPIR-V validators size a struct that holds a
+/// `Vec3` as a multiple of 16 bytes, more than Rust does, so a field after the base triangle
+/// at Rust's offset would overlap it.
+#[repr(C)]
 #[derive(Copy, Clone)]
 pub struct OpenGrid {
     slots: GridSlots,
+    /// Where a grid of compressed values finds them (unused otherwise).
+    coded: CodedGrid,
+    /// For displaced grids of mixed levels: how many levels coarser than the scene the grid is
+    /// (its points are the multiples of `2^shift` of the scene's lattice), and its decimated
+    /// edges (see `GridParams::level_element`). Zero otherwise.
+    pub shift: u32,
+    pub decimated: u32,
+    /// Length of one code step (zero for `f32` inner vertices).
+    unit: f32,
     /// The grid's corners: lattice points `(0, 0)`, `(n, 0)`, `(0, n)`.
     pub corners: [Vec3; 3],
     /// Mean of the corners: the root sphere's centre and the origin of the inner codes.
     pub origin: Vec3,
-    /// Length of one code step (zero for `f32` inner vertices).
-    unit: f32,
     /// The base triangle a displaced grid decodes its lattice points from (unused otherwise).
     base: DisplacedTriangle,
-    /// Where a grid of compressed values finds them (unused otherwise).
-    coded: CodedGrid,
 }
 
 /// Bits of one stored displacement value.
@@ -229,6 +239,8 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                 ids: [0; 3],
             },
             coded: CodedGrid::default(),
+            shift: 0,
+            decimated: 0,
         }
     }
 
@@ -264,6 +276,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             directions: [at(0, 3), at(1, 3), at(2, 3)],
             ids: corner_ids,
         };
+        let own = self.level_byte(grid);
         let mut open = OpenGrid {
             slots,
             corners: [Vec3::ZERO; 3],
@@ -271,6 +284,8 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             unit: 0.0,
             base,
             coded,
+            shift: g.levels - (own >> 3),
+            decimated: own & 7,
         };
         open.corners = [
             self.vertex(&open, [0, 0]),
@@ -281,11 +296,46 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         open
     }
 
+    /// Displaced grid `grid`'s byte of its own level and decimated edges (see
+    /// `GridParams::level_element`): the scene's level and none when the grids are of one.
+    #[inline]
+    fn level_byte(&self, grid: u32) -> u32 {
+        if self.params.level_element == 0 {
+            return self.params.levels << 3;
+        }
+        let element = self.headers.load(self.params.level_element + (grid >> 4));
+        let word = match (grid >> 2) & 3 {
+            0 => element.edges[0],
+            1 => element.edges[1],
+            2 => element.corners[0],
+            _ => element.corners[1],
+        };
+        (word >> (8 * (grid & 3))) & 0xff
+    }
+
+    /// Where lattice point `p` of an opened displaced grid lies on its surface: moved along a
+    /// decimated edge (see [`decimated_grid_point`]), or where it is.
+    #[inline(always)]
+    fn snapped(&self, grid: &OpenGrid, p: Lattice) -> Lattice {
+        if grid.decimated == 0 {
+            return p;
+        }
+        decimated_grid_point(p, 1 << self.params.levels, grid.shift, grid.decimated)
+    }
+
+    /// The deepest level grid `open` is rendered at: its own (see
+    /// `GridParams::level_element`).
+    #[inline(always)]
+    pub fn own_level(&self, open: &OpenGrid) -> u32 {
+        self.params.levels - open.shift
+    }
+
     /// Position of lattice point `p` of an opened grid, read on its own: a compressed value
     /// is decoded by walking down from the grid's corners.
     #[inline(always)]
     pub fn vertex(&self, grid: &OpenGrid, p: Lattice) -> Vec3 {
         if self.compressed() {
+            let p = self.snapped(grid, p);
             return self.displaced_at(grid, p, grid.coded.value(self.vertices, p));
         }
         self.stored_vertex(grid, p)
@@ -316,6 +366,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         if self.displaced() {
             // A value may run on into the next word, always there: the base vertices follow
             // the values.
+            let p = self.snapped(grid, p);
             return self.displaced_at(grid, p, read_bits(self.vertices, grid.slots.slot(p), DISPLACEMENT_BITS));
         }
         let at = grid.slots.slot(p);
@@ -355,15 +406,27 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         let [qa, qb, qc] = coded.sub_triangle_values(self.vertices, level, index);
         let [a, b, c] = corners;
         let mid = |p: Lattice, q: Lattice| [(p[0] + q[0]) / 2, (p[1] + q[1]) / 2];
-        let midpoint =
-            |p: Lattice, q0: u32, q1: u32| self.displaced_at(open, p, coded.midpoint(self.vertices, p, q0, q1));
+        // A midpoint that a decimated edge moves lands on one of that edge's ends (corners of
+        // sub-triangles above the grid's own level never move).
+        let midpoint = |p0: Lattice, p1: Lattice, q0: u32, q1: u32| {
+            let p = mid(p0, p1);
+            let on = self.snapped(open, p);
+            let q = if on[0] == p[0] && on[1] == p[1] {
+                coded.midpoint(self.vertices, p, q0, q1)
+            } else if on[0] == p0[0] && on[1] == p0[1] {
+                q0
+            } else {
+                q1
+            };
+            self.displaced_at(open, on, q)
+        };
         [
             self.displaced_at(open, a, qa),
             self.displaced_at(open, b, qb),
             self.displaced_at(open, c, qc),
-            midpoint(mid(a, b), qa, qb),
-            midpoint(mid(b, c), qb, qc),
-            midpoint(mid(c, a), qc, qa),
+            midpoint(a, b, qa, qb),
+            midpoint(b, c, qb, qc),
+            midpoint(c, a, qc, qa),
         ]
     }
 
@@ -517,7 +580,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                     ];
                     let slot = lattice_index(la, lb, m) as usize;
                     let v = if compressed {
-                        self.displaced_at(open, p, scratch.sides[slot])
+                        self.displaced_at(open, self.snapped(open, p), scratch.sides[slot])
                     } else {
                         self.stored_vertex(open, p)
                     };
@@ -635,6 +698,9 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         let open = self.open(grid);
         let root_radius = self.radius(grid, 0);
         let lod = grid_level(&self.params, open.origin, root_radius);
+        // A grid of mixed levels has no points deeper than its own level.
+        let own = self.own_level(&open);
+        let lod = if lod < own { lod } else { own };
         // At a coarse level of detail the hierarchy is cut where the rendered triangles are.
         let leaf_level = if self.params.leaf_level < lod {
             self.params.leaf_level
@@ -921,6 +987,44 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         let corners = open.coded.sub_triangle_values(self.vertices, sub.level, sub.index);
         open.coded
             .decode_lattice(self.vertices, sub.corner, step, k, corners, values);
+        if open.decimated != 0 {
+            self.snap_leaf_values(open, sub.corner, step, k, values);
+        }
+    }
+
+    /// Gives each point of a leaf's decoded lattice (see [`Self::decode_leaf`]) that a
+    /// decimated edge moves the value of the point it moves to: one step along the edge, an
+    /// even point, which stays, and lies in the same leaf (whose corners are even).
+    fn snap_leaf_values<const N: usize>(
+        &self,
+        open: &OpenGrid,
+        first: [i32; 2],
+        step: i32,
+        k: u32,
+        values: &mut [u32; N],
+    ) {
+        let m = 1u32 << k;
+        let (mut la, mut lb) = (0u32, 0u32);
+        loop {
+            let p = [
+                (first[0] + la as i32 * step) as u32,
+                (first[1] + lb as i32 * step) as u32,
+            ];
+            let on = self.snapped(open, p);
+            if on[0] != p[0] || on[1] != p[1] {
+                let to_a = (on[0] as i32 - first[0]) / step;
+                let to_b = (on[1] as i32 - first[1]) / step;
+                values[lattice_index(la, lb, m) as usize] = values[lattice_index(to_a as u32, to_b as u32, m) as usize];
+            }
+            la += 1;
+            if la + lb > m {
+                la = 0;
+                lb += 1;
+            }
+            if lb > m {
+                break;
+            }
+        }
     }
 }
 

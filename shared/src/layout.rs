@@ -257,6 +257,13 @@ pub struct GridParams {
     pub edge_block_bits: u32,
     pub corner_bit: u32,
     pub block_offset_bits: u32,
+    /// For displaced grids of mixed levels: the element of the header buffer where a byte per
+    /// grid begins, grids in order, four to a word, four words to an element. Its low three
+    /// bits are the grid's decimated edges (see `crate::displacement::DECIMATED_EDGES`), the
+    /// rest its own level, at most `levels`: the grid holds that level's points of the scene's
+    /// lattice, and is rendered at most that deep. Zero when every grid is at `levels` and no
+    /// edge is decimated (element 0 is always a header).
+    pub level_element: u32,
 }
 
 /// [`GridParams::radius_format`]: one `f32` per radius.

@@ -167,8 +167,9 @@ fn bake_refuses_bad_outputs_before_any_work() {
 }
 
 /// A byte budget tighter than the error bound needs is kept, the bound given up and the
-/// report saying so, and one out of reach is said to be; a level per base triangle writes a file of mixed levels that `render`
-/// reads, with no grids and plain values.
+/// report saying so, and one out of reach is said to be; a level per base triangle writes a
+/// file of mixed levels that `render` reads, its values plain, or compressed when a bound is
+/// given, and its displaced grids' bytes reported.
 #[test]
 fn bake_keeps_to_a_byte_budget_and_mixes_levels() {
     let dir = scratch("bake-budget");
@@ -226,11 +227,22 @@ fn bake_keeps_to_a_byte_budget_and_mixes_levels() {
     assert!(levels.iter().filter(|&&c| c > 0).count() >= 2, "{mixed}");
     assert_eq!(levels.iter().sum::<u64>(), mixed["micro_triangles"].as_u64().unwrap());
     assert!(
-        mixed["grid_bytes"].is_null() && mixed["compression"].is_null(),
+        mixed["grid_bytes"].as_u64().unwrap() > 0 && mixed["compression"].is_null(),
         "{mixed}"
     );
     let o = render_small(&out, &dir.join("mixed.png"));
     assert!(o.status.success(), "{}", stderr(&o));
     let json_text = std::fs::read_to_string(&out).unwrap();
     assert!(json_text.contains("primitiveFlags"), "{json_text}");
+    let (compressed, out) = bake(
+        "mixed_compressed.gltf",
+        &["--max-error", "2e-3", "--compress-values", "1e-4"],
+    );
+    assert_eq!(compressed["level_micro_triangles"], mixed["level_micro_triangles"]);
+    assert!(
+        compressed["grid_bytes"].as_u64() < mixed["grid_bytes"].as_u64() && !compressed["compression"].is_null(),
+        "{compressed}"
+    );
+    let o = render_small(&out, &dir.join("mixed_compressed.png"));
+    assert!(o.status.success(), "{}", stderr(&o));
 }

@@ -1,7 +1,8 @@
 //! Displaced grids (a baked micro-mesh traced from its 11-bit values, plain or compressed)
 //! against the same micro-triangles decoded into a list under the baseline's BVH: the same
 //! closest hits, no leaks at shared edges and corners, and the same pictures on the GPU and
-//! the CPU. And a file of mixed levels, as another tool writes it, decoded watertight.
+//! the CPU. Micro-meshes of mixed levels (a level per base triangle, decimated edges where
+//! levels step) likewise, and a file of them, as another tool writes it, watertight.
 
 use gridrt::backend::Backend;
 use gridrt::bake::{bake, BakeOptions, Base};
@@ -36,6 +37,78 @@ fn variants(levels: u32) -> [(&'static str, DisplacedMesh); 2] {
     [("plain", mesh), ("compressed", compressed)]
 }
 
+/// The ball baked at `levels`, then each base triangle taken down to a level of its own: the
+/// deepest at one triangle, one level less for each step away from it across edges, to level
+/// 1 at least (so neighbours differ by one at most), its values those of its level's points,
+/// and the finer side of each step decimating the edge. Levels 1 to `levels`, with decimated
+/// edges at every step.
+fn mixed_ball(levels: u32) -> DisplacedMesh {
+    use gridrt_shared::displacement::u_major_index;
+    let mut mesh = baked_ball(levels);
+    let triangles = mesh.triangles.clone();
+    // Steps from triangle 0 across shared edges, breadth first.
+    let mut by_edge = std::collections::HashMap::<(u32, u32), Vec<usize>>::new();
+    for (t, c) in triangles.iter().enumerate() {
+        for e in 0..3 {
+            let (a, b) = (c[e], c[(e + 1) % 3]);
+            by_edge.entry((a.min(b), a.max(b))).or_default().push(t);
+        }
+    }
+    let mut steps = vec![u32::MAX; triangles.len()];
+    let mut queue = std::collections::VecDeque::from([0usize]);
+    steps[0] = 0;
+    while let Some(t) = queue.pop_front() {
+        for e in 0..3 {
+            let (a, b) = (triangles[t][e], triangles[t][(e + 1) % 3]);
+            for &u in &by_edge[&(a.min(b), a.max(b))] {
+                if steps[u] == u32::MAX {
+                    steps[u] = steps[t] + 1;
+                    queue.push_back(u);
+                }
+            }
+        }
+    }
+    let own: Vec<u32> = steps.iter().map(|&d| levels.saturating_sub(d).max(1)).collect();
+    let n = 1u32 << levels;
+    let mut micromap = mesh.micromap.clone();
+    micromap.values.clear();
+    micromap.triangles.clear();
+    for (t, &l) in own.iter().enumerate() {
+        let (values, shift, m) = (mesh.micromap.triangle_values(t), levels - l, 1u32 << l);
+        micromap.triangles.push(gridrt::bary::MicromapTriangle {
+            level: l,
+            first_value: micromap.values.len() as u32,
+        });
+        for i in 0..=m {
+            for j in 0..=m - i {
+                micromap
+                    .values
+                    .push(values[u_major_index([i << shift, j << shift], n) as usize]);
+            }
+        }
+    }
+    micromap.value_code = None;
+    mesh.micromap = micromap;
+    mesh.decimated_edges = gridrt::bake::levels::decimated_edges(&triangles, &own);
+    assert!((1..=levels).all(|l| own.contains(&l)), "{own:?}");
+    assert!(mesh.decimated_edges.iter().filter(|&&f| f != 0).count() >= 4);
+    mesh.check().unwrap();
+    mesh
+}
+
+/// Mixed balls of deepest levels 3 and 4, their values plain, and compressed as loosely as
+/// [`variants`]'.
+fn mixed_variants() -> Vec<(&'static str, DisplacedMesh)> {
+    let (l3, l4) = (mixed_ball(3), mixed_ball(4));
+    let compressed = |m: &DisplacedMesh| compress(m, &ValueCompression::bounded(2e-3)).unwrap().mesh;
+    vec![
+        ("mixed compressed", compressed(&l3)),
+        ("mixed compressed", compressed(&l4)),
+        ("mixed", l3),
+        ("mixed", l4),
+    ]
+}
+
 fn build(mesh: &DisplacedMesh, representation: Representation, lod: Option<u32>) -> Scene {
     let options = BuildOptions {
         representation,
@@ -55,8 +128,9 @@ fn both(mesh: &DisplacedMesh) -> (Scene, Scene) {
 /// Random rays: the same micro-triangle at the same distance, or a tie at a shared edge.
 #[test]
 fn displaced_grids_hit_as_their_decoded_triangles() {
-    for (variant, mesh) in [0, 1, 2, 3, 4].into_iter().flat_map(variants) {
-        let levels = mesh.uniform_level().unwrap();
+    let all = [0, 1, 2, 3, 4].into_iter().flat_map(variants);
+    for (variant, mesh) in all.chain(mixed_variants()) {
+        let levels = mesh.deepest_level().unwrap();
         let (grids, triangles) = both(&mesh);
         let b = triangles.bounds();
         let outer = Aabb {
@@ -89,7 +163,7 @@ fn displaced_grids_hit_as_their_decoded_triangles() {
                 g.t,
                 t.t
             );
-            match grids.original_triangle(g.prim) == triangles.original_triangle(t.prim) {
+            match same_corners(grids.hit_triangle(&g), triangles.hit_triangle(&t)) {
                 true => same += 1,
                 false => ties += 1,
             }
@@ -100,6 +174,16 @@ fn displaced_grids_hit_as_their_decoded_triangles() {
             "{variant} L{levels}: {hits} hits, {ties} ties"
         );
     }
+}
+
+/// Whether two triangles have the same corners, in any order.
+fn same_corners(a: [Vec3; 3], b: [Vec3; 3]) -> bool {
+    let sorted = |t: [Vec3; 3]| {
+        let mut bits = t.map(|p| p.to_array().map(f32::to_bits));
+        bits.sort();
+        bits
+    };
+    sorted(a) == sorted(b)
 }
 
 /// Rays through the micro-vertices on base edges and corners, where two or more grids meet,
@@ -135,13 +219,15 @@ fn shared_edges_of_displaced_grids_do_not_leak() {
 }
 
 /// The GPU decodes what the CPU does: the pictures agree (see gpu_vs_cpu.rs for the
-/// tolerance), at the full depth and a coarser level of detail, in every value format.
+/// tolerance), at the full depth and a coarser level of detail, in every value format, of one
+/// level and of mixed levels.
 #[test]
 fn displaced_grids_gpu_equals_cpu() {
     let Some(gpu) = gpu_or_skip("displaced_grids_gpu_equals_cpu") else {
         return;
     };
-    for ((variant, mesh), lod) in variants(3).into_iter().flat_map(|v| [(v.clone(), 3), (v, 1)]) {
+    let all = variants(3).into_iter().chain(mixed_variants());
+    for ((variant, mesh), lod) in all.flat_map(|v| [(v.clone(), 3), (v, 1)]) {
         let grids = build(&mesh, Representation::Grids, Some(lod));
         let frame = grids.frame(camera::frame(&grids.bounds(), 256, 192), SHADE_EYE_LIGHT);
         let cpu = render_cpu(&grids, &frame);
@@ -156,7 +242,8 @@ fn displaced_grids_gpu_equals_cpu() {
 }
 
 /// The ray-list kernels find the hits the CPU does, in every value format, walked by the
-/// root's visit alone (L = 3) and with the stack (L = 4). The two-phase schedule, whose
+/// root's visit alone (L = 3) and with the stack (L = 4), of one level and of mixed levels.
+/// The two-phase schedule, whose
 /// kernels leave the decoder of compressed values out, refuses them on one line; it takes
 /// plain values under a wide or a binary top level, with kernels of their own (see
 /// `Buffer::DISPLACED_FORMATS`).
@@ -166,8 +253,9 @@ fn displaced_ray_lists_gpu_equal_cpu() {
         return;
     };
     use gridrt::rays::{ao_rays, primary_rays, trace_cpu};
-    for (variant, mesh) in [3, 4].into_iter().flat_map(variants) {
-        let levels = mesh.uniform_level().unwrap();
+    let all = [3, 4].into_iter().flat_map(variants);
+    for (variant, mesh) in all.chain(mixed_variants()) {
+        let levels = mesh.deepest_level().unwrap();
         let grids = build(&mesh, Representation::Grids, None);
         let primary = primary_rays(&grids.bounds(), 2, 96, 64);
         // From all around the ball, at points in its box (a convex ball's own occlusion rays
@@ -190,7 +278,7 @@ fn displaced_ray_lists_gpu_equal_cpu() {
         let ao = ao_rays(&primary, &first, 4, &b, |p| grids.normal(p));
         let uploaded = gpu.upload(&grids).unwrap();
         for top in [TopFormat::Wide, TopFormat::Compact] {
-            if variant != "plain" || levels != 3 {
+            if variant.contains("compressed") || levels != 3 {
                 break;
             }
             let mut options = BuildOptions::for_displaced();
@@ -203,7 +291,7 @@ fn displaced_ray_lists_gpu_equal_cpu() {
                 .filter(|(a, b)| a.prim == b.prim && (a.t - b.t).abs() <= 1e-4 * a.t.abs().max(1e-6))
                 .count();
             eprintln!(
-                "plain L3 two-phase, {top:?} top: {} rays, {same} the same on the GPU",
+                "{variant} L3 two-phase, {top:?} top: {} rays, {same} the same on the GPU",
                 primary.len()
             );
             assert!(
@@ -271,7 +359,8 @@ fn displaced_occlusion_gpu_equals_cpu() {
 /// A closed tetrahedron written by hand as another tool would: faces 0 and 1 at level 2,
 /// faces 2 and 3 at level 1, the finer faces' edges towards the coarser ones flagged in
 /// `primitiveFlags`, their odd points there holding 0 (as files store them). Rays at every
-/// point and micro-edge of every base edge never pass through; without the flags they do.
+/// point and micro-edge of every base edge never pass through, neither its decoded triangles
+/// nor its displaced grids; without the flags they do.
 #[test]
 fn mixed_levels_with_decimated_edges_render_watertight() {
     use gridrt::bary::{write, Micromap};
@@ -342,16 +431,18 @@ fn mixed_levels_with_decimated_edges_render_watertight() {
         path
     };
     // Rays from outside through each base edge's decoded points and the midpoints between
-    // them, aimed at the centre: how many pass through the surface.
+    // them, aimed at the centre: how many pass through the surface, as decoded triangles and
+    // as displaced grids.
     let leaks = |flags: [u8; 4]| {
         let input = gridrt::mesh::open(Some(&write_gltf(flags))).unwrap();
         let micromesh = input.micromesh.as_ref().unwrap();
         let expected = if flags == [0; 4] { vec![] } else { flags.to_vec() };
         assert_eq!(micromesh.decimated_edges, expected);
-        let scene = Scene::Triangles(gridrt::triangles::build(&input.mesh.positions, &input.mesh.triangles));
-        let centre = scene.bounds().center();
+        let triangles = Scene::Triangles(gridrt::triangles::build(&input.mesh.positions, &input.mesh.triangles));
+        let grids = build(micromesh, Representation::Grids, None);
+        let centre = triangles.bounds().center();
         let mut rng = Rng::new(17);
-        let (mut rays, mut leaked) = (0, 0);
+        let (mut rays, mut leaked) = (0, [0; 2]);
         for t in 0..4 {
             let n = grid_size(levels[t]);
             let points = micromesh.micro_vertices(t);
@@ -366,9 +457,11 @@ fn mixed_levels_with_decimated_edges_render_watertight() {
                         for _ in 0..4 {
                             let dir = (centre - target).normalize() + rng.direction() * 0.3;
                             let origin = target - dir * 3.0;
-                            let hit = scene.trace(&Ray::new(origin, dir), T_FAR);
                             rays += 1;
-                            leaked += (!hit.is_hit() || hit.t > 3.0 * 1.0001) as u32;
+                            for (scene, leaked) in [&triangles, &grids].into_iter().zip(&mut leaked) {
+                                let hit = scene.trace(&Ray::new(origin, dir), T_FAR);
+                                *leaked += (!hit.is_hit() || hit.t > 3.0 * 1.0001) as u32;
+                            }
                         }
                     }
                 }
@@ -377,6 +470,7 @@ fn mixed_levels_with_decimated_edges_render_watertight() {
         assert!(rays >= 100, "{rays}");
         leaked
     };
-    assert_eq!(leaks(flags), 0);
-    assert!(leaks([0; 4]) > 0, "without the flags the seams should crack");
+    assert_eq!(leaks(flags), [0, 0], "decoded triangles, displaced grids");
+    let [triangles, grids] = leaks([0; 4]);
+    assert!(triangles > 0 && grids > 0, "without the flags the seams should crack");
 }

@@ -371,4 +371,46 @@ mod tests {
         let (welded, _) = WorldMesh::from(mixed.mesh.decoded()).validate("mixed").unwrap();
         assert_eq!(border_edges(&welded.triangles), 0);
     }
+
+    /// The dome baked up to level 3 within the bytes of level 2 (triangles of levels 0 to 3,
+    /// with decimated edges): its values plain, and compressed.
+    fn mixed_domes() -> [(&'static str, DisplacedMesh); 2] {
+        let reference = bumpy_dome();
+        let options = BakeOptions {
+            base: Base::Decimated { triangles: 128 },
+            ..BakeOptions::for_reference(&reference, 3)
+        };
+        let budget = (128 * packed_bytes(2)) as u64;
+        let plain = bake_levels(&reference, &options, LevelTarget::MaxBytes(budget))
+            .unwrap()
+            .mesh;
+        let compression = crate::grid::compressed::ValueCompression::bounded(2e-4);
+        let compressed = crate::grid::compressed::compress(&plain, &compression).unwrap().mesh;
+        [("plain", plain), ("compressed", compressed)]
+    }
+
+    /// Displaced grids of mixed levels read back each triangle's own decoded points, at the
+    /// scene's lattice points of its own level, moved as its decimated edges move them.
+    #[test]
+    fn grids_of_mixed_levels_read_back_their_points() {
+        use gridrt_shared::grid_index::{grid_size, lattice_points};
+        for (variant, mixed) in mixed_domes() {
+            let levels: Vec<u32> = mixed.micromap.triangles.iter().map(|t| t.level).collect();
+            assert!(levels.contains(&3) && levels.iter().any(|&l| l < 2), "{levels:?}");
+            let grids = crate::grid::displaced::build(&mixed, &crate::grid::GridOptions::for_displaced()).unwrap();
+            assert_ne!(grids.params.level_element, 0);
+            assert_eq!(grids.params.displaced == 2, variant == "compressed");
+            let folded = mixed.with_ranges_folded();
+            let view = grids.view();
+            for (slot, &t) in grids.base_triangle.iter().enumerate() {
+                let open = view.open(slot as u32);
+                let shift = 3 - levels[t as usize];
+                let expected = folded.micro_vertices(t as usize);
+                for (q, want) in lattice_points(grid_size(levels[t as usize])).zip(expected) {
+                    let got = view.vertex(&open, [q[0] << shift, q[1] << shift]);
+                    assert_eq!(got, want, "{variant}: triangle {t} at {q:?}");
+                }
+            }
+        }
+    }
 }

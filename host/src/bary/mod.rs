@@ -309,12 +309,13 @@ fn value_code(
             code.widths
         );
     }
-    if let Some(t) = triangles.iter().position(|t| t.level != code.levels) {
+    // The code is for the deepest level, which triangles of mixed levels share.
+    let deepest = triangles.iter().map(|t| t.level).max().unwrap_or(code.levels);
+    if deepest != code.levels {
         fail!(
             Input,
-            "its gridrt value code is for level {}, and triangle {t} is at level {}",
+            "its gridrt value code is for level {}, and its deepest triangle is at level {deepest}",
             code.levels,
-            triangles[t].level
         );
     }
     Ok(Some(code))

@@ -31,8 +31,7 @@ struct Report {
     micromap_bytes: u64,
     /// Everything the GPU gets to trace the result as displaced grids at their defaults:
     /// values, base mesh, headers, radii, leaf thicknesses, top-level BVH.
-    /// `None` where the micro-mesh is too large for displaced grids, or of mixed levels
-    /// (rendered as triangles).
+    /// `None` where the micro-mesh is too large for displaced grids (rendered as triangles).
     grid_bytes: Option<u64>,
     /// Micro-triangles at each level `0 ..= 6`, where base triangles have their own levels
     /// (`--max-error`).
@@ -289,11 +288,13 @@ fn compress_within(
 }
 
 /// How to compress the baked values: `None` to leave them plain (as asked, at level 0, where
-/// a base triangle has its corners alone, or at mixed levels, which compression does not
-/// take yet). The bound is the one asked for, or by
-/// default a share of the uncompressed bake's own distance from the reference.
+/// a base triangle has its corners alone, or with `--max-error` unless `--compress-values`
+/// sets a bound: the levels already keep the error within the one asked for). The bound is
+/// the one asked for, or by default a share of the uncompressed bake's own distance from
+/// the reference.
 fn compression_bound(args: &BakeArgs, mesh: &DisplacedMesh, plain: &SurfaceDistance) -> Option<ValueCompression> {
-    if args.plain_values || args.levels == 0 || mesh.uniform_level().is_none() {
+    let levels_chosen = args.max_error.is_some() && args.compress_values.is_none();
+    if args.plain_values || args.levels == 0 || levels_chosen {
         return None;
     }
     Some(match args.compress_values {
@@ -361,9 +362,6 @@ fn summary(r: &Report) -> String {
         per_micro(r.micromap_bytes),
         match r.grid_bytes {
             Some(bytes) => format!("{bytes} bytes, {:.2} B per micro-triangle", per_micro(bytes)),
-            None if r.level_micro_triangles.is_some() => {
-                "none yet: mixed levels render as decoded triangles".into()
-            }
             None => "too large to trace as displaced grids (rendered as triangles)".into(),
         },
         r.bake_seconds,
@@ -396,7 +394,7 @@ fn summary(r: &Report) -> String {
                 }
             ),
             None if r.level_micro_triangles.is_some() => {
-                "values: plain, 11 bits each (compression takes one level for now)\n".into()
+                "values: plain, 11 bits each (--compress-values bounds a compression)\n".into()
             }
             None => "values: plain, 11 bits each\n".into(),
         },

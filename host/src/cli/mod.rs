@@ -266,9 +266,6 @@ pub fn compress_values(input: &mut Input, build: &BuildArgs) -> Result<()> {
     let (Some(bound), Some(micromesh)) = (build.compress_values, &input.micromesh) else {
         return Ok(());
     };
-    if micromesh.uniform_level().is_none() {
-        return Ok(());
-    }
     let options = grid::compressed::ValueCompression::bounded(bound);
     let compressed = grid::compressed::compress(micromesh, &options).map_err(|e| e.prefixed(&input.name))?;
     eprintln!(
@@ -665,9 +662,9 @@ pub struct BakeArgs {
     /// bounding-box diagonal: every level is fitted to the reference, each triangle takes the
     /// one where a byte saved costs more error than a rate all share, neighbours within a
     /// level of each other, the finer side decimating the edge between them (glTF's
-    /// primitiveFlags). Such micro-meshes keep their values plain and render as decoded
-    /// triangles for now.
-    #[arg(long, value_name = "MAX_ERROR", value_parser = parse_value_error, conflicts_with_all = ["compress_values", "max_bytes"])]
+    /// primitiveFlags). Such micro-meshes render as displaced grids of mixed levels, their
+    /// values plain unless --compress-values bounds the error their compression adds.
+    #[arg(long, value_name = "MAX_ERROR", value_parser = parse_value_error, conflicts_with = "max_bytes")]
     pub max_error: Option<f32>,
     /// Points sampled on each surface, by area, to measure the baked mesh's distance from
     /// the reference.
@@ -872,13 +869,13 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
         compress_values(&mut input, &args.build)?;
         anyhow::Ok(input)
     })?;
-    // A displaced micro-mesh of one level becomes displaced grids; otherwise, and for the
-    // baseline, its decoded micro-triangles are traced as they are.
-    let displaced_grids = micromesh.filter(|m| args.mode == Mode::Grid && m.uniform_level().is_some());
+    // A displaced micro-mesh becomes displaced grids; for the baseline, its decoded
+    // micro-triangles are traced as they are.
+    let displaced_grids = micromesh.filter(|m| args.mode == Mode::Grid && m.deepest_level().is_some());
     let (as_decoded, as_displaced);
     let (args, options, lod) = match (&displaced_grids, displaced) {
         (Some(m), _) => {
-            as_displaced = args.as_displaced(m.uniform_level().unwrap_or(0))?;
+            as_displaced = args.as_displaced(m.deepest_level().unwrap_or(0))?;
             let options = as_displaced.build_options();
             let lod = options.lod.unwrap_or(as_displaced.build.levels);
             (&as_displaced, options, lod)

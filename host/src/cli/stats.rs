@@ -160,7 +160,7 @@ pub fn measure_displaced(
     repeats: usize,
     progress: &dyn Fn(&str),
 ) -> Result<(Stats, GridScene, TriangleScene)> {
-    let build = build.as_displaced(micromesh.uniform_level().unwrap_or(0));
+    let build = build.as_displaced(micromesh.deepest_level().unwrap_or(0));
     let layout = grid::displaced::layout(micromesh, &build.grid_options())?;
     progress(&format!("building the displaced grids (up to {repeats} times)"));
     let (grid_s, grids) = median_time_of(repeats, || layout.clone(), grid::build_from_layout);
@@ -216,9 +216,8 @@ pub fn run(args: &StatsArgs, quiet: bool) -> Result<()> {
         input
     };
     let step = |step: &str| bar.set_message(format!("{name}: {step}"));
-    // A displaced micro-mesh of one level: displaced grids against its decoded triangles;
-    // of mixed levels, its decoded micro-triangles measured as they are.
-    let s = match (micromesh.filter(|m| m.uniform_level().is_some()), displaced) {
+    // A displaced micro-mesh: displaced grids against its decoded triangles.
+    let s = match (micromesh.filter(|m| m.deepest_level().is_some()), displaced) {
         (Some(m), _) => {
             check_work(&name, &mesh, &args.build.as_decoded(), 0)?;
             measure_displaced(&name, (&m, &mesh), &args.build, BUILD_REPEATS, &step)?.0

@@ -27,6 +27,7 @@ use gridrt_shared::grid_index::{grid_size, Lattice};
 
 use rayon::prelude::*;
 
+use super::displaced::{expanded_mesh, rendered_edge_level};
 use super::{corner_point, edge_point, BaseEdges};
 use crate::bary::MicromapTriangle;
 use crate::displaced::DisplacedMesh;
@@ -101,7 +102,7 @@ impl CompressedMesh {
     }
 }
 
-/// Compresses `mesh`'s values (a micro-mesh of one level) as tightly as `options` allow.
+/// Compresses `mesh`'s values as tightly as `options` allow.
 pub fn compress(mesh: &DisplacedMesh, options: &ValueCompression) -> Result<CompressedMesh> {
     Ok(Compressor::new(mesh, options.max_added_error)?.within(options.max_bits))
 }
@@ -110,8 +111,11 @@ pub fn compress(mesh: &DisplacedMesh, options: &ValueCompression) -> Result<Comp
 /// number of bits: the scene's widths and each grid's choices are found once, so that a
 /// caller looking for the bits that fit a byte budget pays only for the last step each try.
 pub struct Compressor {
+    /// The values to compress, ranges folded, every triangle at the deepest level (see
+    /// [`expanded_mesh`]).
     folded: DisplacedMesh,
     edges: BaseEdges,
+    rendered: Rendered,
     diagonal: f32,
     scene_code: ValueCode,
     allocation: Allocation,
@@ -120,20 +124,29 @@ pub struct Compressor {
 }
 
 impl Compressor {
-    /// `mesh`'s values (one level) compressed within `max_added_error` (see
-    /// [`ValueCompression::max_added_error`]).
+    /// `mesh`'s values compressed within `max_added_error` (see
+    /// [`ValueCompression::max_added_error`]). Triangles of mixed levels are compressed as
+    /// displaced grids hold them (see [`expanded_mesh`]): the points no grid renders count for
+    /// no error, so a coarser grid's finer levels take no bits of its own.
     pub fn new(mesh: &DisplacedMesh, max_added_error: f32) -> Result<Compressor> {
-        let Some(levels) = mesh.uniform_level() else {
-            fail!(Input, "its base triangles are subdivided to different levels");
+        let Some(levels) = mesh.deepest_level() else {
+            fail!(Input, "it has no base triangles");
         };
         let folded = mesh.with_ranges_folded();
         let edges = BaseEdges::new(&folded.base_mesh());
+        let rendered = Rendered::new(&folded, &edges);
+        let folded = match rendered.own.is_empty() {
+            true => folded,
+            false => expanded_mesh(&folded),
+        };
         let diagonal = diagonal(&folded);
         let bound = max_added_error as f64 * diagonal as f64;
         // First one set of widths for every block, as narrow as the bound allows: the base
         // edges keep it.
         let mut widths = [MAX_WIDTH; MAX_LEVELS as usize];
-        let mut best = encode(&folded, &edges, code(levels, &widths), |_| code(levels, &widths));
+        let mut best = encode(&folded, &edges, &rendered, code(levels, &widths), |_| {
+            code(levels, &widths)
+        });
         loop {
             // The level whose narrower corrections add the least error per bit saved.
             let mut choice: Option<(f64, [u32; MAX_LEVELS as usize], Encoded)> = None;
@@ -144,7 +157,7 @@ impl Compressor {
                 let mut trial = widths;
                 trial[l] -= 1;
                 let trial_code = code(levels, &trial);
-                let encoded = encode(&folded, &edges, trial_code, |_| trial_code);
+                let encoded = encode(&folded, &edges, &rendered, trial_code, |_| trial_code);
                 if encoded.rms() > bound {
                     continue;
                 }
@@ -159,15 +172,16 @@ impl Compressor {
         }
         // Then each grid its own widths, within the same bound.
         let scene_code = code(levels, &widths);
-        let allocation = Allocation::new(&folded, &edges, scene_code);
+        let allocation = Allocation::new(&folded, &edges, &rendered, scene_code);
         let grid_codes = allocation.within_error(bound * bound * best.points as f64);
-        let each = encode(&folded, &edges, scene_code, |g| grid_codes[g]);
+        let each = encode(&folded, &edges, &rendered, scene_code, |g| grid_codes[g]);
         if each.rms() <= bound.max(best.rms()) && each.bits <= best.bits {
             best = each;
         }
         Ok(Compressor {
             folded,
             edges,
+            rendered,
             diagonal,
             scene_code,
             allocation,
@@ -185,20 +199,35 @@ impl Compressor {
         let best = &self.bounded;
         let inner_bits: u64 = (best.grid_blocks.iter()).map(|&(_, bits)| bits as u64).sum();
         let grid_codes = (self.allocation).within_bits(max_bits.saturating_sub(best.bits - inner_bits));
-        self.finish(encode(&self.folded, &self.edges, self.scene_code, |g| grid_codes[g]))
+        self.finish(encode(
+            &self.folded,
+            &self.edges,
+            &self.rendered,
+            self.scene_code,
+            |g| grid_codes[g],
+        ))
     }
 
-    /// The micro-mesh holding `encoded`'s values.
+    /// The micro-mesh holding `encoded`'s values, each triangle at its own level.
     fn finish(&self, encoded: Encoded) -> CompressedMesh {
         let mut mesh = self.folded.clone();
-        mesh.micromap.values = encoded.values.concat();
-        let per_triangle = encoded.values.first().map_or(0, Vec::len) as u32;
-        mesh.micromap.triangles = (0..mesh.triangles.len() as u32)
-            .map(|t| MicromapTriangle {
-                level: self.scene_code.levels,
-                first_value: t * per_triangle,
-            })
-            .collect();
+        mesh.micromap.values.clear();
+        mesh.micromap.triangles.clear();
+        let n = grid_size(self.scene_code.levels);
+        for (g, values) in encoded.values.iter().enumerate() {
+            mesh.micromap.triangles.push(MicromapTriangle {
+                level: self.rendered.own_level(g, self.scene_code.levels),
+                first_value: mesh.micromap.values.len() as u32,
+            });
+            let shift = self.scene_code.levels - self.rendered.own_level(g, self.scene_code.levels);
+            // Its own level's points, u-major as a micromap holds them.
+            let m = n >> shift;
+            let own = (0..=m).flat_map(|i| (0..=m - i).map(move |j| [i << shift, j << shift]));
+            mesh.micromap
+                .values
+                .extend(own.map(|p| values[u_major_index(p, n) as usize]));
+        }
+        mesh.decimated_edges = self.rendered.decimated_edges();
         mesh.micromap.value_code = Some(self.scene_code);
         CompressedMesh {
             added_error: (encoded.rms() / self.diagonal as f64) as f32,
@@ -230,13 +259,13 @@ struct Allocation {
 }
 
 impl Allocation {
-    fn new(mesh: &DisplacedMesh, edges: &BaseEdges, scene: ValueCode) -> Allocation {
-        let shared = SharedValues::encode(mesh, edges, scene);
+    fn new(mesh: &DisplacedMesh, edges: &BaseEdges, rendered: &Rendered, scene: ValueCode) -> Allocation {
+        let shared = SharedValues::encode(mesh, edges, rendered, scene);
         let choices = (0..mesh.triangles.len())
             .into_par_iter()
             .map(|g| {
                 let trial = |c: ValueCode| {
-                    let (block, _) = encode_grid(mesh, g, c, &shared, edges);
+                    let (block, _) = encode_grid(mesh, g, c, &shared, edges, rendered);
                     Choice {
                         code: c,
                         bits: c.inner_block_bits() as u64,
@@ -359,6 +388,66 @@ impl Encoded {
     }
 }
 
+/// Which stored points some grid renders, where triangles of mixed levels are compressed at
+/// the deepest level (see [`expanded_mesh`]): a grid renders its own level's points, but not
+/// those its decimated edges move, and a base edge is rendered at the finest level any of its
+/// grids renders it at. Every point is rendered where levels are one.
+#[derive(Clone, Debug, Default)]
+pub(super) struct Rendered {
+    /// Each grid's own level and decimated edges (see [`DisplacedMesh::own_levels`]); empty
+    /// where levels are one.
+    own: Vec<u8>,
+    /// Each base edge's finest rendered level, by edge id.
+    edge_levels: Vec<u32>,
+    levels: u32,
+}
+
+impl Rendered {
+    fn new(mesh: &DisplacedMesh, edges: &BaseEdges) -> Rendered {
+        let own = mesh.own_levels();
+        if own.is_empty() {
+            return Rendered::default();
+        }
+        let mut edge_levels = vec![0; edges.owner.len()];
+        for (g, ids) in edges.of_grid.iter().enumerate() {
+            for (e, &id) in ids.iter().enumerate() {
+                let level = &mut edge_levels[id as usize];
+                *level = (*level).max(rendered_edge_level(mesh, g, e));
+            }
+        }
+        Rendered {
+            own,
+            edge_levels,
+            levels: mesh.deepest_level().unwrap_or(0),
+        }
+    }
+
+    /// Grid `g`'s own level, in a scene of `levels`.
+    fn own_level(&self, g: usize, levels: u32) -> u32 {
+        self.own.get(g).map_or(levels, |&b| b as u32 >> 3)
+    }
+
+    /// Each grid's decimated edges, as [`DisplacedMesh::decimated_edges`] holds them.
+    fn decimated_edges(&self) -> Vec<u8> {
+        self.own.iter().map(|&b| b & 7).collect()
+    }
+
+    /// Whether grid `g` renders its inner point `p`.
+    fn inner_point(&self, g: usize, p: Lattice) -> bool {
+        let Some(&own) = self.own.get(g) else { return true };
+        let mask = (1u32 << (self.levels - (own as u32 >> 3))) - 1;
+        (p[0] | p[1]) & mask == 0
+    }
+
+    /// Whether base edge `id`'s point `s` steps from its first corner is rendered.
+    fn edge_point(&self, id: usize, s: u32) -> bool {
+        let Some(&level) = self.edge_levels.get(id) else {
+            return true;
+        };
+        s & ((1u32 << (self.levels - level)) - 1) == 0
+    }
+}
+
 /// Squared error added per bit saved going from `(bits, squared error)` `from` to `to`.
 fn error_per_bit_saved(from: (u64, f64), to: (u64, f64)) -> f64 {
     let saved = from.0.saturating_sub(to.0).max(1) as f64;
@@ -426,13 +515,14 @@ impl GridBlocks {
 pub(super) fn encode(
     mesh: &DisplacedMesh,
     edges: &BaseEdges,
+    rendered: &Rendered,
     scene: ValueCode,
     grid_code: impl Fn(usize) -> ValueCode + Sync,
 ) -> Encoded {
-    let shared = SharedValues::encode(mesh, edges, scene);
+    let shared = SharedValues::encode(mesh, edges, rendered, scene);
     let grid_blocks: Vec<(BlockEncoder, Vec<u16>)> = (0..mesh.triangles.len())
         .into_par_iter()
-        .map(|g| encode_grid(mesh, g, grid_code(g), &shared, edges))
+        .map(|g| encode_grid(mesh, g, grid_code(g), &shared, edges, rendered))
         .collect();
     let mut out = Encoded {
         squared_error: shared.squared_error,
@@ -462,7 +552,7 @@ pub(super) fn encode_exact(mesh: &DisplacedMesh, edges: &BaseEdges, scene: Value
         .map(|g| exact_code(mesh, g, scene.levels))
         .collect();
     let codes = codes?;
-    let encoded = encode(mesh, edges, scene, |g| codes[g]);
+    let encoded = encode(mesh, edges, &Rendered::default(), scene, |g| codes[g]);
     let exact = (0..mesh.triangles.len()).all(|g| encoded.values[g] == mesh.micromap.triangle_values(g));
     exact.then_some(encoded)
 }
@@ -483,6 +573,7 @@ fn exact_code(mesh: &DisplacedMesh, g: usize, levels: u32) -> Option<ValueCode> 
                     truth: truth[at(p)],
                     parents: (truth[at(pa)], truth[at(pb)]),
                     unit: 1.0,
+                    counted: true,
                 }
             })
             .collect();
@@ -515,7 +606,7 @@ impl SharedValues {
     /// Corners as plain values, from the first grid that uses each base vertex; each base
     /// edge along its stored direction (from its lower vertex id) with `code`, from the grid
     /// that owns it.
-    fn encode(mesh: &DisplacedMesh, edges: &BaseEdges, code: ValueCode) -> SharedValues {
+    fn encode(mesh: &DisplacedMesh, edges: &BaseEdges, rendered: &Rendered, code: ValueCode) -> SharedValues {
         let n = grid_size(code.levels);
         let mut corner_values = vec![0u16; mesh.positions.len()];
         let mut corner_seen = vec![false; mesh.positions.len()];
@@ -527,10 +618,8 @@ impl SharedValues {
                 }
             }
         }
-        let edge_blocks: Vec<(BlockEncoder, Vec<u16>)> = edges
-            .owner
-            .par_iter()
-            .map(|&(g, e)| {
+        let edge_blocks: Vec<(BlockEncoder, Vec<u16>)> = (edges.owner.par_iter().enumerate())
+            .map(|(id, &(g, e))| {
                 let t = mesh.triangles[g];
                 let original = mesh.micromap.triangle_values(g);
                 let (from, to) = (t[e], t[(e + 1) % 3]);
@@ -549,6 +638,7 @@ impl SharedValues {
                                 truth: truth[s as usize],
                                 parents: (values[(s - step) as usize], values[(s + step) as usize]),
                                 unit: unit(mesh, g, point(s), n),
+                                counted: rendered.edge_point(id, s),
                             }
                         })
                         .collect();
@@ -592,6 +682,7 @@ fn encode_grid(
     code: ValueCode,
     shared: &SharedValues,
     edges: &BaseEdges,
+    rendered: &Rendered,
 ) -> (BlockEncoder, Vec<u16>) {
     let n = grid_size(code.levels);
     let t = mesh.triangles[g];
@@ -620,6 +711,7 @@ fn encode_grid(
                     truth: truth[at(p)],
                     parents: (values[at(pa)], values[at(pb)]),
                     unit: unit(mesh, g, p, n),
+                    counted: rendered.inner_point(g, p),
                 }
             })
             .collect();
@@ -656,12 +748,14 @@ fn parents(p: Lattice, step: u32) -> (Lattice, Lattice) {
     }
 }
 
-/// A point to encode: its true value, its parents' decoded values, and the distance a value
-/// step moves it.
+/// A point to encode: its true value, its parents' decoded values, the distance a value
+/// step moves it, and whether a grid renders it (see [`Rendered`]): the error of one that
+/// none does counts for nothing.
 struct Target {
     truth: u16,
     parents: (u16, u16),
     unit: f32,
+    counted: bool,
 }
 
 /// One block's shifts and corrections, level by level.
@@ -713,7 +807,7 @@ impl BlockEncoder {
         let ((error, _), shift) = best.unwrap_or(((0.0, 0), 0));
         self.shifts |= shift << (SHIFT_BITS * (l - 1));
         self.squared_error += error;
-        self.points += targets.len() as u64;
+        self.points += targets.iter().filter(|t| t.counted).count() as u64;
         targets
             .iter()
             .map(|t| {
@@ -761,6 +855,9 @@ impl Target {
     /// The squared distance the point moves and the squared change of its value, encoded
     /// at `width` and `shift`.
     fn error(&self, width: u32, shift: u32) -> (f64, u64) {
+        if !self.counted {
+            return (0.0, 0);
+        }
         let (_, q) = self.encode(width, shift);
         let v = q as i64 - self.truth as i64;
         let d = v as f64 * self.unit as f64;

@@ -19,31 +19,50 @@
 //! A value on a shared base edge or corner is taken from the first grid that uses it; in a
 //! consistent micromap (gridrt's, or any tool's that keeps edges watertight) every grid holds
 //! the same value there.
+//!
+//! Triangles of mixed levels are laid out at the deepest level `L` ([`expanded_mesh`]): a
+//! level-`l` grid holds its values at the multiples of `2^(L - l)` of the level-`L` lattice,
+//! which decode to the same bits as its own lattice, and its own level and decimated edges
+//! sit in a byte per grid after the headers (`GridParams::level_element`). The traversal
+//! renders such a grid at most `l` deep and snaps the odd points of its decimated edges as
+//! the decoded triangles do; its spheres and leaf thicknesses are found over the points it
+//! renders (`spheres::rendered_points`). Each grid keeps the level-`L` room for its inner
+//! values and spheres: compressed values spend next to no bits on the levels a grid does
+//! not have, plain ones their 11 bits.
 
 use crate::bit_writer::BitWriter;
-use gridrt_shared::displacement::{displaced_point, u_major_index, unorm11_displacement, DisplacedTriangle};
+use gridrt_shared::displacement::{
+    decimated_grid_point, displaced_point, u_major_index, unorm11_displacement, DisplacedTriangle,
+};
 use gridrt_shared::glam::Vec3;
-use gridrt_shared::grid_index::{edge_vertex_count, grid_size, inner_points, inner_vertex_count, Lattice};
+use gridrt_shared::grid_index::{
+    edge_vertex_count, grid_size, inner_points, inner_vertex_count, lattice_points, Lattice,
+};
 use gridrt_shared::grid_traverse::DISPLACEMENT_BITS;
 
 use super::{
-    check_counts, compressed, corner_point, edge_points, BaseEdges, GridBuild, GridLayout, GridOptions, GridScene,
-    GridShape,
+    check_counts, compressed, corner_point, edge_point, edge_points, BaseEdges, GridBuild, GridLayout, GridOptions,
+    GridScene, GridShape,
 };
 use crate::displaced::DisplacedMesh;
 use crate::error::{fail, Result};
 use crate::limits::BufferSize;
 use crate::mesh::Mesh;
 
-/// Lays out `mesh` (every triangle at one level) as displaced grids.
+/// Lays out `mesh` as displaced grids. Triangles of mixed levels share the deepest one's
+/// lattice: a coarser grid holds its own level's points of it, and the points between them
+/// (which it never renders) are the means of their parents, as compressed values predict them
+/// (see [`expanded_values`]).
 pub fn layout(mesh: &DisplacedMesh, options: &GridOptions) -> Result<GridLayout> {
-    let Some(levels) = mesh.uniform_level() else {
-        fail!(
-            Input,
-            "its base triangles are subdivided to different levels, which displaced grids do not hold yet"
-        );
+    let Some(levels) = mesh.deepest_level() else {
+        fail!(Input, "it has no base triangles");
     };
     let mesh = mesh.with_ranges_folded();
+    let own_levels = mesh.own_levels();
+    let mesh = match own_levels.is_empty() {
+        true => mesh,
+        false => expanded_mesh(&mesh),
+    };
     let base = Mesh {
         positions: mesh.positions.clone(),
         triangles: mesh.triangles.clone(),
@@ -145,7 +164,125 @@ pub fn layout(mesh: &DisplacedMesh, options: &GridOptions) -> Result<GridLayout>
         inner_by_grid,
         value_blocks,
         buffer,
+        own_levels,
     })
+}
+
+/// `mesh` (ranges folded, of mixed levels) with every triangle at the deepest level, as
+/// displaced grids of mixed levels hold it: each triangle's own values at its own level's
+/// points of the deeper lattice, the points between them filled (see [`expanded_values`]),
+/// and on each base edge the values of the triangle that renders it finest (see
+/// [`edge_sources`]), so that every triangle holds the same values there and each finds
+/// the points it renders. The decimated edges are left to [`DisplacedMesh::own_levels`].
+pub(crate) fn expanded_mesh(mesh: &DisplacedMesh) -> DisplacedMesh {
+    let levels = mesh.deepest_level().unwrap_or(0);
+    let n = grid_size(levels);
+    let edges = BaseEdges::new(&mesh.base_mesh());
+    let mut values: Vec<Vec<u16>> = (0..mesh.triangles.len())
+        .map(|g| expanded_values(mesh, g, levels))
+        .collect();
+    let sources = edge_sources(&edges, mesh);
+    for (g, ids) in edges.of_grid.iter().enumerate() {
+        for (e, &id) in ids.iter().enumerate() {
+            let (sg, se) = sources[id as usize];
+            if sg == g {
+                continue;
+            }
+            let (t, ts) = (mesh.triangles[g], mesh.triangles[sg]);
+            let along = t[e] == ts[se];
+            for k in 1..n {
+                let from = edge_point(se, if along { k } else { n - k }, n);
+                values[g][u_major_index(edge_point(e, k, n), n) as usize] = values[sg][u_major_index(from, n) as usize];
+            }
+        }
+    }
+    let triangles: Vec<(u32, Vec<u16>)> = values.into_iter().map(|v| (levels, v)).collect();
+    let mut micromap = crate::bary::Micromap::from_triangles(0.0, 1.0, &triangles);
+    micromap.value_code = mesh.micromap.value_code;
+    DisplacedMesh {
+        positions: mesh.positions.clone(),
+        directions: mesh.directions.clone(),
+        triangles: mesh.triangles.clone(),
+        micromap,
+        decimated_edges: Vec::new(),
+    }
+}
+
+/// The level triangle `g` renders its edge `e` at: its own, one less where the edge is
+/// decimated.
+pub(super) fn rendered_edge_level(mesh: &DisplacedMesh, g: usize, e: usize) -> u32 {
+    let level = mesh.micromap.triangles[g].level;
+    level - (level > 0 && mesh.decimated(g) >> e & 1 != 0) as u32
+}
+
+/// Triangle `g`'s values on the scene's level-`levels` lattice, in u-major order: its own
+/// level's at the points of that level, and each point between them the mean of the two
+/// coarser points it halves (rounded up), finer after coarser, as compressed values predict
+/// a point (see `gridrt_shared::compressed_values`), so that their corrections are zero. A
+/// point on a base edge has its parents on that edge, so the values on an edge follow from
+/// that edge's alone.
+fn expanded_values(mesh: &DisplacedMesh, g: usize, levels: u32) -> Vec<u16> {
+    let own = mesh.micromap.triangles[g].level;
+    let (n, shift) = (grid_size(levels), levels - own);
+    let values = mesh.micromap.triangle_values(g);
+    let mut out = vec![0u16; crate::bary::values_per_triangle(levels)];
+    for [i, j] in lattice_points(grid_size(own)) {
+        out[u_major_index([i << shift, j << shift], n) as usize] =
+            values[u_major_index([i, j], grid_size(own)) as usize];
+    }
+    // The odd points of decimated edges render nowhere (their grid renders the even ones in
+    // their place, as does its coarser neighbour): they are filled like the finer points.
+    let decimated = mesh.decimated(g);
+    for p in lattice_points(n) {
+        if decimated_grid_point(p, n, shift, decimated) != p {
+            let (a, b) = halved_edge(p, 1 << shift);
+            let mean = (out[u_major_index(a, n) as usize] as u32 + out[u_major_index(b, n) as usize] as u32 + 1) >> 1;
+            out[u_major_index(p, n) as usize] = mean as u16;
+        }
+    }
+    for h in (0..shift).rev().map(|k| 1u32 << k) {
+        for [i, j] in lattice_points(n) {
+            if (i | j) % h != 0 || (i | j) & h == 0 {
+                continue;
+            }
+            let (a, b) = halved_edge([i, j], h);
+            let mean = (out[u_major_index(a, n) as usize] as u32 + out[u_major_index(b, n) as usize] as u32 + 1) >> 1;
+            out[u_major_index([i, j], n) as usize] = mean as u16;
+        }
+    }
+    out
+}
+
+/// The two points of the lattice of spacing `2 h` whose edge point `p` (on the lattice of
+/// spacing `h`, not on the coarser one) halves.
+pub(super) fn halved_edge([i, j]: Lattice, h: u32) -> (Lattice, Lattice) {
+    if j & h == 0 {
+        ([i - h, j], [i + h, j])
+    } else if i & h == 0 {
+        ([i, j - h], [i, j + h])
+    } else {
+        ([i - h, j + h], [i + h, j - h])
+    }
+}
+
+/// For each base edge, the grid and edge within it whose values the edge area stores: the
+/// grid that renders the edge finest (its own level, one less where its edge is decimated),
+/// so every grid finds there the points it renders. The owners where levels are one.
+fn edge_sources(edges: &BaseEdges, mesh: &DisplacedMesh) -> Vec<(usize, usize)> {
+    let mut sources = edges.owner.clone();
+    if mesh.uniform_level().is_some() {
+        return sources;
+    }
+    let rendered = |g: usize, e: usize| rendered_edge_level(mesh, g, e);
+    for (g, ids) in edges.of_grid.iter().enumerate() {
+        for (e, &id) in ids.iter().enumerate() {
+            let (sg, se) = sources[id as usize];
+            if rendered(g, e) > rendered(sg, se) {
+                sources[id as usize] = (g, e);
+            }
+        }
+    }
+    sources
 }
 
 /// Refuses values that end past what bit addresses reach (`whose` says whose they are):
@@ -177,8 +314,8 @@ fn pack(values: &[u16]) -> Vec<u32> {
 /// bounded below), after checking the layout can address them; in the order of
 /// `crate::split::scene_buffers`.
 pub fn least_buffer_sizes(mesh: &DisplacedMesh, options: &GridOptions) -> Result<Vec<BufferSize>> {
-    let Some(levels) = mesh.uniform_level() else {
-        fail!(Input, "its base triangles are subdivided to different levels");
+    let Some(levels) = mesh.deepest_level() else {
+        fail!(Input, "it has no base triangles");
     };
     let base = Mesh {
         positions: mesh.positions.clone(),
@@ -196,9 +333,13 @@ pub fn least_buffer_sizes(mesh: &DisplacedMesh, options: &GridOptions) -> Result
     let inner_words = packed_words(inner_vertex_count(levels) as u64);
     let shared = edges as u64 * edge_vertex_count(levels) as u64 + base.positions.len() as u64;
     let words = grids * inner_words + packed_words(shared) + 6 * base.positions.len() as u64;
+    let mixed = mesh.uniform_level().is_none();
     for size in &mut sizes {
-        if size.name == "grid vertex" {
-            size.bytes = 4 * words;
+        match size.name {
+            "grid vertex" => size.bytes = 4 * words,
+            // A byte per grid of its own level (see `GridParams::level_element`).
+            "grid header" if mixed => size.bytes += 16 * grids.div_ceil(16),
+            _ => {}
         }
     }
     Ok(sizes)

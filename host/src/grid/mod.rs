@@ -402,6 +402,9 @@ pub struct GridLayout {
     /// The vertex buffer as uploaded: room for the inner areas (filled in leaf order by the
     /// build), then the edge and corner areas, which never move.
     pub buffer: Vec<u32>,
+    /// For displaced grids of mixed levels, each grid's own level and decimated edges (see
+    /// `GridParams::level_element`); empty otherwise.
+    pub own_levels: Vec<u8>,
 }
 
 impl GridLayout {
@@ -666,6 +669,7 @@ pub fn layout(base: &Mesh, sub: &Subdivided, options: &GridOptions) -> Result<Gr
         inner_by_grid,
         value_blocks: None,
         buffer,
+        own_levels: Vec::new(),
     })
 }
 
@@ -702,6 +706,7 @@ pub fn build_from_layout(layout: &mut GridLayout) -> GridScene {
         });
     vertices[..layout.inner_by_grid.len()].copy_from_slice(&layout.inner_by_grid);
     let mut scene = assemble(&layout.shape, &layout.ids, &per_grid, vertices);
+    append_own_levels(&mut scene, &layout.own_levels);
     if let Some(blocks) = &layout.value_blocks {
         blocks.write(&scene.base_triangle, &mut scene.vertices);
     }
@@ -912,6 +917,33 @@ fn assemble(shape: &GridShape, ids: &[GridIds], per_grid: &PerGrid, mut vertices
             ..Default::default()
         },
         base_triangle: top.order,
+    }
+}
+
+/// Appends to the header buffer a byte per grid of its own level and decimated edges, in leaf
+/// order, sixteen to an element, when the grids are of mixed levels (see
+/// `GridParams::level_element`).
+fn append_own_levels(scene: &mut GridScene, own_levels: &[u8]) {
+    if own_levels.is_empty() {
+        return;
+    }
+    scene.params.level_element = scene.headers.len() as u32;
+    let bytes: Vec<u8> = scene.base_triangle.iter().map(|&g| own_levels[g as usize]).collect();
+    for chunk in bytes.chunks(16) {
+        let mut element = [0u8; 16];
+        element[..chunk.len()].copy_from_slice(chunk);
+        let word = |k: usize| {
+            u32::from_le_bytes([
+                element[4 * k],
+                element[4 * k + 1],
+                element[4 * k + 2],
+                element[4 * k + 3],
+            ])
+        };
+        scene.headers.push(GridHeader {
+            edges: [word(0), word(1)],
+            corners: [word(2), word(3)],
+        });
     }
 }
 

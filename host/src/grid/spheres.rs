@@ -3,6 +3,7 @@
 //! micro-vertex inside it. Also the encodings of radii: half floats, or bytes relative to the
 //! grid's root.
 
+use gridrt_shared::displacement::decimated_grid_point;
 use gridrt_shared::glam::{Vec3, Vec3A};
 use gridrt_shared::grid_index::{
     grid_size, inner_points, lattice_index, lattice_points, sub_triangle, triangle_count, Lattice,
@@ -94,7 +95,37 @@ pub(super) fn grid_bounds_and_radii(
     for &(p, at) in &table.boundary {
         points[at as usize] = layout.vertices[slots.slot(p) as usize].into();
     }
+    if let Some(&own) = layout.own_levels.get(g) {
+        rendered_points(points, layout.shape.levels, own as u32);
+    }
     bounds_and_radii(table, points, radii, thickness)
+}
+
+/// A grid of mixed levels' points (in lattice order, on the scene's level-`levels` lattice) as
+/// the traversal renders them, its own level and decimated edges `own` (see
+/// `GridParams::level_element`): a point a decimated edge moves is where it moves to, and each
+/// point finer than the grid's own level the midpoint of the two coarser ones it halves. Every
+/// point under a sub-triangle then lies in the hull of the micro-triangles the grid renders
+/// there, so the radii and thicknesses found over all of them hold for those.
+fn rendered_points(points: &mut [Vec3A], levels: u32, own: u32) {
+    let n = grid_size(levels);
+    let shift = levels - (own >> 3);
+    let at = |p: Lattice| lattice_index(p[0], p[1], n) as usize;
+    for p in lattice_points(n) {
+        let moved = decimated_grid_point(p, n, shift, own & 7);
+        if moved != p {
+            points[at(p)] = points[at(moved)];
+        }
+    }
+    for h in (0..shift).rev().map(|k| 1u32 << k) {
+        for p in lattice_points(n) {
+            if (p[0] | p[1]) % h != 0 || (p[0] | p[1]) & h == 0 {
+                continue;
+            }
+            let (a, b) = super::displaced::halved_edge(p, h);
+            points[at(p)] = (points[at(a)] + points[at(b)]) * 0.5;
+        }
+    }
 }
 
 /// [`grid_bounds_and_radii`] of a grid whose vertices `points` are already in lattice order.
