@@ -86,12 +86,19 @@ impl Scene {
         }
     }
 
-    /// Corners of a hit's triangle, by its primitive id (a grid hit at the scene's depth, see
-    /// [`gridrt_shared::layout::Hit`]).
+    /// Corners of a hit's triangle, by its primitive id (a grid hit at the scene's depth, or
+    /// at its grid's own level where that is shallower, see [`gridrt_shared::layout::Hit`];
+    /// not for automatic levels of detail, whose depths [`Self::hit_triangle`] takes from the
+    /// hit).
     pub fn triangle(&self, prim: u32) -> [Vec3; 3] {
         match self {
             Scene::Triangles(s) => s.view().corners(prim),
-            Scene::Grids(s) => s.view().micro_triangle(prim, s.params.lod),
+            Scene::Grids(s) => {
+                let view = s.view();
+                let grid = prim / gridrt_shared::grid_index::triangle_count(s.params.lod);
+                let depth = s.params.lod.min(view.own_level(&view.open(grid)));
+                view.micro_triangle(prim, depth)
+            }
         }
     }
 
