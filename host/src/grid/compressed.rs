@@ -737,9 +737,9 @@ fn new_inner_points(l: u32, n: u32) -> Vec<Lattice> {
     points
 }
 
-/// The two points of the coarser lattice (spacing `2 step`) that inner point `p`, new on the
-/// lattice of spacing `step`, halves.
-fn parents(p: Lattice, step: u32) -> (Lattice, Lattice) {
+/// The two points of the coarser lattice (spacing `2 step`) that point `p`, new on the lattice
+/// of spacing `step`, halves: on a base edge both lie on that edge.
+pub(super) fn parents(p: Lattice, step: u32) -> (Lattice, Lattice) {
     let [i, j] = p;
     match ((i / step) % 2, (j / step) % 2) {
         (1, 0) => ([i - step, j], [i + step, j]),

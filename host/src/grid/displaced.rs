@@ -232,37 +232,28 @@ fn expanded_values(mesh: &DisplacedMesh, g: usize, levels: u32) -> Vec<u16> {
     }
     // The odd points of decimated edges render nowhere (their grid renders the even ones in
     // their place, as does its coarser neighbour): they are filled like the finer points.
+    let fill = |out: &mut [u16], p: Lattice, step: u32| {
+        let (a, b) = compressed::parents(p, step);
+        let sum = out[u_major_index(a, n) as usize] as u32 + out[u_major_index(b, n) as usize] as u32;
+        out[u_major_index(p, n) as usize] = ((sum + 1) >> 1) as u16;
+    };
     let decimated = mesh.decimated(g);
     for p in lattice_points(n) {
         if decimated_grid_point(p, n, shift, decimated) != p {
-            let (a, b) = halved_edge(p, 1 << shift);
-            let mean = (out[u_major_index(a, n) as usize] as u32 + out[u_major_index(b, n) as usize] as u32 + 1) >> 1;
-            out[u_major_index(p, n) as usize] = mean as u16;
+            fill(&mut out, p, 1 << shift);
         }
     }
     for h in (0..shift).rev().map(|k| 1u32 << k) {
-        for [i, j] in lattice_points(n) {
-            if (i | j) % h != 0 || (i | j) & h == 0 {
-                continue;
-            }
-            let (a, b) = halved_edge([i, j], h);
-            let mean = (out[u_major_index(a, n) as usize] as u32 + out[u_major_index(b, n) as usize] as u32 + 1) >> 1;
-            out[u_major_index([i, j], n) as usize] = mean as u16;
+        for p in lattice_points(n).filter(|&p| new_at_spacing(p, h)) {
+            fill(&mut out, p, h);
         }
     }
     out
 }
 
-/// The two points of the lattice of spacing `2 h` whose edge point `p` (on the lattice of
-/// spacing `h`, not on the coarser one) halves.
-pub(super) fn halved_edge([i, j]: Lattice, h: u32) -> (Lattice, Lattice) {
-    if j & h == 0 {
-        ([i - h, j], [i + h, j])
-    } else if i & h == 0 {
-        ([i, j - h], [i, j + h])
-    } else {
-        ([i - h, j + h], [i + h, j - h])
-    }
+/// Whether lattice point `p` is on the lattice of spacing `h` but not on the one of `2 h`.
+pub(super) fn new_at_spacing([i, j]: Lattice, h: u32) -> bool {
+    (i | j) % h == 0 && (i | j) & h != 0
 }
 
 /// For each base edge, the grid and edge within it whose values the edge area stores: the

@@ -118,11 +118,8 @@ fn rendered_points(points: &mut [Vec3A], levels: u32, own: u32) {
         }
     }
     for h in (0..shift).rev().map(|k| 1u32 << k) {
-        for p in lattice_points(n) {
-            if (p[0] | p[1]) % h != 0 || (p[0] | p[1]) & h == 0 {
-                continue;
-            }
-            let (a, b) = super::displaced::halved_edge(p, h);
+        for p in lattice_points(n).filter(|&p| super::displaced::new_at_spacing(p, h)) {
+            let (a, b) = super::compressed::parents(p, h);
             points[at(p)] = (points[at(a)] + points[at(b)]) * 0.5;
         }
     }
