@@ -30,7 +30,7 @@
 //! decodes a leaf's whole lattice from them ([`CodedGrid::decode_lattice`]).
 
 use crate::buffer::Buffer;
-use crate::grid_index::{lattice_index, Lattice};
+use crate::grid_index::{lattice_index, parents, Lattice};
 use crate::layout::GridIds;
 
 /// Bits of one block's shift for one level.
@@ -412,13 +412,7 @@ impl CodedGrid {
                 let mut lb = 0;
                 while la + lb <= m {
                     if (la | lb) & h != 0 {
-                        let (a, b) = if lb & h == 0 {
-                            ([la - h, lb], [la + h, lb])
-                        } else if la & h == 0 {
-                            ([la, lb - h], [la, lb + h])
-                        } else {
-                            ([la - h, lb + h], [la + h, lb - h])
-                        };
+                        let [a, b] = parents([la, lb], h);
                         let p = [
                             (first[0] + la as i32 * step) as u32,
                             (first[1] + lb as i32 * step) as u32,

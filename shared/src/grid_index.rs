@@ -99,6 +99,21 @@ const fn midpoint(a: Lattice, b: Lattice) -> Lattice {
     [(a[0] + b[0]) / 2, (a[1] + b[1]) / 2]
 }
 
+/// The two lattice points whose midpoint is `p`, a point new at spacing `h` (a multiple of
+/// `h`, not of `2 h`, in one coordinate at least): the ends of the coarser edge it halves.
+/// Values that are predicted level by level are predicted from these, on both targets.
+#[inline]
+pub const fn parents(p: Lattice, h: u32) -> [Lattice; 2] {
+    let [i, j] = p;
+    if j & h == 0 {
+        [[i - h, j], [i + h, j]]
+    } else if i & h == 0 {
+        [[i, j - h], [i, j + h]]
+    } else {
+        [[i - h, j + h], [i + h, j - h]]
+    }
+}
+
 /// Corners of child `digit` (0..4) of the sub-triangle `(a, b, c)`.
 #[inline]
 pub const fn child_corners(corners: [Lattice; 3], digit: u32) -> [Lattice; 3] {

@@ -23,7 +23,7 @@ use gridrt_shared::compressed_values::{
     inner_new_count, ValueCode, MAX_LEVELS, SHIFT_BITS, VALUE_BITS, VALUE_MAX, WIDTH_BITS,
 };
 use gridrt_shared::displacement::{interpolated, u_major_index};
-use gridrt_shared::grid_index::{grid_size, Lattice};
+use gridrt_shared::grid_index::{grid_size, parents, Lattice};
 
 use rayon::prelude::*;
 
@@ -568,7 +568,7 @@ fn exact_code(mesh: &DisplacedMesh, g: usize, levels: u32) -> Option<ValueCode> 
         let targets: Vec<Target> = new_inner_points(l, n)
             .into_iter()
             .map(|p| {
-                let (pa, pb) = parents(p, n >> l);
+                let [pa, pb] = parents(p, n >> l);
                 Target {
                     truth: truth[at(p)],
                     parents: (truth[at(pa)], truth[at(pb)]),
@@ -706,7 +706,7 @@ fn encode_grid(
         let targets: Vec<Target> = points
             .iter()
             .map(|&p| {
-                let (pa, pb) = parents(p, step);
+                let [pa, pb] = parents(p, step);
                 Target {
                     truth: truth[at(p)],
                     parents: (values[at(pa)], values[at(pb)]),
@@ -735,17 +735,6 @@ fn new_inner_points(l: u32, n: u32) -> Vec<Lattice> {
         }
     }
     points
-}
-
-/// The two points of the coarser lattice (spacing `2 step`) that point `p`, new on the lattice
-/// of spacing `step`, halves: on a base edge both lie on that edge.
-pub(super) fn parents(p: Lattice, step: u32) -> (Lattice, Lattice) {
-    let [i, j] = p;
-    match ((i / step) % 2, (j / step) % 2) {
-        (1, 0) => ([i - step, j], [i + step, j]),
-        (0, 1) => ([i, j - step], [i, j + step]),
-        _ => ([i - step, j + step], [i + step, j - step]),
-    }
 }
 
 /// A point to encode: its true value, its parents' decoded values, the distance a value

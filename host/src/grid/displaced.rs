@@ -36,7 +36,7 @@ use gridrt_shared::displacement::{
 };
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::grid_index::{
-    edge_vertex_count, grid_size, inner_points, inner_vertex_count, lattice_points, Lattice,
+    edge_vertex_count, grid_size, inner_points, inner_vertex_count, lattice_points, parents, Lattice,
 };
 use gridrt_shared::grid_traverse::DISPLACEMENT_BITS;
 
@@ -233,7 +233,7 @@ fn expanded_values(mesh: &DisplacedMesh, g: usize, levels: u32) -> Vec<u16> {
     // The odd points of decimated edges render nowhere (their grid renders the even ones in
     // their place, as does its coarser neighbour): they are filled like the finer points.
     let fill = |out: &mut [u16], p: Lattice, step: u32| {
-        let (a, b) = compressed::parents(p, step);
+        let [a, b] = parents(p, step);
         let sum = out[u_major_index(a, n) as usize] as u32 + out[u_major_index(b, n) as usize] as u32;
         out[u_major_index(p, n) as usize] = ((sum + 1) >> 1) as u16;
     };

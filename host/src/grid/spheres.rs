@@ -6,7 +6,7 @@
 use gridrt_shared::displacement::decimated_grid_point;
 use gridrt_shared::glam::{Vec3, Vec3A};
 use gridrt_shared::grid_index::{
-    grid_size, inner_points, lattice_index, lattice_points, sub_triangle, triangle_count, Lattice,
+    grid_size, inner_points, lattice_index, lattice_points, parents, sub_triangle, triangle_count, Lattice,
 };
 use gridrt_shared::grid_traverse::sphere_center;
 use gridrt_shared::layout::{RADII_F32, RADII_HALF, RADII_RELATIVE};
@@ -119,7 +119,7 @@ fn rendered_points(points: &mut [Vec3A], levels: u32, own: u32) {
     }
     for h in (0..shift).rev().map(|k| 1u32 << k) {
         for p in lattice_points(n).filter(|&p| super::displaced::new_at_spacing(p, h)) {
-            let (a, b) = super::compressed::parents(p, h);
+            let [a, b] = parents(p, h);
             points[at(p)] = (points[at(a)] + points[at(b)]) * 0.5;
         }
     }
