@@ -11,17 +11,17 @@
 //! between them hold every edge once), each giving its edges' midpoints `WV`, `UV`, `WU`.
 
 use gridrt_shared::displacement::u_major_index;
-use gridrt_shared::grid_index::grid_size;
+use gridrt_shared::grid_index::{grid_size, Lattice};
 
 /// A triangle's corners in lattice coordinates `[u, v]`, in curve order.
-type Corners = [[u32; 2]; 3];
+pub type Corners = [Lattice; 3];
 
-fn midpoint(a: [u32; 2], b: [u32; 2]) -> [u32; 2] {
+fn midpoint(a: Lattice, b: Lattice) -> Lattice {
     [(a[0] + b[0]) / 2, (a[1] + b[1]) / 2]
 }
 
 /// The triangles of `level` in curve order, in coordinates of the level's lattice.
-fn curve(level: u32) -> Vec<Corners> {
+pub fn triangles(level: u32) -> Vec<Corners> {
     let n = grid_size(level);
     let mut triangles = vec![[[0, 0], [n, 0], [0, n]]];
     for _ in 0..level {
@@ -35,17 +35,15 @@ fn curve(level: u32) -> Vec<Corners> {
     triangles
 }
 
-/// For each value of a level-`level` triangle in bird-curve order, its position in u-major
-/// order.
-pub fn u_major_positions(level: u32) -> Vec<u32> {
+/// The vertices of a level-`level` triangle in bird-curve order, as points of its lattice.
+pub fn points(level: u32) -> Vec<Lattice> {
     let n = grid_size(level);
-    let at = |p: [u32; 2], scale: u32| u_major_index([p[0] * scale, p[1] * scale], n);
-    let mut order = vec![at([0, 0], 1), at([n, 0], 1), at([0, n], 1)];
+    let mut order = vec![[0, 0], [n, 0], [0, n]];
     for l in 1..=level {
         // Level `l - 1`'s lattice, doubled so that its midpoints are whole, and how much
         // finer the finest lattice is than that.
         let scale = 1 << (level - l);
-        for [a, b, c] in curve(l - 1) {
+        for [a, b, c] in triangles(l - 1) {
             let [a, b, c] = [a, b, c].map(|p| [2 * p[0], 2 * p[1]]);
             // Upright: its corners, in any order, are W, U = W + (1, 0), V = W + (0, 1).
             let w = [a, b, c]
@@ -61,21 +59,28 @@ pub fn u_major_positions(level: u32) -> Vec<u32> {
                 continue;
             }
             for p in [midpoint(w, v), midpoint(u, v), midpoint(w, u)] {
-                order.push(at(p, scale));
+                order.push([p[0] * scale, p[1] * scale]);
             }
         }
     }
     order
 }
 
+/// For each value of a level-`level` triangle in bird-curve order, its position in u-major
+/// order.
+pub fn u_major_positions(level: u32) -> Vec<u32> {
+    let n = grid_size(level);
+    points(level).into_iter().map(|p| u_major_index(p, n)).collect()
+}
+
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::bary::values_per_triangle;
 
     /// Bird-curve index of each value in u-major order, as the reference implementation in
     /// NVIDIA's BaryFile library (`baryValueLayoutGetIndex`) gives them.
-    const REFERENCE: [&[u32]; 4] = [
+    pub(crate) const REFERENCE: [&[u32]; 4] = [
         &[0, 2, 1],
         &[0, 3, 2, 5, 4, 1],
         &[0, 6, 3, 12, 2, 8, 7, 14, 13, 5, 9, 4, 11, 10, 1],

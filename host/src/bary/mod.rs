@@ -18,12 +18,14 @@
 //! little-endian 32-bit words, padded to a whole word, offsets and counts in bytes) or one to
 //! 16 bits (`eR11_unorm_pack16`), in u-major order: for `u` in `0..=N`, for `v` in `0..=N-u`,
 //! the vertex with barycentrics `(N-u-v, u, v)` on the triangle's corners, `N = 2^level`, or
-//! in bird-curve order ([`bird_curve`]). Compressed blocks and per-triangle values are
-//! refused by name. Every
-//! offset, count and level in a file is checked against the bytes there are before anything
-//! is read, so a damaged file gives a one-line error, never a panic or a huge allocation.
+//! in bird-curve order ([`bird_curve`]), or compressed in NVIDIA's blocks
+//! (`eDispC1_r11_unorm_block`, decoded on reading: [`compressed_blocks`]). Per-triangle
+//! values are refused by name. Every offset, count and level in a file is checked against the
+//! bytes there are before anything is read, so a damaged file gives a one-line error, never a
+//! panic or a huge allocation.
 
 pub mod bird_curve;
+pub mod compressed_blocks;
 pub mod mesh_properties;
 
 pub use mesh_properties::MeshProperties;
@@ -321,11 +323,20 @@ fn value_code(
     Ok(Some(code))
 }
 
+/// How a file stores its values.
+#[derive(Clone, Copy, PartialEq)]
+enum Storage {
+    /// 11-bit values packed into words; offsets in bytes.
+    Packed,
+    /// One value to two bytes; offsets in values.
+    Pack16,
+    /// Compressed blocks ([`compressed_blocks`]); offsets in bytes.
+    Blocks,
+}
+
 /// How the values are stored, and their bytes.
 struct ValueStream<'a> {
-    /// 11-bit values packed into words (offsets in bytes), or one value to two bytes
-    /// (offsets in values).
-    packed: bool,
+    storage: Storage,
     /// Each triangle's values in bird-curve order ([`bird_curve`]) rather than u-major.
     bird_curve: bool,
     bytes: &'a [u8],
@@ -342,19 +353,18 @@ fn value_stream<'a>(file: &Reader<'a>, values: std::ops::Range<usize>) -> Result
     let at = values.start;
     let [format, layout, frequency, count, size, alignment] =
         [0, 4, 8, 12, 16, 20].map(|k| file.u32(at + k).unwrap_or(0));
-    let packed = match format {
-        FORMAT_R11_PACKED_ALIGN32 => true,
-        FORMAT_R11_PACK16 => false,
-        FORMAT_DISP_C1_BLOCK => fail!(
-            Input,
-            "its values are compressed blocks (eDispC1_r11_unorm_block), which gridrt does not read yet"
-        ),
+    let storage = match format {
+        FORMAT_R11_PACKED_ALIGN32 => Storage::Packed,
+        FORMAT_R11_PACK16 => Storage::Pack16,
+        FORMAT_DISP_C1_BLOCK => Storage::Blocks,
         other => fail!(
             Input,
-            "its values have format {other}: gridrt reads 11-bit unorm displacements (eR11_unorm_packed_align32 or eR11_unorm_pack16)"
+            "its values have format {other}: gridrt reads 11-bit unorm displacements (eR11_unorm_packed_align32, eR11_unorm_pack16 or eDispC1_r11_unorm_block)"
         ),
     };
+    // Blocks fix their own order of values, whatever the layout says.
     let bird_curve = match layout {
+        _ if storage == Storage::Blocks => false,
         LAYOUT_U_MAJOR => false,
         LAYOUT_BIRD_CURVE => true,
         other => fail!(Input, "its values have an unknown layout {other}"),
@@ -365,7 +375,7 @@ fn value_stream<'a>(file: &Reader<'a>, values: std::ops::Range<usize>) -> Result
             "its values are not per vertex (frequency {frequency}): gridrt reads vertex displacements"
         );
     }
-    let expected_size = if packed { 1 } else { 2 };
+    let expected_size = if storage == Storage::Pack16 { 2 } else { 1 };
     if size != expected_size {
         fail!(
             Input,
@@ -392,7 +402,7 @@ fn value_stream<'a>(file: &Reader<'a>, values: std::ops::Range<usize>) -> Result
         )
     })?;
     Ok(ValueStream {
-        packed,
+        storage,
         bird_curve,
         bytes,
     })
@@ -427,7 +437,7 @@ fn decode(
             );
         }
         next_triangle = first + count;
-        let unit = if stream.packed { 1 } else { 2 };
+        let unit = if stream.storage == Storage::Pack16 { 2 } else { 1 };
         let group_bytes = (value_first as usize * unit)..(value_first as usize + value_count as usize) * unit;
         let group_values = stream.bytes.get(group_bytes).ok_or_else(|| {
             error!(
@@ -451,14 +461,15 @@ fn decode(
         let mut free_from = 0usize;
         for t in first as usize..(first + count) as usize {
             let at = triangles.start + t * TRIANGLE_BYTES;
-            let (offset, level) = (file.u32(at)? as usize, file.u32(at + 4)? & 0xffff);
+            let (offset, word) = (file.u32(at)? as usize, file.u32(at + 4)?);
+            let (level, block_format) = (word & 0xffff, (word >> 16) as u16);
             if offset < free_from {
                 fail!(
                     Input,
                     "triangle {t}'s values at {offset} overlap the triangle before it's"
                 );
             }
-            let mut values = triangle_values(stream.packed, group_values, offset, level)
+            let (mut values, length) = triangle_values(stream.storage, group_values, offset, level, block_format)
                 .map_err(|e| error!(Input, "triangle {t}: {e}"))?;
             if stream.bird_curve {
                 let positions =
@@ -469,12 +480,7 @@ fn decode(
                 }
                 values = u_major;
             }
-            free_from = offset
-                + if stream.packed {
-                    packed_bytes(level)
-                } else {
-                    values.len()
-                };
+            free_from = offset + length;
             map.triangles.push(MicromapTriangle {
                 level,
                 first_value: map.values.len() as u32,
@@ -491,8 +497,15 @@ fn decode(
     Ok(map)
 }
 
-/// One triangle's values from its group's bytes.
-fn triangle_values(packed: bool, group: &[u8], offset: usize, level: u32) -> Result<Vec<u16>> {
+/// One triangle's values from its group's bytes, and how many units of offset (bytes or
+/// values) they take there.
+fn triangle_values(
+    storage: Storage,
+    group: &[u8],
+    offset: usize,
+    level: u32,
+    block_format: u16,
+) -> Result<(Vec<u16>, usize)> {
     if level > MAX_LEVEL {
         fail!(
             Input,
@@ -500,9 +513,10 @@ fn triangle_values(packed: bool, group: &[u8], offset: usize, level: u32) -> Res
         );
     }
     let count = values_per_triangle(level);
-    let (start, length) = match packed {
-        true => (offset, packed_bytes(level)),
-        false => (offset * 2, count * 2),
+    let (start, length) = match storage {
+        Storage::Packed => (offset, packed_bytes(level)),
+        Storage::Pack16 => (offset * 2, count * 2),
+        Storage::Blocks => (offset, compressed_blocks::triangle_bytes(level, block_format)?),
     };
     let bytes = group.get(start..start + length).ok_or_else(|| {
         error!(
@@ -512,19 +526,23 @@ fn triangle_values(packed: bool, group: &[u8], offset: usize, level: u32) -> Res
         )
     })?;
     let word = |k: usize| u32::from_le_bytes([bytes[4 * k], bytes[4 * k + 1], bytes[4 * k + 2], bytes[4 * k + 3]]);
-    Ok((0..count)
-        .map(|i| match packed {
-            true => {
+    let values = match storage {
+        Storage::Blocks => return Ok((compressed_blocks::triangle_values(bytes, level, block_format)?, length)),
+        Storage::Packed => (0..count)
+            .map(|i| {
                 // Value i is bits 11i .. 11i + 10 of the stream, which may straddle two words.
                 let bit = 11 * i;
                 let (k, shift) = (bit / 32, bit % 32);
                 let low = word(k) >> shift;
                 let high = if shift > 21 { word(k + 1) << (32 - shift) } else { 0 };
                 ((low | high) & 0x7ff) as u16
-            }
-            false => u16::from_le_bytes([bytes[2 * i], bytes[2 * i + 1]]) & 0x7ff,
-        })
-        .collect())
+            })
+            .collect(),
+        Storage::Pack16 => (0..count)
+            .map(|i| u16::from_le_bytes([bytes[2 * i], bytes[2 * i + 1]]) & 0x7ff)
+            .collect(),
+    };
+    Ok((values, if storage == Storage::Pack16 { count } else { length }))
 }
 
 /// Packs values 11 bits each, LSB first, into little-endian words: [`packed_bytes`] bytes.
@@ -735,6 +753,8 @@ mod tests {
             ("uniform_level_3.bary", vec![3; 4]),
             ("uniform_level_3_value_code.bary", vec![3; 4]),
             ("packed_levels_0_to_3_bird_curve.bary", vec![0, 1, 2, 3]),
+            // The first file's values in NVIDIA's level-3 blocks, one a triangle.
+            ("blocks_levels_0_to_3.bary", vec![0, 1, 2, 3]),
         ] {
             let map = read(&std::fs::read(seeds.join(name)).unwrap()).unwrap_or_else(|e| panic!("{name}: {e}"));
             let read_levels: Vec<u32> = map.triangles.iter().map(|t| t.level).collect();
@@ -788,7 +808,7 @@ mod tests {
         let mut compressed = good.clone();
         let values_at = u64::from_le_bytes(good[56..64].try_into().unwrap()) as usize;
         compressed[values_at..values_at + 4].copy_from_slice(&FORMAT_DISP_C1_BLOCK.to_le_bytes());
-        expect(&compressed, "compressed blocks");
+        expect(&compressed, "triangle 0: its block format 0 is none of eDispC1's");
         let mut unknown_layout = good.clone();
         unknown_layout[values_at + 4] = 7;
         expect(&unknown_layout, "unknown layout 7");
