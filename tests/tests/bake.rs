@@ -28,6 +28,18 @@ fn json(args: &[&str]) -> serde_json::Value {
     serde_json::from_slice(&o.stdout).unwrap()
 }
 
+/// `compare` measures the distance `bake` reported for `out`, and `render` draws it.
+fn reads_back_as_measured(reference: &Path, out: &Path, report: &serde_json::Value) {
+    let rms = report["symmetric"]["rms"].as_f64().unwrap();
+    let compared = json(&["compare", o_str(reference), o_str(out), "--samples", "20000", "--json"]);
+    assert!(
+        (compared["symmetric"]["rms"].as_f64().unwrap() - rms).abs() < 0.05 * rms,
+        "{compared} vs {report}"
+    );
+    let o = render_small(out, &out.with_extension("png"));
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
 /// A ball 1e6 from the origin bakes to its budget, close to itself, into three files that
 /// `compare` and `render` read back.
 #[test]
@@ -58,13 +70,7 @@ fn a_mesh_bakes_into_files_the_other_commands_read() {
         .map(|f| std::fs::metadata(dir.join(f)).unwrap().len())
         .sum();
     assert_eq!(report["file_bytes"].as_u64().unwrap(), files);
-    let compared = json(&["compare", r, o, "--samples", "20000", "--json"]);
-    assert!(
-        (compared["symmetric"]["rms"].as_f64().unwrap() - rms).abs() < 0.05 * rms,
-        "{compared} vs {report}"
-    );
-    let o = render_small(&out, &dir.join("ball.png"));
-    assert!(o.status.success(), "{}", stderr(&o));
+    reads_back_as_measured(&reference, &out, &report);
 
     // The benchmark against the reference: the same distance, the reference's bytes.
     let json_path = dir.join("bench.json");
@@ -137,6 +143,49 @@ fn a_mesh_bakes_into_files_the_other_commands_read() {
     ]);
     assert_eq!(report["base_triangles"].as_u64().unwrap(), 128, "{report}");
     assert!(report["symmetric"]["rms"].as_f64().unwrap() < 2e-3, "{report}");
+}
+
+/// `--nv-blocks` writes the values in NVIDIA's compressed blocks, 128 bytes a level-4
+/// triangle, and what the blocks decode to is what `bake` measured and `compare` reads back.
+#[test]
+fn a_bake_in_nvidia_blocks_reads_back_as_measured() {
+    let dir = scratch("bake-nv-blocks");
+    let reference = dir.join("ball.obj");
+    write_obj(&reference, &bumpy_ball(5), 0.0);
+    let out = dir.join("ball.gltf");
+    let (r, o) = (o_str(&reference), o_str(&out));
+    let report = json(&[
+        "bake",
+        r,
+        "-L",
+        "4",
+        "-o",
+        o,
+        "--samples",
+        "20000",
+        "--nv-blocks",
+        "--json",
+    ]);
+    let base = report["base_triangles"].as_u64().unwrap();
+    assert_eq!(
+        report["nv_blocks"]["value_bytes"].as_u64(),
+        Some(128 * base),
+        "{report}"
+    );
+    assert!(report["compression"].is_null(), "{report}");
+    let (rms, before) = (
+        report["symmetric"]["rms"].as_f64().unwrap(),
+        report["nv_blocks"]["before_symmetric"]["rms"].as_f64().unwrap(),
+    );
+    assert!(rms <= 1.25 * before, "{report}");
+    let map = gridrt::bary::read(&std::fs::read(dir.join("ball.bary")).unwrap()).unwrap();
+    assert!(map.nv_blocks && map.triangles.iter().all(|t| t.level == 4));
+    reads_back_as_measured(&reference, &out, &report);
+    fails_with(
+        &["bake", r, "--nv-blocks", "--max-error", "1e-4"],
+        &[],
+        &["cannot be used with"],
+    );
 }
 
 /// Outputs are checked before any work: not an input, a glTF name; a base and a budget

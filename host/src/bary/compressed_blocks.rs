@@ -157,36 +157,227 @@ fn decode_block(format: &BlockFormat, block: &[u8], m: u32, order: &[Lattice]) -
     out
 }
 
+/// Where a block lies on its triangle's lattice: block point `(i, j)` is triangle point
+/// `w + i du + j dv`.
+struct BlockFrame {
+    w: [i32; 2],
+    du: [i32; 2],
+    dv: [i32; 2],
+}
+
+impl BlockFrame {
+    /// The blocks of a level-`level` triangle in a format of level `s`, in file order: one,
+    /// the triangle itself, where `level <= s`.
+    fn all(level: u32, s: u32) -> Vec<BlockFrame> {
+        let side = grid_size(s) as i32;
+        bird_curve::triangles(level.saturating_sub(s))
+            .into_iter()
+            .map(|corners| {
+                let [w, u, v] = corners.map(|c| [c[0] as i32 * side, c[1] as i32 * side]);
+                let step = |to: [i32; 2]| [(to[0] - w[0]) / side, (to[1] - w[1]) / side];
+                BlockFrame {
+                    w,
+                    du: step(u),
+                    dv: step(v),
+                }
+            })
+            .collect()
+    }
+
+    /// Block point `p`'s position in the triangle's u-major values of lattice size `n`.
+    fn at(&self, p: Lattice, n: u32) -> usize {
+        let (i, j) = (p[0] as i32, p[1] as i32);
+        let at = [
+            self.w[0] + i * self.du[0] + j * self.dv[0],
+            self.w[1] + i * self.du[1] + j * self.dv[1],
+        ];
+        u_major_index([at[0] as u32, at[1] as u32], n) as usize
+    }
+}
+
 /// The values of a level-`level` triangle whose blocks of format `block_format` are `bytes`
 /// (at least as many as it takes: see [`triangle_bytes`]), in u-major order.
 pub fn triangle_values(bytes: &[u8], level: u32, block_format: u16) -> Result<Vec<u16>> {
     let format = format_of(block_format)?;
     let m = level.min(format.level);
     let order = bird_curve::points(m);
-    let blocks = bytes.chunks_exact(format.bytes);
-    if level <= format.level {
-        let block = blocks.into_iter().next().expect("checked by triangle_bytes");
-        return Ok(decode_block(format, block, m, &order));
-    }
-    let n = grid_size(level);
+    let (n, side) = (grid_size(level), grid_size(m));
     let mut out = vec![0u16; values_per_triangle(level)];
-    let side = grid_size(format.level);
-    for (corners, block) in bird_curve::triangles(level - format.level).into_iter().zip(blocks) {
-        // The block's corners on the triangle's lattice, and its lattice's unit steps there.
-        let [w, u, v] = corners.map(|c| [(c[0] * side) as i32, (c[1] * side) as i32]);
-        let step = |to: [i32; 2]| [(to[0] - w[0]) / side as i32, (to[1] - w[1]) / side as i32];
-        let (du, dv) = (step(u), step(v));
+    for (frame, block) in BlockFrame::all(level, format.level)
+        .iter()
+        .zip(bytes.chunks_exact(format.bytes))
+    {
         let values = decode_block(format, block, m, &order);
         for &p in &order {
-            let value = values[u_major_index(p, side) as usize];
-            let at = [
-                w[0] + p[0] as i32 * du[0] + p[1] as i32 * dv[0],
-                w[1] + p[0] as i32 * du[1] + p[1] as i32 * dv[1],
-            ];
-            out[u_major_index([at[0] as u32, at[1] as u32], n) as usize] = value;
+            out[frame.at(p, n)] = values[u_major_index(p, side) as usize];
         }
     }
     Ok(out)
+}
+
+/// A triangle's values in blocks: their format, their bytes, and the values they decode to
+/// (u-major).
+#[derive(Clone, Debug, PartialEq)]
+pub struct EncodedTriangle {
+    pub block_format: u16,
+    pub bytes: Vec<u8>,
+    pub decoded: Vec<u16>,
+}
+
+/// The block format gridrt writes a level-`level` triangle in: the level-3 format (values
+/// exact) up to level 3, then the level-4 one, then the level-5 one, split into blocks
+/// deeper than that.
+pub fn block_format_for(level: u32) -> u16 {
+    match level {
+        0..=3 => 1,
+        4 => 2,
+        _ => 3,
+    }
+}
+
+/// A level-`level` triangle's u-major `values` in blocks of [`block_format_for`] its level.
+///
+/// Each correction is the rounded one nearest the point's value that the field holds and
+/// that keeps the sum within the values' range; each level's four shifts are those of least
+/// squared error over their points. Both depend only on the points' values and their
+/// parents' decoded ones, never on the order a block walks them in, so two triangles of one
+/// level holding the same values on a shared edge decode it alike.
+pub fn encode_triangle(values: &[u16], level: u32) -> EncodedTriangle {
+    let block_format = block_format_for(level);
+    let format = BlockFormat::of(block_format).expect("a format of the three");
+    let m = level.min(format.level);
+    let order = bird_curve::points(m);
+    let (n, side) = (grid_size(level), grid_size(m));
+    let mut bytes = Vec::new();
+    let mut decoded = vec![0u16; values.len()];
+    for frame in BlockFrame::all(level, format.level) {
+        let mut truth = vec![0u16; values_per_triangle(m)];
+        for &p in &order {
+            truth[u_major_index(p, side) as usize] = values[frame.at(p, n)];
+        }
+        let (block, block_values) = encode_block(format, &truth, m, &order);
+        for &p in &order {
+            decoded[frame.at(p, n)] = block_values[u_major_index(p, side) as usize];
+        }
+        bytes.extend(block);
+    }
+    EncodedTriangle {
+        block_format,
+        bytes,
+        decoded,
+    }
+}
+
+/// `map` with every triangle's values replaced by those its blocks ([`encode_triangle`])
+/// decode to, to be written in blocks ([`super::Micromap::nv_blocks`]), and the blocks' bytes.
+pub fn through_blocks(map: &super::Micromap) -> (super::Micromap, u64) {
+    let mut out = super::Micromap {
+        nv_blocks: true,
+        value_code: None,
+        ..map.clone()
+    };
+    let mut bytes = 0;
+    for (t, triangle) in map.triangles.iter().enumerate() {
+        let encoded = encode_triangle(map.triangle_values(t), triangle.level);
+        let first = triangle.first_value as usize;
+        out.values[first..first + encoded.decoded.len()].copy_from_slice(&encoded.decoded);
+        bytes += encoded.bytes.len() as u64;
+    }
+    (out, bytes)
+}
+
+/// A point to encode at a level: its shift's slot, its parents' rounded mean and its true
+/// value.
+struct Target {
+    slot: u32,
+    predicted: i32,
+    truth: i32,
+}
+
+/// The correction of `width` bits which, shifted by `shift`, takes `predicted` nearest to
+/// `truth` without leaving the values' range.
+fn correction(predicted: i32, truth: i32, shift: u32, width: u32) -> i32 {
+    let step = 1 << shift;
+    let nearest = (truth - predicted + step / 2).div_euclid(step);
+    let low = (-(1 << (width - 1))).max(-(predicted / step));
+    let high = ((1 << (width - 1)) - 1).min((VALUE_MAX - predicted) / step);
+    nearest.clamp(low, high)
+}
+
+const VALUE_MAX: i32 = 0x7ff;
+
+/// Level `m <= S` of a block whose true values are `truth` (u-major on its level-`m`
+/// lattice): the block's bytes and the values they decode to.
+fn encode_block(format: &BlockFormat, truth: &[u16], m: u32, order: &[Lattice]) -> (Vec<u8>, Vec<u16>) {
+    let n = grid_size(m);
+    let last_word = (8 * format.bytes - 64) as u32;
+    let mut block = vec![0u8; format.bytes];
+    let mut out = vec![0u16; truth.len()];
+    let mut points = order.iter();
+    for l in 0..=m {
+        let (width, start) = (format.widths[l as usize], format.level_start(l));
+        let level_points: Vec<Lattice> = points.by_ref().take(new_values(l)).copied().collect();
+        if l == 0 || !format.predicted {
+            for (k, &p) in level_points.iter().enumerate() {
+                let value = truth[u_major_index(p, n) as usize];
+                put(&mut block, start + k as u32 * width, width, value as u32);
+                out[u_major_index(p, n) as usize] = value;
+            }
+            continue;
+        }
+        let targets: Vec<Target> = (level_points.iter())
+            .map(|&p| {
+                let [a, b] = parents(p, n >> l).map(|q| out[u_major_index(q, n) as usize] as i32);
+                Target {
+                    slot: shift_slot(p, n),
+                    predicted: (a + b + 1) >> 1,
+                    truth: truth[u_major_index(p, n) as usize] as i32,
+                }
+            })
+            .collect();
+        let fields = format.shifts[l as usize];
+        let mut shifts = [0u32; 4];
+        for (slot, shift) in shifts.iter_mut().enumerate() {
+            let squared_error = |s: u32| -> i64 {
+                (targets.iter().filter(|t| t.slot == slot as u32))
+                    .map(|t| {
+                        let e = t.predicted + (correction(t.predicted, t.truth, s, width) << s) - t.truth;
+                        (e as i64).pow(2)
+                    })
+                    .sum()
+            };
+            let choices = fields.map_or(1, |f| 1 << f.width);
+            *shift = (0..choices).min_by_key(|&s| (squared_error(s), s)).unwrap_or(0);
+            if let Some(f) = fields {
+                put(
+                    &mut block,
+                    last_word + f.first_bit + f.width * slot as u32,
+                    f.width,
+                    *shift,
+                );
+            }
+        }
+        for (k, (t, &p)) in targets.iter().zip(&level_points).enumerate() {
+            let shift = shifts[t.slot as usize];
+            let c = correction(t.predicted, t.truth, shift, width);
+            put(
+                &mut block,
+                start + k as u32 * width,
+                width,
+                c as u32 & ((1 << width) - 1),
+            );
+            out[u_major_index(p, n) as usize] = (t.predicted + (c << shift)) as u16;
+        }
+    }
+    (block, out)
+}
+
+/// Writes `value`'s low `width` bits at bit `bit` of `bytes`, least significant first.
+fn put(bytes: &mut [u8], bit: u32, width: u32, value: u32) {
+    for k in 0..width {
+        let (at, b) = (((bit + k) / 8) as usize, (bit + k) % 8);
+        bytes[at] = (bytes[at] & !(1 << b)) | ((((value >> k) & 1) as u8) << b);
+    }
 }
 
 /// The bytes a level-`level` triangle takes in blocks of format `block_format`.
@@ -210,13 +401,9 @@ mod tests {
     use super::*;
     use crate::bary::bird_curve::tests::REFERENCE;
 
-    /// Writes `value` in `width` bits at bit `bit`, least significant first.
-    fn put(block: &mut [u8], bit: u32, width: u32, value: u32) {
-        for k in 0..width {
-            let (at, b) = (((bit + k) / 8) as usize, (bit + k) % 8);
-            block[at] = (block[at] & !(1 << b)) | ((((value >> k) & 1) as u8) << b);
-        }
-    }
+    /// Twice the noise [`surface`] adds: the finest levels' corrections of a bit or two
+    /// follow the surface, not the noise.
+    const MAX_SMOOTH_ERROR: i32 = 16;
 
     /// The lattice points of size `n` in u-major order, as the format's description lists them.
     fn u_major_points(n: u32) -> Vec<Lattice> {
@@ -332,6 +519,86 @@ mod tests {
         );
         let e = read(&file(150)).unwrap_err().to_string();
         assert!(e.contains("triangle 1: its level-4 values at 64 lie past"), "{e}");
+    }
+
+    fn lcg(seed: &mut u64) -> u32 {
+        *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (*seed >> 33) as u32
+    }
+
+    /// A smooth surface with a little noise, as baked values are, on a lattice of size `n`.
+    fn surface(n: u32, seed: &mut u64) -> Vec<u16> {
+        u_major_points(n)
+            .into_iter()
+            .map(|[i, j]| {
+                let (x, y) = (i as f32 / n as f32, j as f32 / n as f32);
+                let smooth = 1000.0 + 600.0 * (3.0 * x).sin() * (2.0 * y + 0.5).cos();
+                (smooth as u32 + lcg(seed) % 9) as u16
+            })
+            .collect()
+    }
+
+    #[test]
+    fn encoded_triangles_decode_to_what_the_encoder_says() {
+        let mut seed = 3;
+        for level in 0..=6 {
+            for values in [
+                surface(grid_size(level), &mut seed),
+                (0..values_per_triangle(level))
+                    .map(|_| (lcg(&mut seed) % 2048) as u16)
+                    .collect(),
+            ] {
+                let encoded = encode_triangle(&values, level);
+                assert_eq!(
+                    encoded.bytes.len(),
+                    triangle_bytes(level, encoded.block_format).unwrap()
+                );
+                let read = triangle_values(&encoded.bytes, level, encoded.block_format).unwrap();
+                assert_eq!(read, encoded.decoded, "level {level}");
+                if level <= 3 {
+                    assert_eq!(encoded.decoded, values, "level {level} is exact");
+                }
+            }
+        }
+    }
+
+    /// On a smooth surface the corrections' widths suffice: every value within a few steps
+    /// (level 3 and below are exact: see above).
+    #[test]
+    fn smooth_values_encode_closely() {
+        let mut seed = 8;
+        for level in [4, 5, 6] {
+            let values = surface(grid_size(level), &mut seed);
+            let encoded = encode_triangle(&values, level);
+            let worst = (values.iter().zip(&encoded.decoded))
+                .map(|(&a, &b)| (a as i32 - b as i32).abs())
+                .max();
+            assert!(worst <= Some(MAX_SMOOTH_ERROR), "level {level}: {worst:?}");
+        }
+    }
+
+    /// Two level-6 triangles (four blocks each) sharing an edge, each walking it the other way
+    /// and in another block edge slot: the edge decodes alike in both.
+    #[test]
+    fn neighbours_decode_their_shared_edge_alike() {
+        let (level, mut seed) = (6, 21);
+        let n = grid_size(level);
+        let first = surface(n, &mut seed);
+        let mut second = surface(n, &mut seed);
+        // The first's edge W-U, from W, is the second's edge U-V, from U.
+        for i in 0..=n {
+            second[u_major_index([n - i, i], n) as usize] = first[u_major_index([i, 0], n) as usize];
+        }
+        let (a, b) = (encode_triangle(&first, level), encode_triangle(&second, level));
+        for i in 0..=n {
+            let (p, q) = (u_major_index([i, 0], n) as usize, u_major_index([n - i, i], n) as usize);
+            assert_eq!(a.decoded[p], b.decoded[q], "edge point {i}");
+        }
+        let lossy = (0..=n).filter(|&i| {
+            let p = u_major_index([i, 0], n) as usize;
+            a.decoded[p] != first[p]
+        });
+        assert!(lossy.count() > 0, "the test needs a lossy edge");
     }
 
     #[test]

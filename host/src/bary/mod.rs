@@ -75,6 +75,10 @@ pub struct Micromap {
     /// Set when the values are exactly those a compressed code of these widths decodes to
     /// (see `crate::grid::compressed`): displaced grids then store them compressed.
     pub value_code: Option<ValueCode>,
+    /// Set when the values are to be written in NVIDIA's compressed blocks
+    /// ([`compressed_blocks`]), as they were read: [`write`] does so where its encoder gives
+    /// every value back exactly (it does for values it decoded), and packs them otherwise.
+    pub nv_blocks: bool,
 }
 
 /// Consecutive triangles sharing one mapping of stored values to displacements.
@@ -117,6 +121,7 @@ impl Micromap {
     /// a compressed code only where both parts had the same one.
     pub fn append(&mut self, other: &Micromap) {
         self.join_value_code(other.value_code);
+        self.nv_blocks = (self.nv_blocks || self.triangles.is_empty()) && other.nv_blocks;
         let (triangles, values) = (self.triangles.len() as u32, self.values.len() as u32);
         self.groups.extend(other.groups.iter().map(|g| MicromapGroup {
             triangle_first: g.triangle_first + triangles,
@@ -277,6 +282,7 @@ pub fn read_with_mesh(bytes: &[u8]) -> Result<(Micromap, MeshProperties)> {
     let triangles = triangles.ok_or_else(|| missing("triangles"))?;
     let stream = value_stream(&file, values)?;
     let mut map = decode(&file, &stream, groups, triangles)?;
+    map.nv_blocks = stream.storage == Storage::Blocks;
     if let Some(code) = code {
         map.value_code = value_code(&file, code, &map.triangles)?;
     }
@@ -553,9 +559,24 @@ fn pack(values: &[u16], out: &mut Vec<u8>) {
     out.extend(words.iter().flat_map(|w| w.to_le_bytes()));
 }
 
-/// The bytes of a `.bary` file holding `map`: packed 11-bit values (`eR11_unorm_packed_align32`),
-/// u-major, per vertex, its groups and triangles, and its value code if it has one.
+/// Each triangle's values in NVIDIA's blocks, where `map` asks for them and they give every
+/// value back.
+fn exact_blocks(map: &Micromap) -> Option<Vec<compressed_blocks::EncodedTriangle>> {
+    if !map.nv_blocks {
+        return None;
+    }
+    let blocks: Vec<_> = (0..map.triangles.len())
+        .map(|t| compressed_blocks::encode_triangle(map.triangle_values(t), map.triangles[t].level))
+        .collect();
+    let exact = (blocks.iter().enumerate()).all(|(t, b)| b.decoded == map.triangle_values(t));
+    exact.then_some(blocks)
+}
+
+/// The bytes of a `.bary` file holding `map`: its values per vertex, packed 11 bits each
+/// (`eR11_unorm_packed_align32`, u-major) or in NVIDIA's blocks ([`Micromap::nv_blocks`]), its
+/// groups and triangles, and its value code if it has one.
 pub fn write(map: &Micromap) -> Vec<u8> {
+    let blocks = exact_blocks(map);
     let mut values = Vec::new();
     let mut triangles = Vec::with_capacity(map.triangles.len() * TRIANGLE_BYTES);
     let mut groups = Vec::with_capacity(map.groups.len() * GROUP_BYTES);
@@ -567,8 +588,16 @@ pub fn write(map: &Micromap) -> Vec<u8> {
         for t in range {
             triangles.extend(((values.len() - value_first) as u32).to_le_bytes());
             triangles.extend((map.triangles[t].level as u16).to_le_bytes());
-            triangles.extend(0u16.to_le_bytes());
-            pack(map.triangle_values(t), &mut values);
+            match &blocks {
+                Some(blocks) => {
+                    triangles.extend(blocks[t].block_format.to_le_bytes());
+                    values.extend(&blocks[t].bytes);
+                }
+                None => {
+                    triangles.extend(0u16.to_le_bytes());
+                    pack(map.triangle_values(t), &mut values);
+                }
+            }
         }
         let words = [
             group.triangle_first,
@@ -583,15 +612,15 @@ pub fn write(map: &Micromap) -> Vec<u8> {
             groups.extend([first, 0.0, 0.0, 0.0].iter().flat_map(|f| f.to_le_bytes()));
         }
     }
-    let info = [
-        FORMAT_R11_PACKED_ALIGN32,
-        LAYOUT_U_MAJOR,
-        FREQUENCY_PER_VERTEX,
-        values.len() as u32,
-        1,
-        4,
-    ];
-    let values: Vec<u8> = info.iter().flat_map(|w| w.to_le_bytes()).chain(values).collect();
+    // Blocks are aligned to 128 bytes, and in bird-curve order within.
+    let (format, layout, alignment) = match blocks {
+        Some(_) => (FORMAT_DISP_C1_BLOCK, LAYOUT_BIRD_CURVE, 128),
+        None => (FORMAT_R11_PACKED_ALIGN32, LAYOUT_U_MAJOR, 4),
+    };
+    let info = [format, layout, FREQUENCY_PER_VERTEX, values.len() as u32, 1, alignment];
+    let mut header: Vec<u8> = info.iter().flat_map(|w| w.to_le_bytes()).collect();
+    header.resize(VALUES_INFO_BYTES.next_multiple_of(alignment as usize), 0);
+    let values: Vec<u8> = header.into_iter().chain(values).collect();
     let mut properties = vec![(VALUES_ID, values), (GROUPS_ID, groups), (TRIANGLES_ID, triangles)];
     if let Some(code) = map.value_code {
         let words = [VALUE_CODE_VERSION, code.levels, code.widths];
@@ -663,6 +692,42 @@ mod tests {
         let map = sample_map();
         let bytes = write(&map);
         assert_eq!(read(&bytes).unwrap(), map);
+    }
+
+    /// Values asked for in blocks are written so where the blocks give them back (levels up
+    /// to 3 always; deeper, the values blocks decode to), and packed otherwise.
+    #[test]
+    fn values_in_blocks_read_back_identically() {
+        let format = |bytes: &[u8]| {
+            let values_at = u64::from_le_bytes(bytes[56..64].try_into().unwrap()) as usize;
+            u32::from_le_bytes(bytes[values_at..values_at + 4].try_into().unwrap())
+        };
+        let sample = sample_map();
+        let shallow: Vec<(u32, Vec<u16>)> = (0..4)
+            .map(|t| (sample.triangles[t].level, sample.triangle_values(t).to_vec()))
+            .collect();
+        let exact = Micromap {
+            nv_blocks: true,
+            ..Micromap::from_triangles(-0.25, 1.5, &shallow)
+        };
+        let bytes = write(&exact);
+        assert_eq!(format(&bytes), FORMAT_DISP_C1_BLOCK);
+        assert_eq!(read(&bytes).unwrap(), exact);
+        let deep = Micromap {
+            nv_blocks: true,
+            ..sample_map()
+        };
+        assert_eq!(
+            format(&write(&deep)),
+            FORMAT_R11_PACKED_ALIGN32,
+            "random level-5 values"
+        );
+        let (blocks, block_bytes) = compressed_blocks::through_blocks(&deep);
+        assert_ne!(blocks.values, deep.values);
+        let bytes = write(&blocks);
+        assert!(bytes.len() > block_bytes as usize && bytes.len() < block_bytes as usize + 1024);
+        assert_eq!(format(&bytes), FORMAT_DISP_C1_BLOCK);
+        assert_eq!(read(&bytes).unwrap(), blocks);
     }
 
     /// The value code travels in a property of its own, which leaves the standard ones as

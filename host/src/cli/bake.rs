@@ -10,6 +10,7 @@ use super::progress::Stages;
 use super::BakeArgs;
 use gridrt::bake::refine::Refinement;
 use gridrt::bake::{self, BakeOptions, BakeReport, Base};
+use gridrt::bary;
 use gridrt::displaced::DisplacedMesh;
 use gridrt::grid::compressed::{compress, CompressedMesh, Compressor, ValueCompression};
 use gridrt::grid::{self, GridOptions};
@@ -39,6 +40,8 @@ struct Report {
     bake_seconds: f64,
     /// How the values were compressed; `None` where they were left plain.
     compression: Option<CompressionReport>,
+    /// The values in NVIDIA's blocks (`--nv-blocks`).
+    nv_blocks: Option<BlocksReport>,
     /// Distances between the decoded micro-mesh written and the reference, as fractions of
     /// the reference's bounding-box diagonal.
     reference_to_baked: DistanceSummary,
@@ -67,6 +70,14 @@ struct CompressionReport {
     budget_met: bool,
     /// The symmetric distance before compression, as `symmetric` is given.
     uncompressed_symmetric: DistanceSummary,
+}
+
+#[derive(Serialize)]
+struct BlocksReport {
+    /// The blocks' bytes, all triangles together.
+    value_bytes: u64,
+    /// The symmetric distance before the values went through the blocks.
+    before_symmetric: DistanceSummary,
 }
 
 pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
@@ -120,7 +131,20 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
         })
     };
     let plain = measure(stages, &baked.mesh);
+    let mut nv_blocks = None;
     let (mesh, compression, d) = match compression_bound(args, &baked.mesh, &plain) {
+        None if args.nv_blocks => {
+            let (micromap, value_bytes) = stages.run("blocks", || {
+                bary::compressed_blocks::through_blocks(&baked.mesh.micromap)
+            });
+            let mesh = DisplacedMesh { micromap, ..baked.mesh };
+            let d = measure(stages, &mesh);
+            nv_blocks = Some(BlocksReport {
+                value_bytes,
+                before_symmetric: plain.symmetric.relative_to(plain.a_diagonal),
+            });
+            (mesh, None, d)
+        }
         None => (baked.mesh, None, plain),
         Some(options) => {
             let budget = byte_budget(args).map(|per_micro| ByteBudget {
@@ -158,6 +182,7 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
         level_micro_triangles: args.max_error.map(|_| bake::levels::level_counts(&mesh)),
         bake_seconds,
         compression,
+        nv_blocks,
         reference_to_baked: d.a_to_b.relative_to(d.a_diagonal),
         baked_to_reference: d.b_to_a.relative_to(d.a_diagonal),
         symmetric: d.symmetric.relative_to(d.a_diagonal),
@@ -294,7 +319,7 @@ fn compress_within(
 /// the reference.
 fn compression_bound(args: &BakeArgs, mesh: &DisplacedMesh, plain: &SurfaceDistance) -> Option<ValueCompression> {
     let levels_chosen = args.max_error.is_some() && args.compress_values.is_none();
-    if args.plain_values || args.levels == 0 || levels_chosen {
+    if args.plain_values || args.nv_blocks || args.levels == 0 || levels_chosen {
         return None;
     }
     Some(match args.compress_values {
@@ -393,6 +418,12 @@ fn summary(r: &Report) -> String {
                     (None, ..) => String::new(),
                 }
             ),
+            None if r.nv_blocks.is_some() => format!(
+                "values: in NVIDIA's compressed blocks (eDispC1), {} bytes, {:.3} B per micro-triangle (traced plain, \
+                 11 bits each)\n",
+                r.nv_blocks.as_ref().map_or(0, |b| b.value_bytes),
+                per_micro(r.nv_blocks.as_ref().map_or(0, |b| b.value_bytes))
+            ),
             None if r.level_micro_triangles.is_some() => {
                 "values: plain, 11 bits each (--compress-values bounds a compression)\n".into()
             }
@@ -401,9 +432,10 @@ fn summary(r: &Report) -> String {
         row("reference to baked", &r.reference_to_baked),
         row("baked to reference", &r.baked_to_reference),
         row("both (symmetric)", &r.symmetric),
-        match &r.compression {
-            Some(c) => row("both, before compression", &c.uncompressed_symmetric),
-            None => String::new(),
+        match (&r.compression, &r.nv_blocks) {
+            (Some(c), _) => row("both, before compression", &c.uncompressed_symmetric),
+            (None, Some(b)) => row("both, before the blocks", &b.before_symmetric),
+            (None, None) => String::new(),
         },
     )
 }

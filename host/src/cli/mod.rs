@@ -666,6 +666,12 @@ pub struct BakeArgs {
     /// values plain unless --compress-values bounds the error their compression adds.
     #[arg(long, value_name = "MAX_ERROR", value_parser = parse_value_error, conflicts_with = "max_bytes")]
     pub max_error: Option<f32>,
+    /// Store the values in NVIDIA's compressed displacement blocks (eDispC1_r11_unorm_block),
+    /// as other micro-mesh tools and the fixed-function hardware take them: exact up to level
+    /// 3, 256 micro-triangles in 128 bytes at level 4, 1024 in 128 from level 5. The values
+    /// become those the blocks decode to; gridrt traces them plain (11 bits each).
+    #[arg(long, conflicts_with_all = ["compress_values", "max_bytes", "max_error"])]
+    pub nv_blocks: bool,
     /// Points sampled on each surface, by area, to measure the baked mesh's distance from
     /// the reference.
     #[arg(long, default_value_t = 1_000_000, value_parser = at_least_one())]
