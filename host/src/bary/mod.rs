@@ -120,8 +120,7 @@ impl Micromap {
     /// Appends `other`'s groups, triangles and values after this micromap's. The values keep
     /// a compressed code only where both parts had the same one.
     pub fn append(&mut self, other: &Micromap) {
-        self.join_value_code(other.value_code);
-        self.nv_blocks = (self.nv_blocks || self.triangles.is_empty()) && other.nv_blocks;
+        self.join_storage(other);
         let (triangles, values) = (self.triangles.len() as u32, self.values.len() as u32);
         self.groups.extend(other.groups.iter().map(|g| MicromapGroup {
             triangle_first: g.triangle_first + triangles,
@@ -134,13 +133,15 @@ impl Micromap {
         self.values.extend_from_slice(&other.values);
     }
 
-    /// The code of the values once values of code `code` are appended: theirs when there are
-    /// none yet, otherwise the one both share, or none.
-    pub fn join_value_code(&mut self, code: Option<ValueCode>) {
-        self.value_code = match self.triangles.is_empty() {
-            true => code,
-            false => self.value_code.filter(|_| self.value_code == code),
+    /// How the values are kept once some of `other`'s are appended: its value code and
+    /// blocks when there are none yet, otherwise what both share.
+    pub fn join_storage(&mut self, other: &Micromap) {
+        let first = self.triangles.is_empty();
+        self.value_code = match first {
+            true => other.value_code,
+            false => self.value_code.filter(|_| self.value_code == other.value_code),
         };
+        self.nv_blocks = (first || self.nv_blocks) && other.nv_blocks;
     }
 
     /// A micromap of one group: each triangle's level and values (u-major), in order.

@@ -776,13 +776,18 @@ pub fn load_all(paths: &[&Path]) -> Result<Input> {
             true => format!("level {}", d.max_level),
             false => format!("levels {} to {}", d.min_level, d.max_level),
         };
-        let code = input.micromesh.as_ref().and_then(|m| m.micromap.value_code);
-        let values = code.map_or(String::new(), |c| {
-            let widths = grid::compressed::level_widths(&c);
-            format!(
-                "; its values are compressed (base edges at widths {widths:?} bits per level, each grid at its own)"
-            )
-        });
+        let map = input.micromesh.as_ref().map(|m| &m.micromap);
+        let values = match (map.and_then(|m| m.value_code), map.is_some_and(|m| m.nv_blocks)) {
+            (Some(c), _) => format!(
+                "; its values are compressed (base edges at widths {:?} bits per level, each grid at its own)",
+                grid::compressed::level_widths(&c)
+            ),
+            (None, true) => {
+                "; its values, read from NVIDIA's compressed blocks, are traced plain (--compress-values compresses them)"
+                    .into()
+            }
+            (None, false) => String::new(),
+        };
         eprintln!(
             "note: {}: a displaced micro-mesh of {} base triangles at {levels}, {} micro-triangles{values}",
             input.name,

@@ -416,9 +416,9 @@ impl Primitive<'_> {
         })?;
         let offset = self.index("mapOffset").unwrap_or(0);
         let mapping = self.mapping(count)?;
-        // A compressed code describes each triangle's values on their own (the grids'
-        // layout checks them against it), so it holds for any selection of them.
-        out.join_value_code(map.value_code);
+        // A compressed code or NVIDIA's blocks describe each triangle's values on their own
+        // (the grids' layout and the writer check them), so they hold for any selection.
+        out.join_storage(map);
         out.groups.push(MicromapGroup {
             triangle_first: out.triangles.len() as u32,
             triangle_count: count as u32,
@@ -531,6 +531,24 @@ mod tests {
         let mut mixed = read.clone();
         mixed.append(&plain);
         assert_eq!(mixed.micromap.value_code, None);
+    }
+
+    /// A micro-mesh of values in NVIDIA's blocks reads back with them, through the glTF's
+    /// group and triangle selection; beside plain values it is no longer in blocks.
+    #[test]
+    fn values_in_blocks_read_back() {
+        let mut mesh = sample();
+        mesh.micromap = crate::bary::compressed_blocks::through_blocks(&mesh.micromap).0;
+        let (path, _) = crate::micromesh_gltf::write_far_from_origin(&mesh, "gltf-nv-blocks");
+        let bytes = std::fs::read(&path).unwrap();
+        let read = parse_displaced(&bytes, path.parent()).unwrap().unwrap();
+        assert_eq!(read.micromap, mesh.micromap);
+        assert!(read.micromap.nv_blocks);
+        let mut plain = read.clone();
+        plain.micromap.nv_blocks = false;
+        let mut mixed = read.clone();
+        mixed.append(&plain);
+        assert!(!mixed.micromap.nv_blocks);
     }
 
     /// A GLB laid out by hand: the micromap in a bufferView, its triangles taken in reverse
