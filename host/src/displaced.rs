@@ -7,7 +7,7 @@
 //! shared decoder, so a point on a base edge comes out with the same bits from both triangles
 //! that share the edge: welding the decoded mesh's equal positions closes every seam.
 
-use crate::bary::Micromap;
+use crate::bary::{compressed_blocks, Micromap};
 use crate::error::{fail, Result};
 use crate::mesh::Mesh;
 use gridrt_shared::displacement::{
@@ -107,6 +107,82 @@ impl DisplacedMesh {
     /// Triangle `t`'s decimated edges (see [`Self::decimated_edges`]).
     pub fn decimated(&self, t: usize) -> u32 {
         self.decimated_edges.get(t).map_or(0, |&f| f as u32 & DECIMATED_EDGES)
+    }
+
+    /// The same surface with its values as NVIDIA's compressed blocks decode them, to be
+    /// written so (see [`crate::bary::compressed_blocks`]), and the blocks' bytes.
+    ///
+    /// Points that neighbours share keep one value: triangles are encoded finest first, each
+    /// taking on its edges the values its encoded neighbours decoded there. Where its format
+    /// cannot give those back (a coarser format beside a finer one's lossy edge), the triangle
+    /// keeps its values exactly, in level-3 blocks.
+    pub fn in_nv_blocks(&self) -> (DisplacedMesh, u64) {
+        let map = &self.micromap;
+        let mut out = DisplacedMesh {
+            micromap: Micromap {
+                nv_blocks: true,
+                value_code: None,
+                ..map.clone()
+            },
+            ..self.clone()
+        };
+        let mut order: Vec<usize> = (0..self.triangles.len()).collect();
+        order.sort_by_key(|&t| std::cmp::Reverse(map.triangles[t].level));
+        // (edge's lower vertex, its upper vertex, position along it in 2^-16) -> value
+        let mut shared = std::collections::HashMap::new();
+        let mut bytes = 0;
+        for t in order {
+            let level = map.triangles[t].level;
+            let edge_points = self.edge_points(t);
+            let mut values = map.triangle_values(t).to_vec();
+            for &(at, key) in &edge_points {
+                if let Some(&value) = shared.get(&key) {
+                    values[at] = value;
+                }
+            }
+            let encoded = compressed_blocks::encode_triangle(&values, level);
+            let kept = edge_points
+                .iter()
+                .all(|&(at, key)| shared.get(&key).is_none_or(|&v| encoded.decoded[at] == v));
+            if kept {
+                values = encoded.decoded;
+            }
+            bytes += compressed_blocks::encode_exactly(&values, level).bytes.len() as u64;
+            for &(at, key) in &edge_points {
+                shared.entry(key).or_insert(values[at]);
+            }
+            let first = map.triangles[t].first_value as usize;
+            out.micromap.values[first..first + values.len()].copy_from_slice(&values);
+        }
+        (out, bytes)
+    }
+
+    /// Triangle `t`'s points on its base edges that are part of the surface (not the odd
+    /// points of a decimated edge): each its u-major index, and a key the triangle across the
+    /// edge gives the same point.
+    fn edge_points(&self, t: usize) -> Vec<(usize, (u32, u32, u32))> {
+        let n = grid_size(self.micromap.triangles[t].level);
+        let corners = self.triangles[t];
+        let decimated = self.decimated(t);
+        let mut points = Vec::new();
+        for e in 0..3 {
+            let (a, b) = (corners[e], corners[(e + 1) % 3]);
+            for s in 1..n {
+                if decimated >> e & 1 != 0 && s % 2 == 1 {
+                    continue;
+                }
+                let p = match e {
+                    0 => [s, 0],
+                    1 => [n - s, s],
+                    _ => [0, n - s],
+                };
+                // The position from the lower-numbered end, in units fine enough for any level.
+                let along = |s: u32| s * ((1 << 16) / n);
+                let key = if a < b { (a, b, along(s)) } else { (b, a, along(n - s)) };
+                points.push((u_major_index(p, n) as usize, key));
+            }
+        }
+        points
     }
 
     /// Every micro-vertex of triangle `t` at its level, in lattice order; on a decimated edge,
@@ -278,6 +354,67 @@ mod tests {
         }
     }
 
+    /// Micro-edges of the decoded, welded mesh that one micro-triangle alone uses.
+    fn open_micro_edges(mesh: &DisplacedMesh) -> usize {
+        let (welded, _) = WorldMesh::from(mesh.decoded()).validate("decoded").unwrap();
+        let mut uses = std::collections::HashMap::new();
+        for t in &welded.triangles {
+            for e in 0..3 {
+                let (a, b) = (t[e], t[(e + 1) % 3]);
+                *uses.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+            }
+        }
+        uses.values().filter(|&&u| u == 1).count()
+    }
+
+    /// [`two_triangles`] with rough values on their seam, alike on both sides: value
+    /// `seam(k)` at `k` of 64 steps from vertex 1.
+    fn rough_seam(level: u32) -> DisplacedMesh {
+        let seam = |k: u32| (600 + 19 * k + (k * k * 7919) % 97) as u16;
+        let mut mesh = two_triangles(level);
+        let n = grid_size(level);
+        let step = 64 / n;
+        for (t, at) in [(0, [1, 0]), (1, [0, 1])] {
+            let first = mesh.micromap.triangles[t].first_value as usize;
+            for k in 0..=n {
+                let p = [at[0] * (n - k) + at[1] * k, at[1] * (n - k) + at[0] * k];
+                mesh.micromap.values[first + u_major_index(p, n) as usize] = seam(k * step);
+            }
+        }
+        mesh
+    }
+
+    /// In NVIDIA's blocks the seam stays closed: between two level-5 triangles, whose
+    /// corrections there lose detail, and between a level-5 triangle and a level-4 one, whose
+    /// coarser format takes the finer side's values on the seam.
+    #[test]
+    fn seams_stay_closed_in_nvidia_blocks() {
+        let uniform = rough_seam(5);
+        assert_eq!(open_micro_edges(&uniform), 4 * 32);
+        let (blocks, bytes) = uniform.in_nv_blocks();
+        assert_eq!(bytes, 2 * 128);
+        assert_ne!(blocks.micromap.values, uniform.micromap.values, "lossy");
+        assert_eq!(open_micro_edges(&blocks), 4 * 32);
+
+        let (fine, coarse) = (rough_seam(5), rough_seam(4));
+        let mixed = DisplacedMesh {
+            micromap: Micromap::from_triangles(
+                -0.05,
+                0.2,
+                &[
+                    (5, fine.micromap.triangle_values(0).to_vec()),
+                    (4, coarse.micromap.triangle_values(1).to_vec()),
+                ],
+            ),
+            decimated_edges: vec![0b010, 0],
+            ..fine
+        };
+        assert_eq!(open_micro_edges(&mixed), 2 * 32 + 2 * 16);
+        let (blocks, _) = mixed.in_nv_blocks();
+        assert_ne!(blocks.micromap.values, mixed.micromap.values, "lossy");
+        assert_eq!(open_micro_edges(&blocks), 2 * 32 + 2 * 16);
+    }
+
     #[test]
     fn shared_edges_weld_into_one_watertight_seam() {
         for level in [0, 1, 3] {
@@ -318,19 +455,9 @@ mod tests {
             micromap: Micromap::from_triangles(-0.05, 0.2, &[(3, fine_values), (2, coarse_values)]),
             ..fine
         };
-        let open_seam = |mesh: &DisplacedMesh| {
-            let (welded, _) = WorldMesh::from(mesh.decoded()).validate("decoded").unwrap();
-            let mut uses = std::collections::HashMap::new();
-            for t in &welded.triangles {
-                for e in 0..3 {
-                    let (a, b) = (t[e], t[(e + 1) % 3]);
-                    *uses.entry((a.min(b), a.max(b))).or_insert(0) += 1;
-                }
-            }
-            // Edges of one micro-triangle, less the outer boundary: the fine triangle's two
-            // other edges (8 micro-edges each) and the coarse one's (4 each).
-            uses.values().filter(|&&u| u == 1).count() - (2 * 8 + 2 * 4)
-        };
+        // Less the outer boundary: the fine triangle's two other edges (8 micro-edges each)
+        // and the coarse one's (4 each).
+        let open_seam = |mesh: &DisplacedMesh| open_micro_edges(mesh) - (2 * 8 + 2 * 4);
         assert!(open_seam(&mesh) > 0, "without the flag the seam has cracks");
         mesh.decimated_edges = vec![0b010, 0];
         mesh.check().unwrap();

@@ -182,7 +182,7 @@ fn a_bake_in_nvidia_blocks_reads_back_as_measured() {
     assert!(map.nv_blocks && map.triangles.iter().all(|t| t.level == 4));
     reads_back_as_measured(&reference, &out, &report);
     fails_with(
-        &["bake", r, "--nv-blocks", "--max-error", "1e-4"],
+        &["bake", r, "--nv-blocks", "--compress-values", "1e-4"],
         &[],
         &["cannot be used with"],
     );

@@ -229,7 +229,7 @@ pub struct EncodedTriangle {
 /// deeper than that.
 pub fn block_format_for(level: u32) -> u16 {
     match level {
-        0..=3 => 1,
+        0..=3 => EXACT_FORMAT,
         4 => 2,
         _ => 3,
     }
@@ -243,7 +243,23 @@ pub fn block_format_for(level: u32) -> u16 {
 /// parents' decoded ones, never on the order a block walks them in, so two triangles of one
 /// level holding the same values on a shared edge decode it alike.
 pub fn encode_triangle(values: &[u16], level: u32) -> EncodedTriangle {
-    let block_format = block_format_for(level);
+    encode_in(values, level, block_format_for(level))
+}
+
+/// [`encode_triangle`] where it gives every value back, otherwise the values exactly in
+/// level-3 blocks (which hold any values: a block of 45 values of 11 bits).
+pub fn encode_exactly(values: &[u16], level: u32) -> EncodedTriangle {
+    let encoded = encode_triangle(values, level);
+    match encoded.decoded == values {
+        true => encoded,
+        false => encode_in(values, level, EXACT_FORMAT),
+    }
+}
+
+/// The block format whose values are stored as they are.
+const EXACT_FORMAT: u16 = 1;
+
+fn encode_in(values: &[u16], level: u32, block_format: u16) -> EncodedTriangle {
     let format = BlockFormat::of(block_format).expect("a format of the three");
     let m = level.min(format.level);
     let order = bird_curve::points(m);
@@ -266,24 +282,6 @@ pub fn encode_triangle(values: &[u16], level: u32) -> EncodedTriangle {
         bytes,
         decoded,
     }
-}
-
-/// `map` with every triangle's values replaced by those its blocks ([`encode_triangle`])
-/// decode to, to be written in blocks ([`super::Micromap::nv_blocks`]), and the blocks' bytes.
-pub fn through_blocks(map: &super::Micromap) -> (super::Micromap, u64) {
-    let mut out = super::Micromap {
-        nv_blocks: true,
-        value_code: None,
-        ..map.clone()
-    };
-    let mut bytes = 0;
-    for (t, triangle) in map.triangles.iter().enumerate() {
-        let encoded = encode_triangle(map.triangle_values(t), triangle.level);
-        let first = triangle.first_value as usize;
-        out.values[first..first + encoded.decoded.len()].copy_from_slice(&encoded.decoded);
-        bytes += encoded.bytes.len() as u64;
-    }
-    (out, bytes)
 }
 
 /// A point to encode at a level: its shift's slot, its parents' rounded mean and its true

@@ -76,8 +76,9 @@ pub struct Micromap {
     /// (see `crate::grid::compressed`): displaced grids then store them compressed.
     pub value_code: Option<ValueCode>,
     /// Set when the values are to be written in NVIDIA's compressed blocks
-    /// ([`compressed_blocks`]), as they were read: [`write`] does so where its encoder gives
-    /// every value back exactly (it does for values it decoded), and packs them otherwise.
+    /// ([`compressed_blocks`]), as they were read: [`write`] stores each triangle in its
+    /// level's format where that gives every value back (it does for values it decoded), and
+    /// exactly in level-3 blocks otherwise.
     pub nv_blocks: bool,
 }
 
@@ -560,17 +561,13 @@ fn pack(values: &[u16], out: &mut Vec<u8>) {
     out.extend(words.iter().flat_map(|w| w.to_le_bytes()));
 }
 
-/// Each triangle's values in NVIDIA's blocks, where `map` asks for them and they give every
-/// value back.
+/// Each triangle's values in NVIDIA's blocks, where `map` asks for them.
 fn exact_blocks(map: &Micromap) -> Option<Vec<compressed_blocks::EncodedTriangle>> {
-    if !map.nv_blocks {
-        return None;
-    }
-    let blocks: Vec<_> = (0..map.triangles.len())
-        .map(|t| compressed_blocks::encode_triangle(map.triangle_values(t), map.triangles[t].level))
-        .collect();
-    let exact = (blocks.iter().enumerate()).all(|(t, b)| b.decoded == map.triangle_values(t));
-    exact.then_some(blocks)
+    map.nv_blocks.then(|| {
+        (0..map.triangles.len())
+            .map(|t| compressed_blocks::encode_exactly(map.triangle_values(t), map.triangles[t].level))
+            .collect()
+    })
 }
 
 /// The bytes of a `.bary` file holding `map`: its values per vertex, packed 11 bits each
@@ -695,44 +692,41 @@ mod tests {
         assert_eq!(read(&bytes).unwrap(), map);
     }
 
-    /// Values asked for in blocks are written so where the blocks give them back (levels up
-    /// to 3 always; deeper, the values blocks decode to), and packed otherwise.
+    /// Values asked for in blocks are written so, and read back identically: in their level's
+    /// format where it gives them back (levels up to 3 always; deeper, values it decoded), in
+    /// level-3 blocks otherwise.
     #[test]
     fn values_in_blocks_read_back_identically() {
-        let format = |bytes: &[u8]| {
-            let values_at = u64::from_le_bytes(bytes[56..64].try_into().unwrap()) as usize;
-            u32::from_le_bytes(bytes[values_at..values_at + 4].try_into().unwrap())
+        let block_formats = |bytes: &[u8]| {
+            let table = u64::from_le_bytes(bytes[184..192].try_into().unwrap()) as usize;
+            let count = u64::from_le_bytes(bytes[192..200].try_into().unwrap()) as usize / TRIANGLE_BYTES;
+            let format = |t: usize| u16::from_le_bytes(bytes[table + 8 * t + 6..table + 8 * t + 8].try_into().unwrap());
+            (0..count).map(format).collect::<Vec<u16>>()
         };
-        let sample = sample_map();
-        let shallow: Vec<(u32, Vec<u16>)> = (0..4)
-            .map(|t| (sample.triangles[t].level, sample.triangle_values(t).to_vec()))
-            .collect();
-        let exact = Micromap {
-            nv_blocks: true,
-            ..Micromap::from_triangles(-0.25, 1.5, &shallow)
-        };
-        let bytes = write(&exact);
-        assert_eq!(format(&bytes), FORMAT_DISP_C1_BLOCK);
-        assert_eq!(read(&bytes).unwrap(), exact);
-        let deep = Micromap {
+        let random = Micromap {
             nv_blocks: true,
             ..sample_map()
         };
-        assert_eq!(
-            format(&write(&deep)),
-            FORMAT_R11_PACKED_ALIGN32,
-            "random level-5 values"
-        );
-        let (blocks, block_bytes) = compressed_blocks::through_blocks(&deep);
-        assert_ne!(blocks.values, deep.values);
+        let bytes = write(&random);
+        assert_eq!(read(&bytes).unwrap(), random);
+        // Levels 0, 1, 2, 3, 5, 3: random values at level 5 take exact level-3 blocks.
+        assert_eq!(block_formats(&bytes), [1, 1, 1, 1, 1, 1]);
+        let decoded: Vec<(u32, Vec<u16>)> = (0..random.triangles.len())
+            .map(|t| {
+                let level = random.triangles[t].level;
+                let values = compressed_blocks::encode_triangle(random.triangle_values(t), level).decoded;
+                (level, values)
+            })
+            .collect();
+        let blocks = Micromap {
+            nv_blocks: true,
+            ..Micromap::from_triangles(-0.25, 1.5, &decoded)
+        };
         let bytes = write(&blocks);
-        assert!(bytes.len() > block_bytes as usize && bytes.len() < block_bytes as usize + 1024);
-        assert_eq!(format(&bytes), FORMAT_DISP_C1_BLOCK);
         assert_eq!(read(&bytes).unwrap(), blocks);
+        assert_eq!(block_formats(&bytes), [1, 1, 1, 1, 3, 1]);
     }
 
-    /// The value code travels in a property of its own, which leaves the standard ones as
-    /// they were: a reader that skips it reads the same values.
     #[test]
     fn a_value_code_reads_back_beside_the_same_values() {
         let plain = Micromap::from_triangles(0.0, 1.0, &[(3, vec![5; 45]), (3, vec![9; 45])]);

@@ -10,7 +10,6 @@ use super::progress::Stages;
 use super::BakeArgs;
 use gridrt::bake::refine::Refinement;
 use gridrt::bake::{self, BakeOptions, BakeReport, Base};
-use gridrt::bary;
 use gridrt::displaced::DisplacedMesh;
 use gridrt::grid::compressed::{compress, CompressedMesh, Compressor, ValueCompression};
 use gridrt::grid::{self, GridOptions};
@@ -134,10 +133,7 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
     let mut nv_blocks = None;
     let (mesh, compression, d) = match compression_bound(args, &baked.mesh, &plain) {
         None if args.nv_blocks => {
-            let (micromap, value_bytes) = stages.run("blocks", || {
-                bary::compressed_blocks::through_blocks(&baked.mesh.micromap)
-            });
-            let mesh = DisplacedMesh { micromap, ..baked.mesh };
+            let (mesh, value_bytes) = stages.run("blocks", || baked.mesh.in_nv_blocks());
             let d = measure(stages, &mesh);
             nv_blocks = Some(BlocksReport {
                 value_bytes,

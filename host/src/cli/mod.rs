@@ -668,9 +668,11 @@ pub struct BakeArgs {
     pub max_error: Option<f32>,
     /// Store the values in NVIDIA's compressed displacement blocks (eDispC1_r11_unorm_block),
     /// as other micro-mesh tools and the fixed-function hardware take them: exact up to level
-    /// 3, 256 micro-triangles in 128 bytes at level 4, 1024 in 128 from level 5. The values
-    /// become those the blocks decode to; gridrt traces them plain (11 bits each).
-    #[arg(long, conflicts_with_all = ["compress_values", "max_bytes", "max_error"])]
+    /// 3, 256 micro-triangles in 128 bytes at level 4, 1024 in 128 from level 5 (with
+    /// --max-error, a triangle whose format cannot match a finer neighbour's edge keeps its
+    /// values exactly, 64 micro-triangles in 64 bytes). The values become those the blocks
+    /// decode to; gridrt traces them plain (11 bits each).
+    #[arg(long, conflicts_with_all = ["compress_values", "max_bytes"])]
     pub nv_blocks: bool,
     /// Points sampled on each surface, by area, to measure the baked mesh's distance from
     /// the reference.

@@ -537,8 +537,8 @@ mod tests {
     /// group and triangle selection; beside plain values it is no longer in blocks.
     #[test]
     fn values_in_blocks_read_back() {
-        let mut mesh = sample();
-        mesh.micromap = crate::bary::compressed_blocks::through_blocks(&mesh.micromap).0;
+        let mesh = sample();
+        let mesh = mesh.in_nv_blocks().0;
         let (path, _) = crate::micromesh_gltf::write_far_from_origin(&mesh, "gltf-nv-blocks");
         let bytes = std::fs::read(&path).unwrap();
         let read = parse_displaced(&bytes, path.parent()).unwrap().unwrap();
