@@ -293,16 +293,28 @@ struct Target {
 }
 
 /// The correction of `width` bits which, shifted by `shift`, takes `predicted` nearest to
-/// `truth` without leaving the values' range.
-fn correction(predicted: i32, truth: i32, shift: u32, width: u32) -> i32 {
-    let step = 1 << shift;
-    let nearest = (truth - predicted + step / 2).div_euclid(step);
-    let low = (-(1 << (width - 1))).max(-(predicted / step));
-    let high = ((1 << (width - 1)) - 1).min((VALUE_MAX - predicted) / step);
-    nearest.clamp(low, high)
+/// `truth`, sums taken modulo 2048 as the decoder does (so an 11-bit correction reaches any
+/// value), and the value it gives.
+fn correction(predicted: i32, truth: i32, shift: u32, width: u32) -> (i32, i32) {
+    let (step, limit) = (1 << shift, 1 << (width - 1));
+    [0, -VALUES, VALUES]
+        .map(|wrap| {
+            let nearest = (truth - predicted + wrap + step / 2).div_euclid(step);
+            let c = nearest.clamp(-limit, limit - 1);
+            (c, corrected(predicted, c, shift))
+        })
+        .into_iter()
+        .min_by_key(|&(c, value)| ((value - truth).abs(), c.abs()))
+        .expect("three candidates")
 }
 
-const VALUE_MAX: i32 = 0x7ff;
+/// `predicted` moved by correction `c` shifted by `shift`, modulo 2048.
+fn corrected(predicted: i32, c: i32, shift: u32) -> i32 {
+    (predicted + (c << shift)) & (VALUES - 1)
+}
+
+/// How many values there are: 2^11.
+const VALUES: i32 = 0x800;
 
 /// Level `m <= S` of a block whose true values are `truth` (u-major on its level-`m`
 /// lattice): the block's bytes and the values they decode to.
@@ -338,10 +350,7 @@ fn encode_block(format: &BlockFormat, truth: &[u16], m: u32, order: &[Lattice]) 
         for (slot, shift) in shifts.iter_mut().enumerate() {
             let squared_error = |s: u32| -> i64 {
                 (targets.iter().filter(|t| t.slot == slot as u32))
-                    .map(|t| {
-                        let e = t.predicted + (correction(t.predicted, t.truth, s, width) << s) - t.truth;
-                        (e as i64).pow(2)
-                    })
+                    .map(|t| ((correction(t.predicted, t.truth, s, width).1 - t.truth) as i64).pow(2))
                     .sum()
             };
             let choices = fields.map_or(1, |f| 1 << f.width);
@@ -357,14 +366,14 @@ fn encode_block(format: &BlockFormat, truth: &[u16], m: u32, order: &[Lattice]) 
         }
         for (k, (t, &p)) in targets.iter().zip(&level_points).enumerate() {
             let shift = shifts[t.slot as usize];
-            let c = correction(t.predicted, t.truth, shift, width);
+            let (c, value) = correction(t.predicted, t.truth, shift, width);
             put(
                 &mut block,
                 start + k as u32 * width,
                 width,
                 c as u32 & ((1 << width) - 1),
             );
-            out[u_major_index(p, n) as usize] = (t.predicted + (c << shift)) as u16;
+            out[u_major_index(p, n) as usize] = value as u16;
         }
     }
     (block, out)
@@ -557,6 +566,25 @@ mod tests {
                     assert_eq!(encoded.decoded, values, "level {level} is exact");
                 }
             }
+        }
+    }
+
+    /// Eleven-bit corrections reach any value through the wrap: points far from their
+    /// parents' mean keep the levels of 11-bit corrections exact.
+    #[test]
+    fn wide_corrections_wrap_to_any_value() {
+        let corner = |[i, j]: Lattice| [[0, 0], [16, 0], [0, 16]].contains(&[i, j]);
+        let values: Vec<u16> = u_major_points(16)
+            .into_iter()
+            .map(|p| if corner(p) { 10 } else { 2000 })
+            .collect();
+        let encoded = encode_triangle(&values, 4);
+        for p in u_major_points(16)
+            .into_iter()
+            .filter(|p| p[0] % 4 == 0 && p[1] % 4 == 0)
+        {
+            let at = u_major_index(p, 16) as usize;
+            assert_eq!(encoded.decoded[at], values[at], "{p:?}");
         }
     }
 
