@@ -387,6 +387,11 @@ fn put(bytes: &mut [u8], bit: u32, width: u32, value: u32) {
     }
 }
 
+/// The bytes of one block of format `block_format` (one of the three).
+pub fn block_bytes(block_format: u16) -> usize {
+    BlockFormat::of(block_format).map_or(0, |f| f.bytes)
+}
+
 /// The bytes a level-`level` triangle takes in blocks of format `block_format`.
 pub fn triangle_bytes(level: u32, block_format: u16) -> Result<usize> {
     let format = format_of(block_format)?;

@@ -50,6 +50,10 @@ const TRIANGLE_BYTES: usize = 8;
 const VALUES_ID: [u32; 4] = [0xb44d_aa04, 0xc9e0_44d5, 0x9a94_4de0, 0xcfd8_fe35];
 const GROUPS_ID: [u32; 4] = [0x39ee_40d0, 0x9dc4_4517, 0x8e5a_b15d, 0xb09c_74bc];
 const TRIANGLES_ID: [u32; 4] = [0x0045_8e68, 0xee59_426c, 0xb3bf_1b7f, 0x749d_eb8e];
+const HISTOGRAM_ENTRIES_ID: [u32; 4] = [0x6e75_6bc1, 0x839a_438a, 0xad4a_745e, 0x556c_3851];
+const GROUP_HISTOGRAMS_ID: [u32; 4] = [0x400d_972f, 0x76dd_4337, 0x9900_c6e9, 0xc9c4_6ffe];
+/// Where compressed blocks start, and the alignment their values' header states.
+const BLOCK_ALIGNMENT: usize = 128;
 /// gridrt's own property: a version word, then a [`ValueCode`]'s levels and widths.
 const VALUE_CODE_ID: [u32; 4] = [0x6772_6964, 0x7274_2d76, 0x616c_7565, 0x636f_6465];
 const VALUE_CODE_VERSION: u32 = 1;
@@ -578,12 +582,25 @@ pub fn write(map: &Micromap) -> Vec<u8> {
     let mut values = Vec::new();
     let mut triangles = Vec::with_capacity(map.triangles.len() * TRIANGLE_BYTES);
     let mut groups = Vec::with_capacity(map.groups.len() * GROUP_BYTES);
+    let mut histograms = Vec::new();
     for group in &map.groups {
+        if blocks.is_some() {
+            values.resize(values.len().next_multiple_of(BLOCK_ALIGNMENT), 0);
+        }
         let value_first = values.len();
         let range = group.triangle_first as usize..(group.triangle_first + group.triangle_count) as usize;
         let levels = range.clone().map(|t| map.triangles[t].level);
         let (min_level, max_level) = (levels.clone().min().unwrap_or(0), levels.max().unwrap_or(0));
+        let mut histogram = std::collections::BTreeMap::new();
         for t in range {
+            if let Some(blocks) = &blocks {
+                // A triangle's blocks start at a multiple of their size within the group.
+                let size = compressed_blocks::block_bytes(blocks[t].block_format);
+                values.resize(value_first + (values.len() - value_first).next_multiple_of(size), 0);
+                *histogram
+                    .entry((map.triangles[t].level, blocks[t].block_format))
+                    .or_insert(0) += 1;
+            }
             triangles.extend(((values.len() - value_first) as u32).to_le_bytes());
             triangles.extend((map.triangles[t].level as u16).to_le_bytes());
             match &blocks {
@@ -605,6 +622,7 @@ pub fn write(map: &Micromap) -> Vec<u8> {
             min_level,
             max_level,
         ];
+        histograms.push(histogram);
         groups.extend(words.iter().flat_map(|w| w.to_le_bytes()));
         for first in [group.bias, group.scale] {
             groups.extend([first, 0.0, 0.0, 0.0].iter().flat_map(|f| f.to_le_bytes()));
@@ -612,7 +630,7 @@ pub fn write(map: &Micromap) -> Vec<u8> {
     }
     // Blocks are aligned to 128 bytes, and in bird-curve order within.
     let (format, layout, alignment) = match blocks {
-        Some(_) => (FORMAT_DISP_C1_BLOCK, LAYOUT_BIRD_CURVE, 128),
+        Some(_) => (FORMAT_DISP_C1_BLOCK, LAYOUT_BIRD_CURVE, BLOCK_ALIGNMENT as u32),
         None => (FORMAT_R11_PACKED_ALIGN32, LAYOUT_U_MAJOR, 4),
     };
     let info = [format, layout, FREQUENCY_PER_VERTEX, values.len() as u32, 1, alignment];
@@ -620,11 +638,33 @@ pub fn write(map: &Micromap) -> Vec<u8> {
     header.resize(VALUES_INFO_BYTES.next_multiple_of(alignment as usize), 0);
     let values: Vec<u8> = header.into_iter().chain(values).collect();
     let mut properties = vec![(VALUES_ID, values), (GROUPS_ID, groups), (TRIANGLES_ID, triangles)];
+    if blocks.is_some() {
+        // Compressed values must say how many triangles take each block format and level.
+        let (entries, ranges) = block_histograms(&histograms);
+        properties.push((HISTOGRAM_ENTRIES_ID, entries));
+        properties.push((GROUP_HISTOGRAMS_ID, ranges));
+    }
     if let Some(code) = map.value_code {
         let words = [VALUE_CODE_VERSION, code.levels, code.widths];
         properties.push((VALUE_CODE_ID, words.iter().flat_map(|w| w.to_le_bytes()).collect()));
     }
     container(&properties)
+}
+
+/// The histogram properties of compressed values: for each group, how many of its
+/// triangles take each pairing of level and block format (entries of count, level and block
+/// format), and each group's range of those entries.
+fn block_histograms(groups: &[std::collections::BTreeMap<(u32, u16), u32>]) -> (Vec<u8>, Vec<u8>) {
+    let (mut entries, mut ranges) = (Vec::new(), Vec::new());
+    let mut first = 0u32;
+    for group in groups {
+        for (&(level, block_format), &count) in group {
+            entries.extend([count, level, block_format as u32].iter().flat_map(|w| w.to_le_bytes()));
+        }
+        ranges.extend([first, group.len() as u32].iter().flat_map(|w| w.to_le_bytes()));
+        first += group.len() as u32;
+    }
+    (entries, ranges)
 }
 
 /// Header, property table and properties (each at an 8-byte boundary).
@@ -725,6 +765,26 @@ mod tests {
         let bytes = write(&blocks);
         assert_eq!(read(&bytes).unwrap(), blocks);
         assert_eq!(block_formats(&bytes), [1, 1, 1, 1, 3, 1]);
+        // What the format asks of compressed files: each triangle's blocks at a multiple of
+        // their size (64 or 128 bytes), a histogram of (count, level, block format) and each
+        // group's range of it.
+        let words = |id: [u32; 4]| -> Vec<u32> {
+            let word = |at: usize| u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap());
+            let (table, length) = (word(24) as usize, word(32) as usize);
+            let at = (table..table + length)
+                .step_by(PROPERTY_INFO_BYTES)
+                .find(|&at| [0, 4, 8, 12].map(|k| word(at + k)) == id)
+                .expect("the property");
+            let (offset, length) = (word(at + 16) as usize, word(at + 24) as usize);
+            (offset..offset + length).step_by(4).map(word).collect()
+        };
+        let offsets: Vec<u32> = words(TRIANGLES_ID).into_iter().step_by(2).collect();
+        assert_eq!(offsets, [0, 64, 128, 192, 256, 384]);
+        assert_eq!(
+            words(HISTOGRAM_ENTRIES_ID),
+            [1, 0, 1, 1, 1, 1, 1, 2, 1, 2, 3, 1, 1, 5, 3]
+        );
+        assert_eq!(words(GROUP_HISTOGRAMS_ID), [0, 5]);
     }
 
     #[test]
