@@ -667,13 +667,14 @@ fn block_histograms(groups: &[std::collections::BTreeMap<(u32, u16), u32>]) -> (
     (entries, ranges)
 }
 
-/// Header, property table and properties (each at an 8-byte boundary).
+/// Header, property table and properties, each right after the one before at a 4-byte
+/// boundary, in table order (as NVIDIA's reader requires: no other gaps).
 fn container(properties: &[([u32; 4], Vec<u8>)]) -> Vec<u8> {
     let table = properties.len() * PROPERTY_INFO_BYTES;
     let mut offsets = Vec::new();
     let mut end = HEADER_BYTES + table;
     for (_, bytes) in properties {
-        end = end.next_multiple_of(8);
+        end = end.next_multiple_of(4);
         offsets.push(end);
         end += bytes.len();
     }
@@ -730,6 +731,28 @@ mod tests {
         let map = sample_map();
         let bytes = write(&map);
         assert_eq!(read(&bytes).unwrap(), map);
+    }
+
+    /// Properties follow the table in its order, each at the first 4-byte boundary after the
+    /// one before, and end the file: NVIDIA's reader takes no other layout.
+    #[test]
+    fn properties_are_packed_in_table_order() {
+        let blocks = Micromap {
+            nv_blocks: true,
+            ..sample_map()
+        };
+        for map in [sample_map(), blocks] {
+            let bytes = write(&map);
+            let word = |at: usize| u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap()) as usize;
+            let (table, length) = (word(24), word(32));
+            assert_eq!(table, HEADER_BYTES);
+            let mut end = table + length;
+            for at in (table..table + length).step_by(PROPERTY_INFO_BYTES) {
+                assert_eq!(word(at + 16), end.next_multiple_of(4));
+                end = word(at + 16) + word(at + 24);
+            }
+            assert_eq!(end, bytes.len());
+        }
     }
 
     /// Values asked for in blocks are written so, and read back identically: in their level's
