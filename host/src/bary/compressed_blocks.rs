@@ -148,8 +148,7 @@ fn decode_block(format: &BlockFormat, block: &[u8], m: u32, order: &[Lattice]) -
                     bits(block, last_word + s.first_bit + s.width * shift_slot(p, n), s.width)
                 });
                 let correction = ((field << (32 - width)) as i32) >> (32 - width);
-                let [a, b] = parents(p, spacing).map(|q| out[u_major_index(q, n) as usize] as i32);
-                ((((a + b + 1) >> 1) + (correction << shift)) & 0x7ff) as u32
+                corrected(predicted(&out, p, spacing, n), correction, shift) as u32
             };
             out[u_major_index(p, n) as usize] = value as u16;
         }
@@ -237,9 +236,9 @@ pub fn block_format_for(level: u32) -> u16 {
 
 /// A level-`level` triangle's u-major `values` in blocks of [`block_format_for`] its level.
 ///
-/// Each correction is the rounded one nearest the point's value that the field holds and
-/// that keeps the sum within the values' range; each level's four shifts are those of least
-/// squared error over their points. Both depend only on the points' values and their
+/// Each correction is the one the field holds that takes the prediction nearest the point's
+/// value, sums taken modulo 2048 as the decoder takes them; each level's four shifts are
+/// those of least squared error over their points. Both depend only on the points' values and their
 /// parents' decoded ones, never on the order a block walks them in, so two triangles of one
 /// level holding the same values on a shared edge decode it alike.
 pub fn encode_triangle(values: &[u16], level: u32) -> EncodedTriangle {
@@ -308,6 +307,13 @@ fn correction(predicted: i32, truth: i32, shift: u32, width: u32) -> (i32, i32) 
         .expect("three candidates")
 }
 
+/// The prediction of point `p`, new at spacing `h` of a lattice of size `n`: the rounded mean
+/// of its parents' values in `values` (u-major).
+fn predicted(values: &[u16], p: Lattice, h: u32, n: u32) -> i32 {
+    let [a, b] = parents(p, h).map(|q| values[u_major_index(q, n) as usize] as i32);
+    (a + b + 1) >> 1
+}
+
 /// `predicted` moved by correction `c` shifted by `shift`, modulo 2048.
 fn corrected(predicted: i32, c: i32, shift: u32) -> i32 {
     (predicted + (c << shift)) & (VALUES - 1)
@@ -336,13 +342,10 @@ fn encode_block(format: &BlockFormat, truth: &[u16], m: u32, order: &[Lattice]) 
             continue;
         }
         let targets: Vec<Target> = (level_points.iter())
-            .map(|&p| {
-                let [a, b] = parents(p, n >> l).map(|q| out[u_major_index(q, n) as usize] as i32);
-                Target {
-                    slot: shift_slot(p, n),
-                    predicted: (a + b + 1) >> 1,
-                    truth: truth[u_major_index(p, n) as usize] as i32,
-                }
+            .map(|&p| Target {
+                slot: shift_slot(p, n),
+                predicted: predicted(&out, p, n >> l, n),
+                truth: truth[u_major_index(p, n) as usize] as i32,
             })
             .collect();
         let fields = format.shifts[l as usize];

@@ -346,6 +346,17 @@ enum Storage {
     Blocks,
 }
 
+impl Storage {
+    /// The bytes of a unit of offset and count: a value's bytes, or one byte where values
+    /// are packed or blocked.
+    fn unit_bytes(self) -> usize {
+        match self {
+            Storage::Pack16 => 2,
+            Storage::Packed | Storage::Blocks => 1,
+        }
+    }
+}
+
 /// How the values are stored, and their bytes.
 struct ValueStream<'a> {
     storage: Storage,
@@ -387,7 +398,7 @@ fn value_stream<'a>(file: &Reader<'a>, values: std::ops::Range<usize>) -> Result
             "its values are not per vertex (frequency {frequency}): gridrt reads vertex displacements"
         );
     }
-    let expected_size = if storage == Storage::Pack16 { 2 } else { 1 };
+    let expected_size = storage.unit_bytes() as u32;
     if size != expected_size {
         fail!(
             Input,
@@ -449,7 +460,7 @@ fn decode(
             );
         }
         next_triangle = first + count;
-        let unit = if stream.storage == Storage::Pack16 { 2 } else { 1 };
+        let unit = stream.storage.unit_bytes();
         let group_bytes = (value_first as usize * unit)..(value_first as usize + value_count as usize) * unit;
         let group_values = stream.bytes.get(group_bytes).ok_or_else(|| {
             error!(
@@ -554,7 +565,7 @@ fn triangle_values(
             .map(|i| u16::from_le_bytes([bytes[2 * i], bytes[2 * i + 1]]) & 0x7ff)
             .collect(),
     };
-    Ok((values, if storage == Storage::Pack16 { count } else { length }))
+    Ok((values, length / storage.unit_bytes()))
 }
 
 /// Packs values 11 bits each, LSB first, into little-endian words: [`packed_bytes`] bytes.
