@@ -14,7 +14,7 @@ use gridrt_shared::displacement::{
     decimated_point, displaced_point, u_major_index, unorm11_displacement, DisplacedTriangle, DECIMATED_EDGES,
 };
 use gridrt_shared::glam::Vec3;
-use gridrt_shared::grid_index::{grid_size, lattice_points, sub_triangle, triangle_count};
+use gridrt_shared::grid_index::{edge_point, grid_size, lattice_points, sub_triangle, triangle_count};
 
 /// A base mesh with per-vertex directions and a micromap whose triangle `t` displaces base
 /// triangle `t`.
@@ -174,11 +174,7 @@ impl DisplacedMesh {
                 if decimated >> e & 1 != 0 && s % 2 == 1 {
                     continue;
                 }
-                let p = match e {
-                    0 => [s, 0],
-                    1 => [n - s, s],
-                    _ => [0, n - s],
-                };
+                let p = edge_point(e as u32, s, n);
                 // The position from the lower-numbered end, in units fine enough for any level.
                 let along = |s: u32| s * ((1 << 16) / n);
                 let key = if a < b { (a, b, along(s)) } else { (b, a, along(n - s)) };

@@ -11,7 +11,7 @@
 use std::collections::HashMap;
 
 use gridrt_shared::glam::{DVec3, Vec3};
-use gridrt_shared::grid_index::Lattice;
+use gridrt_shared::grid_index::{edge_point, Lattice};
 use gridrt_shared::layout::FrameParams;
 use gridrt_shared::lod::grid_level;
 
@@ -85,11 +85,7 @@ impl LodReport {
 /// The lattice points of a grid's edge `e` (from corner `e` to corner `e + 1`), in order.
 fn edge_points(levels: u32, e: usize) -> impl Iterator<Item = Lattice> {
     let n = 1u32 << levels;
-    (0..=n).map(move |s| match e {
-        0 => [s, 0],
-        1 => [n - s, s],
-        _ => [0, n - s],
-    })
+    (0..=n).map(move |s| edge_point(e as u32, s, n))
 }
 
 /// The camera's image plane (one unit in front of the eye, see

@@ -114,6 +114,27 @@ pub const fn parents(p: Lattice, h: u32) -> [Lattice; 2] {
     }
 }
 
+/// The lattice point of a grid's corner `c` (0..3) in a lattice of side `n`.
+#[inline]
+pub const fn corner_point(c: u32, n: u32) -> Lattice {
+    match c {
+        0 => [0, 0],
+        1 => [n, 0],
+        _ => [0, n],
+    }
+}
+
+/// The lattice point `step` steps along a grid's edge `e` (0..3), from corner `e` towards
+/// corner `e + 1`, in a lattice of side `n`: step 0 is corner `e`, step `n` corner `e + 1`.
+#[inline]
+pub const fn edge_point(e: u32, step: u32, n: u32) -> Lattice {
+    match e {
+        0 => [step, 0],
+        1 => [n - step, step],
+        _ => [0, n - step],
+    }
+}
+
 /// Corners of child `digit` (0..4) of the sub-triangle `(a, b, c)`.
 #[inline]
 pub const fn child_corners(corners: [Lattice; 3], digit: u32) -> [Lattice; 3] {

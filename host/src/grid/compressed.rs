@@ -23,12 +23,12 @@ use gridrt_shared::compressed_values::{
     inner_new_count, ValueCode, MAX_LEVELS, SHIFT_BITS, VALUE_BITS, VALUE_MAX, WIDTH_BITS,
 };
 use gridrt_shared::displacement::{interpolated, u_major_index};
-use gridrt_shared::grid_index::{grid_size, parents, Lattice};
+use gridrt_shared::grid_index::{corner_point, edge_point, grid_size, parents, Lattice};
 
 use rayon::prelude::*;
 
 use super::displaced::{expanded_mesh, rendered_edge_level};
-use super::{corner_point, edge_point, BaseEdges};
+use super::BaseEdges;
 use crate::bary::MicromapTriangle;
 use crate::displaced::DisplacedMesh;
 use crate::error::{fail, Result};
@@ -614,7 +614,7 @@ impl SharedValues {
             for (c, &v) in t.iter().enumerate() {
                 if !std::mem::replace(&mut corner_seen[v as usize], true) {
                     corner_values[v as usize] =
-                        mesh.micromap.triangle_values(g)[u_major_index(corner_point(c, n), n) as usize];
+                        mesh.micromap.triangle_values(g)[u_major_index(corner_point(c as u32, n), n) as usize];
                 }
             }
         }
@@ -623,7 +623,7 @@ impl SharedValues {
                 let t = mesh.triangles[g];
                 let original = mesh.micromap.triangle_values(g);
                 let (from, to) = (t[e], t[(e + 1) % 3]);
-                let point = |s: u32| edge_point(e, if from <= to { s } else { n - s }, n);
+                let point = |s: u32| edge_point(e as u32, if from <= to { s } else { n - s }, n);
                 let mut values: Vec<u16> = (0..=n).map(|s| original[u_major_index(point(s), n) as usize]).collect();
                 values[0] = corner_values[from.min(to) as usize];
                 values[n as usize] = corner_values[from.max(to) as usize];
@@ -689,13 +689,14 @@ fn encode_grid(
     let truth = mesh.micromap.triangle_values(g);
     let mut values = truth.to_vec();
     for c in 0..3 {
-        values[u_major_index(corner_point(c, n), n) as usize] = shared.corner_values[t[c] as usize];
+        values[u_major_index(corner_point(c as u32, n), n) as usize] = shared.corner_values[t[c] as usize];
     }
     for e in 0..3 {
         let edge = &shared.edge_values[edges.of_grid[g][e] as usize];
         let forward = t[e] <= t[(e + 1) % 3];
         for s in 1..n {
-            values[u_major_index(edge_point(e, s, n), n) as usize] = edge[if forward { s } else { n - s } as usize];
+            values[u_major_index(edge_point(e as u32, s, n), n) as usize] =
+                edge[if forward { s } else { n - s } as usize];
         }
     }
     let at = |p: Lattice| u_major_index(p, n) as usize;

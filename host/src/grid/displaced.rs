@@ -36,13 +36,13 @@ use gridrt_shared::displacement::{
 };
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::grid_index::{
-    edge_vertex_count, grid_size, inner_points, inner_vertex_count, lattice_points, parents, Lattice,
+    corner_point, edge_point, edge_vertex_count, grid_size, inner_points, inner_vertex_count, lattice_points, parents,
+    Lattice,
 };
 use gridrt_shared::grid_traverse::DISPLACEMENT_BITS;
 
 use super::{
-    check_counts, compressed, corner_point, edge_point, edge_points, BaseEdges, GridBuild, GridLayout, GridOptions,
-    GridScene, GridShape,
+    check_counts, compressed, edge_points, BaseEdges, GridBuild, GridLayout, GridOptions, GridScene, GridShape,
 };
 use crate::displaced::DisplacedMesh;
 use crate::error::{fail, Result};
@@ -104,7 +104,7 @@ pub fn layout(mesh: &DisplacedMesh, options: &GridOptions) -> Result<GridLayout>
     let mut corner_of = vec![None; base.positions.len()];
     for (g, t) in base.triangles.iter().enumerate() {
         for (c, &v) in t.iter().enumerate() {
-            let lattice = corner_point(c, n);
+            let lattice = corner_point(c as u32, n);
             corner_of[v as usize].get_or_insert((g, lattice));
         }
     }
@@ -191,8 +191,9 @@ pub(crate) fn expanded_mesh(mesh: &DisplacedMesh) -> DisplacedMesh {
             let (t, ts) = (mesh.triangles[g], mesh.triangles[sg]);
             let along = t[e] == ts[se];
             for k in 1..n {
-                let from = edge_point(se, if along { k } else { n - k }, n);
-                values[g][u_major_index(edge_point(e, k, n), n) as usize] = values[sg][u_major_index(from, n) as usize];
+                let from = edge_point(se as u32, if along { k } else { n - k }, n);
+                values[g][u_major_index(edge_point(e as u32, k, n), n) as usize] =
+                    values[sg][u_major_index(from, n) as usize];
             }
         }
     }

@@ -10,7 +10,8 @@ use gridrt_shared::buffer::Buffer;
 use gridrt_shared::compressed_values::ValueCode;
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::grid_index::{
-    edge_vertex_count, grid_size, inner_points, inner_vertex_count, sphere_count, triangle_count, GridSlots, Lattice,
+    edge_point, edge_vertex_count, grid_size, inner_points, inner_vertex_count, sphere_count, triangle_count,
+    GridSlots, Lattice,
 };
 use gridrt_shared::grid_traverse::MAX_SPHERE_LEVEL;
 use gridrt_shared::layout::{
@@ -999,19 +1000,5 @@ fn chunks_or_empty<T>(items: &mut [T], per_grid: usize) -> Box<dyn Iterator<Item
 /// edge area stores them: from the lower base vertex id towards the higher.
 fn edge_points(t: &[u32; 3], e: usize, n: u32) -> impl Iterator<Item = Lattice> {
     let reversed = t[e] > t[(e + 1) % 3];
-    (1..n).map(move |s| edge_point(e, if reversed { n - s } else { s }, n))
-}
-
-/// The lattice point `step` steps along edge `e` from corner `e` towards corner `e + 1`.
-fn edge_point(e: usize, step: u32, n: u32) -> Lattice {
-    match e {
-        0 => [step, 0],
-        1 => [n - step, step],
-        _ => [0, n - step],
-    }
-}
-
-/// The lattice point of corner `c`.
-fn corner_point(c: usize, n: u32) -> Lattice {
-    [[0, 0], [n, 0], [0, n]][c]
+    (1..n).map(move |s| edge_point(e as u32, if reversed { n - s } else { s }, n))
 }
