@@ -217,8 +217,8 @@ fn bake_refuses_bad_outputs_before_any_work() {
 
 /// A byte budget tighter than the error bound needs is kept, the bound given up and the
 /// report saying so, and one out of reach is said to be; a level per base triangle writes a
-/// file of mixed levels that `render` reads, its values plain, or compressed when a bound is
-/// given, and its displaced grids' bytes reported.
+/// file of mixed levels that `render` reads, its values plain when asked, compressed within a
+/// bound given or by default, and its displaced grids' bytes reported.
 #[test]
 fn bake_keeps_to_a_byte_budget_and_mixes_levels() {
     let dir = scratch("bake-budget");
@@ -269,7 +269,8 @@ fn bake_keeps_to_a_byte_budget_and_mixes_levels() {
         false => assert!(c["added_error"].as_f64() <= c["max_added_error"].as_f64(), "{default}"),
     }
 
-    let (mixed, out) = bake("mixed.gltf", &["--max-error", "2e-3"]);
+    // Levels per triangle, values plain: the levels take the whole bound.
+    let (mixed, out) = bake("mixed.gltf", &["--max-error", "2e-3", "--plain-values"]);
     let levels: Vec<u64> = (mixed["level_micro_triangles"].as_array().unwrap().iter())
         .map(|c| c.as_u64().unwrap())
         .collect();
@@ -294,4 +295,13 @@ fn bake_keeps_to_a_byte_budget_and_mixes_levels() {
     );
     let o = render_small(&out, &dir.join("mixed_compressed.png"));
     assert!(o.status.success(), "{}", stderr(&o));
+    // By default the values are compressed too, and the levels leave the compression room:
+    // chosen for a tighter bound, they take more micro-triangles.
+    let (default, _) = bake("mixed_default.gltf", &["--max-error", "2e-3"]);
+    let c = &default["compression"];
+    assert!(!c.is_null() && c["max_bytes"].is_null(), "{default}");
+    assert!(
+        default["micro_triangles"].as_u64() > mixed["micro_triangles"].as_u64(),
+        "{default}\n{mixed}"
+    );
 }

@@ -82,6 +82,13 @@ pub struct BakeOptions {
 /// `sqrt(1 + 0.5^2)`, about 1.12 times the uncompressed one's distance.
 pub const COMPRESSION_ERROR_SHARE: f32 = 0.5;
 
+/// The share of an error bound on the compressed micro-mesh that its levels may take when
+/// they are chosen per triangle, leaving the rest to the default compression:
+/// `1 / sqrt(1 + COMPRESSION_ERROR_SHARE^2)`, so both together stay about within the bound.
+pub fn levels_error_share() -> f32 {
+    1.0 / (1.0 + COMPRESSION_ERROR_SHARE * COMPRESSION_ERROR_SHARE).sqrt()
+}
+
 /// Bytes per micro-triangle that everything the GPU gets keeps within by default, by level:
 /// the sizes of the fixed-function hardware's compressed displacement blocks (64 micro-triangles
 /// in 64 bytes at level 3, 256 in 128 at level 4, 1024 in 128 from level 5 on), here for the

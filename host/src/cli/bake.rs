@@ -114,7 +114,12 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
         None => stages.run("bake", || bake::bake(&reference_mesh, &options))?,
         Some(max_error) => {
             let (lo, hi) = reference_mesh.bounds();
-            let target = bake::levels::LevelTarget::MaxError(max_error * (hi - lo).length());
+            let share = if compression_follows(args) {
+                bake::levels_error_share()
+            } else {
+                1.0
+            };
+            let target = bake::levels::LevelTarget::MaxError(share * max_error * (hi - lo).length());
             stages.run("bake", || bake::levels::bake_levels(&reference_mesh, &options, target))?
         }
     };
@@ -206,11 +211,13 @@ fn grid_memory(mesh: &DisplacedMesh) -> Option<Vec<(&'static str, u64)>> {
 }
 
 /// The byte budget per micro-triangle: the one asked for, or with the default error bound
-/// the default for the level.
+/// and one level the default for the level.
 fn byte_budget(args: &BakeArgs) -> Option<f64> {
     match (args.max_bytes, args.compress_values) {
         (Some(bytes), _) => Some(bytes),
         (None, Some(_)) => None,
+        // Levels chosen per triangle have spent the bytes the error needs.
+        (None, None) if args.max_error.is_some() => None,
         (None, None) => bake::default_byte_budget(args.levels),
     }
 }
@@ -308,20 +315,28 @@ fn compress_within(
     Ok((compressed, outcome))
 }
 
-/// How to compress the baked values: `None` to leave them plain (as asked, at level 0, where
-/// a base triangle has its corners alone, or with `--max-error` unless `--compress-values`
-/// sets a bound: the levels already keep the error within the one asked for). The bound is
-/// the one asked for, or by default a share of the uncompressed bake's own distance from
-/// the reference.
+/// How to compress the baked values: `None` to leave them plain (as asked, or at level 0,
+/// where a base triangle has its corners alone). The bound is the one asked for, or by
+/// default a share of the uncompressed bake's own distance from the reference.
 fn compression_bound(args: &BakeArgs, mesh: &DisplacedMesh, plain: &SurfaceDistance) -> Option<ValueCompression> {
-    let levels_chosen = args.max_error.is_some() && args.compress_values.is_none();
-    if args.plain_values || args.nv_blocks || args.levels == 0 || levels_chosen {
+    if !compresses(args) {
         return None;
     }
     Some(match args.compress_values {
         Some(bound) => ValueCompression::bounded(bound),
         None => ValueCompression::within(mesh, bake::COMPRESSION_ERROR_SHARE * plain.symmetric.rms as f32),
     })
+}
+
+/// Whether the baked values are compressed (see [`compression_bound`]).
+fn compresses(args: &BakeArgs) -> bool {
+    !(args.plain_values || args.nv_blocks || args.levels == 0)
+}
+
+/// Whether the values will be compressed within the default share of the bake's own
+/// distance, which `--max-error` then leaves room for.
+fn compression_follows(args: &BakeArgs) -> bool {
+    compresses(args) && args.compress_values.is_none()
 }
 
 /// The glTF, its buffer and its micromap, checked before any work: writable, none of them an

@@ -658,12 +658,14 @@ pub struct BakeArgs {
     #[arg(long, value_name = "BYTES", value_parser = parse_byte_budget, conflicts_with = "plain_values")]
     pub max_bytes: Option<f64>,
     /// Give each base triangle its own level, up to --levels, in the fewest bytes that keep
-    /// the symmetric RMS distance from the reference within this fraction of its
+    /// the symmetric RMS distance from the reference within about this fraction of its
     /// bounding-box diagonal: every level is fitted to the reference, each triangle takes the
     /// one where a byte saved costs more error than a rate all share, neighbours within a
     /// level of each other, the finer side decimating the edge between them (glTF's
-    /// primitiveFlags). Such micro-meshes render as displaced grids of mixed levels, their
-    /// values plain unless --compress-values bounds the error their compression adds.
+    /// primitiveFlags). Such micro-meshes render as displaced grids of mixed levels. Their
+    /// values are then compressed as by default, and the levels keep 1/1.12 of the bound,
+    /// leaving the rest to the compression; with --compress-values or --plain-values the
+    /// levels keep all of it.
     #[arg(long, value_name = "MAX_ERROR", value_parser = parse_value_error, conflicts_with = "max_bytes")]
     pub max_error: Option<f32>,
     /// Store the values in NVIDIA's compressed displacement blocks (eDispC1_r11_unorm_block),
