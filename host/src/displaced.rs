@@ -144,13 +144,13 @@ impl DisplacedMesh {
             let kept = edge_points
                 .iter()
                 .all(|&(at, key)| shared.get(&key).is_none_or(|&v| encoded.decoded[at] == v));
-            bytes += match kept {
-                true => {
-                    values = encoded.decoded;
-                    encoded.bytes.len()
-                }
-                false => compressed_blocks::encode_exactly(&values, level).bytes.len(),
-            } as u64;
+            let block_bytes = if kept {
+                values = encoded.decoded;
+                encoded.bytes.len()
+            } else {
+                compressed_blocks::encode_exactly(&values, level).bytes.len()
+            };
+            bytes += block_bytes as u64;
             for &(at, key) in &edge_points {
                 shared.entry(key).or_insert(values[at]);
             }
