@@ -23,12 +23,12 @@ use gridrt_shared::compressed_values::{
     inner_new_count, ValueCode, MAX_LEVELS, SHIFT_BITS, VALUE_BITS, VALUE_MAX, WIDTH_BITS,
 };
 use gridrt_shared::displacement::{interpolated, u_major_index};
-use gridrt_shared::grid_index::{corner_point, edge_point, grid_size, parents, Lattice};
+use gridrt_shared::grid_index::{corner_point, grid_size, parents, Lattice};
 
 use rayon::prelude::*;
 
 use super::displaced::{expanded_mesh, rendered_edge_level};
-use super::BaseEdges;
+use super::{stored_edge_point, BaseEdges};
 use crate::bary::MicromapTriangle;
 use crate::displaced::DisplacedMesh;
 use crate::error::{fail, Result};
@@ -623,7 +623,7 @@ impl SharedValues {
                 let t = mesh.triangles[g];
                 let original = mesh.micromap.triangle_values(g);
                 let (from, to) = (t[e], t[(e + 1) % 3]);
-                let point = |s: u32| edge_point(e as u32, if from <= to { s } else { n - s }, n);
+                let point = |s: u32| stored_edge_point(&t, e, s, n);
                 let mut values: Vec<u16> = (0..=n).map(|s| original[u_major_index(point(s), n) as usize]).collect();
                 values[0] = corner_values[from.min(to) as usize];
                 values[n as usize] = corner_values[from.max(to) as usize];
@@ -693,10 +693,8 @@ fn encode_grid(
     }
     for e in 0..3 {
         let edge = &shared.edge_values[edges.of_grid[g][e] as usize];
-        let forward = t[e] <= t[(e + 1) % 3];
         for s in 1..n {
-            values[u_major_index(edge_point(e as u32, s, n), n) as usize] =
-                edge[if forward { s } else { n - s } as usize];
+            values[u_major_index(stored_edge_point(&t, e, s, n), n) as usize] = edge[s as usize];
         }
     }
     let at = |p: Lattice| u_major_index(p, n) as usize;

@@ -999,6 +999,14 @@ fn chunks_or_empty<T>(items: &mut [T], per_grid: usize) -> Box<dyn Iterator<Item
 /// The inner lattice points of edge `e` of a grid over base triangle `t`, in the order the
 /// edge area stores them: from the lower base vertex id towards the higher.
 fn edge_points(t: &[u32; 3], e: usize, n: u32) -> impl Iterator<Item = Lattice> {
+    let t = *t;
+    (1..n).map(move |s| stored_edge_point(&t, e, s, n))
+}
+
+/// The lattice point `s` steps along edge `e` of a grid over base triangle `t` (of lattice
+/// size `n`), counted as a shared edge is stored: from its lower base vertex id, so both
+/// grids on the edge name its points alike.
+pub(crate) fn stored_edge_point(t: &[u32; 3], e: usize, s: u32, n: u32) -> Lattice {
     let reversed = t[e] > t[(e + 1) % 3];
-    (1..n).map(move |s| edge_point(e as u32, if reversed { n - s } else { s }, n))
+    edge_point(e as u32, if reversed { n - s } else { s }, n)
 }
