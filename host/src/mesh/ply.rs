@@ -1,7 +1,10 @@
 //! Stanford PLY, `ascii`, `binary_little_endian` and `binary_big_endian` 1.0, read by hand.
 //!
-//! Only `vertex` x/y/z and the `face` index list are kept; every other property and element is read and skipped,
-//! because in PLY the only way past data is to decode it. Polygons are fan-triangulated.
+//! Only `vertex` x/y/z and the `face` index list (or, where a file has no faces, the `tristrips` one) are kept;
+//! every other property and element is read and skipped, because in PLY the only way past data is to decode it.
+//! Polygons are fan-triangulated. Triangle strips, as some scans are distributed, are split at each `-1`; every
+//! other triangle of a strip is turned so that all face the same way, and those with a repeated vertex (which join
+//! strips) are left out.
 
 use crate::error::{error, fail, Error, Result};
 use gridrt_shared::glam::DVec3;
@@ -241,10 +244,15 @@ fn unsupported(line: &str) -> String {
 struct Roles {
     vertex: usize,
     xyz: [usize; 3],
+    /// The element of the triangles: faces, or triangle strips (`strips`).
     face: usize,
+    strips: bool,
     indices: usize,
     vertex_count: usize,
 }
+
+/// Where a triangle strip's index list starts a new strip.
+const STRIP_RESTART: u32 = u32::MAX;
 
 impl Roles {
     fn find(header: &Header) -> Result<Roles> {
@@ -264,17 +272,24 @@ impl Roles {
                 fail!(Input, "vertex property '{axis}' is a list, expected a number");
             }
         }
-        let face = elements.iter().position(|e| e.name == "face").ok_or_else(|| {
+        let faces = elements.iter().position(|e| e.name == "face");
+        let strips = elements.iter().position(|e| e.name == "tristrips");
+        let face = faces.or(strips).ok_or_else(|| {
             error!(
                 Input,
-                "no triangles: header has no 'element face' (point clouds are not supported)"
+                "no triangles: header has no 'element face' or 'element tristrips' (point clouds are not supported)"
             )
         })?;
         let props = &elements[face].props;
         let indices = props
             .iter()
             .position(|p| p.name == "vertex_indices" || p.name == "vertex_index")
-            .ok_or_else(|| error!(Input, "face element has no property 'vertex_indices'"))?;
+            .ok_or_else(|| {
+                error!(
+                    Input,
+                    "{} element has no property 'vertex_indices'", elements[face].name
+                )
+            })?;
         match props[indices].kind {
             Kind::List { item, .. } if !item.is_float() => {}
             _ => fail!(
@@ -287,6 +302,7 @@ impl Roles {
             vertex,
             xyz,
             face,
+            strips: faces.is_none(),
             indices,
             vertex_count: elements[vertex].count,
         })
@@ -531,10 +547,13 @@ fn read_body(src: &mut impl Source, header: &Header, roles: &Roles) -> Result<Wo
                         let keep = is_face && p == roles.indices;
                         for _ in 0..n as u64 {
                             let v = src.read(item).map_err(fail)?;
-                            if keep {
+                            if keep && roles.strips && v == -1.0 {
+                                polygon.push(STRIP_RESTART);
+                            } else if keep {
                                 if !(0.0..roles.vertex_count as f64).contains(&v) {
                                     let n = roles.vertex_count;
-                                    fail!(Input, "face {i} refers to vertex {v} but the file has {n} vertices");
+                                    let name = &element.name;
+                                    fail!(Input, "{name} {i} refers to vertex {v} but the file has {n} vertices");
                                 }
                                 polygon.push(v as u32);
                             }
@@ -546,6 +565,8 @@ fn read_body(src: &mut impl Source, header: &Header, roles: &Roles) -> Result<Wo
             if is_vertex {
                 check_position(&xyz, i, src.line())?;
                 mesh.positions.push(DVec3::from_array(xyz));
+            } else if is_face && roles.strips {
+                strip_triangles(&polygon, &mut mesh.triangles);
             } else if is_face {
                 if polygon.len() < 3 {
                     fail!(Input, "face {i} has only {} vertices", polygon.len());
@@ -556,6 +577,25 @@ fn read_body(src: &mut impl Source, header: &Header, roles: &Roles) -> Result<Wo
         }
     }
     Ok(mesh)
+}
+
+/// Appends the triangles of `indices`, triangle strips separated by [`STRIP_RESTART`]: the
+/// `k`-th of a strip is its points `k, k + 1, k + 2`, the first two swapped for odd `k`, so
+/// that all face the way the first does. A triangle with a repeated point has no area: such
+/// triangles join strips, and are left out.
+fn strip_triangles(indices: &[u32], triangles: &mut Vec<[u32; 3]>) {
+    for strip in indices.split(|&v| v == STRIP_RESTART) {
+        for (k, w) in strip.windows(3).enumerate() {
+            let t = if k % 2 == 0 {
+                [w[0], w[1], w[2]]
+            } else {
+                [w[1], w[0], w[2]]
+            };
+            if t[0] != t[1] && t[1] != t[2] && t[2] != t[0] {
+                triangles.push(t);
+            }
+        }
+    }
 }
 
 #[cfg(test)]

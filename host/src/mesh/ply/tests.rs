@@ -101,6 +101,69 @@ fn ascii_and_binary_round_trip_to_the_same_mesh() {
     assert_eq!(load_ok("single.ply", single.as_bytes()).0, expected);
 }
 
+/// The cube's faces as triangle strips, the form some scans come in: one strip per pair of
+/// opposite-ish quads joined by a repeated vertex, a restart, and a strip of one quad.
+#[test]
+fn triangle_strips_read_as_the_same_surface() {
+    use Scalar::*;
+    let header = "element vertex 8\nproperty float x\nproperty float y\nproperty float z\n\
+        element tristrips 1\nproperty list int int vertex_indices\n";
+    // Quad [a, b, c, d] (outward, counter-clockwise) is the strip a, b, d, c.
+    let strip = |q: [u32; 4]| [q[0], q[1], q[3], q[2]];
+    let mut indices: Vec<i64> = Vec::new();
+    for pair in QUADS[..4].chunks(2) {
+        let (first, second) = (strip(pair[0]), strip(pair[1]));
+        indices.extend(first.iter().map(|&i| i as i64));
+        // Two repeated points join the strips with triangles of no area and keep the second
+        // strip's first triangle at an even place.
+        indices.extend([first[3] as i64, second[0] as i64]);
+        indices.extend(second.iter().map(|&i| i as i64));
+        indices.push(-1);
+    }
+    for q in &QUADS[4..] {
+        indices.extend(strip(*q).iter().map(|&i| i as i64));
+        indices.push(-1);
+    }
+    let mut rows: Vec<Row> = (0..8u32)
+        .map(|i| {
+            let p = corner(i).as_dvec3();
+            vec![(F32, p.x), (F32, p.y), (F32, p.z)]
+        })
+        .collect();
+    let mut list = vec![(I32, indices.len() as f64)];
+    list.extend(indices.iter().map(|&i| (I32, i as f64)));
+    rows.push(list);
+    let facing = |m: &Mesh| -> Vec<(Vec3, [u32; 3])> {
+        let mut t: Vec<_> = (m.triangles.iter())
+            .map(|t| {
+                let [a, b, c] = t.map(|i| m.positions[i as usize]);
+                let mut sorted = *t;
+                sorted.sort();
+                ((b - a).cross(c - a).normalize(), sorted)
+            })
+            .collect();
+        t.sort_by(|x, y| x.1.cmp(&y.1));
+        t
+    };
+    let (cube_mesh, _) = load_ok("cube.ply", &cube("ascii"));
+    for format in ["ascii", "binary_little_endian", "binary_big_endian"] {
+        let (mesh, dropped) = load_ok("strips.ply", &encode(format, header, &rows));
+        assert_eq!((mesh.triangles.len(), dropped), (12, 0), "{format}");
+        // The same six squares, each split along some diagonal, every triangle facing out.
+        let (got, want) = (facing(&mesh), facing(&cube_mesh));
+        let normals = |f: &[(Vec3, [u32; 3])]| {
+            let mut n: Vec<[i32; 3]> = f.iter().map(|(n, _)| n.to_array().map(|x| x.round() as i32)).collect();
+            n.sort();
+            n
+        };
+        assert_eq!(normals(&got), normals(&want), "{format}");
+    }
+    let past = String::from_utf8(encode("ascii", header, &rows))
+        .unwrap()
+        .replacen(" 7 ", " 9 ", 1);
+    expect_err("strip_oob.ply", past.as_bytes(), &["tristrips 0 refers to vertex 9"]);
+}
+
 #[test]
 fn truncated_data() {
     let ascii = String::from_utf8(cube("ascii")).unwrap();
@@ -247,7 +310,7 @@ fn bad_headers() {
         "nofaces.ply",
         "element face 6",
         "element facet 6",
-        &["no triangles", "no 'element face'"],
+        &["no triangles", "no 'element face' or 'element tristrips'"],
     );
     bad(
         "noidx.ply",
