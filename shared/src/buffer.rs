@@ -34,6 +34,11 @@ pub trait Buffer<T>: Copy {
     /// [`Self::SPLIT`].
     const DISPLACED_FORMATS: bool = !cfg!(target_arch = "spirv");
 
+    /// Whether every scene read through this buffer holds compressed displacement values: a
+    /// GPU kernel of them, which the host runs for no other grids, then leaves out the code of
+    /// every other vertex format, and a shader inlines far less at each vertex read.
+    const ONLY_COMPRESSED: bool = false;
+
     fn load(self, index: u32) -> T;
     fn is_empty(self) -> bool;
 
@@ -79,7 +84,12 @@ impl<T: Copy, const N: usize> Buffer<T> for &[T; N] {
 /// Declares a wrapper of a scene's words, each buffer whole, through which a GPU kernel reads
 /// them with the formats its constants say it carries.
 macro_rules! scene_words {
-    ($(#[$attr:meta])* $name:ident, displaced: $displaced:expr, compressed: $compressed:expr) => {
+    (
+        $(#[$attr:meta])* $name:ident,
+        displaced: $displaced:expr,
+        compressed: $compressed:expr,
+        only_compressed: $only_compressed:expr
+    ) => {
         $(#[$attr])*
         #[derive(Copy, Clone)]
         pub struct $name<'a>(pub &'a [u32]);
@@ -87,6 +97,7 @@ macro_rules! scene_words {
         impl Buffer<u32> for $name<'_> {
             const DISPLACED_FORMATS: bool = $displaced;
             const DECODES_COMPRESSED: bool = $compressed;
+            const ONLY_COMPRESSED: bool = $only_compressed;
 
             #[inline(always)]
             fn load(self, index: u32) -> u32 {
@@ -111,15 +122,18 @@ scene_words!(
     /// values (see [`Buffer::DISPLACED_FORMATS`]).
     DisplacedWords,
     displaced: true,
-    compressed: false
+    compressed: false,
+    only_compressed: false
 );
 
 scene_words!(
     /// The words of a scene of compressed displacement values: a GPU kernel that reads its
-    /// scene through this type decodes them (see [`Buffer::DECODES_COMPRESSED`]).
+    /// scene through this type decodes them (see [`Buffer::DECODES_COMPRESSED`]), and reads
+    /// no other grids (see [`Buffer::ONLY_COMPRESSED`]).
     CompressedWords,
     displaced: true,
-    compressed: true
+    compressed: true,
+    only_compressed: true
 );
 
 /// Most chunks a split scene may use. Their bindings come after a kernel's own (parameters,

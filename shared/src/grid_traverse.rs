@@ -287,11 +287,22 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             shift: g.levels - (own >> 3),
             decimated: own & 7,
         };
-        open.corners = [
-            self.vertex(&open, [0, 0]),
-            self.vertex(&open, [n, 0]),
-            self.vertex(&open, [0, n]),
-        ];
+        // A corner's compressed value is stored plain: read as it is, not walked down to (a
+        // shader inlines each walk).
+        open.corners = if self.compressed() {
+            let q = open.coded.corner_values;
+            [
+                self.displaced_at(&open, [0, 0], q[0]),
+                self.displaced_at(&open, [n, 0], q[1]),
+                self.displaced_at(&open, [0, n], q[2]),
+            ]
+        } else {
+            [
+                self.stored_vertex(&open, [0, 0]),
+                self.stored_vertex(&open, [n, 0]),
+                self.stored_vertex(&open, [0, n]),
+            ]
+        };
         open.origin = sphere_center(open.corners[0], open.corners[1], open.corners[2]);
         open
     }
@@ -346,7 +357,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     /// `Buffer::DISPLACED_FORMATS`).
     #[inline(always)]
     fn displaced(&self) -> bool {
-        !W::SPLIT && W::DISPLACED_FORMATS && self.params.displaced != 0
+        !W::SPLIT && W::DISPLACED_FORMATS && (W::ONLY_COMPRESSED || self.params.displaced != 0)
     }
 
     /// Whether the grids hold compressed values, which the traversal decodes a sub-triangle
@@ -355,7 +366,9 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     /// rays takes, so the decoder's loops at every vertex read slowed every grid kernel.
     #[inline(always)]
     fn compressed(&self) -> bool {
-        self.displaced() && W::DECODES_COMPRESSED && self.params.displaced == DISPLACED_COMPRESSED
+        self.displaced()
+            && W::DECODES_COMPRESSED
+            && (W::ONLY_COMPRESSED || self.params.displaced == DISPLACED_COMPRESSED)
     }
 
     /// Position of lattice point `p` of an opened grid whose vertices or values are stored
@@ -665,8 +678,24 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     /// grid, and its index at that depth in recursion order, whose digits walk down to its
     /// corners.
     pub fn micro_triangle(&self, prim: u32, level: u32) -> [Vec3; 3] {
-        let (open, [a, b, c]) = self.locate(prim, level);
-        [self.vertex(&open, a), self.vertex(&open, b), self.vertex(&open, c)]
+        let (open, points) = self.locate(prim, level);
+        // One vertex read in a loop a shader keeps: each read inlines a decoder, or a split
+        // scene's branch per chunk.
+        let mut corners = [Vec3::ZERO; 3];
+        let mut k = 0;
+        while k < 3 + self.opaque_zero() as usize {
+            corners[k] = self.vertex(&open, points[k]);
+            k += 1;
+        }
+        corners
+    }
+
+    /// Zero, read from the scene's parameters (no depth reaches 256), so that a loop bounded
+    /// by a constant plus this keeps one copy of its body in a shader: compilers unroll loops
+    /// of a known trip count.
+    #[inline]
+    pub(crate) fn opaque_zero(&self) -> u32 {
+        self.params.levels >> 8
     }
 
     /// The grid of the micro-triangle a hit at depth `level` names `prim`, opened, and the

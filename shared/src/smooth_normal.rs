@@ -136,14 +136,6 @@ fn directions(ijk: [u32; 3]) -> [u32; 2] {
 }
 
 impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
-    /// Zero, read from the scene's parameters (no depth reaches 256), so that a loop bounded
-    /// by a constant plus this keeps one copy of its body in a shader: compilers unroll loops
-    /// of a known trip count.
-    #[inline]
-    fn opaque_zero(&self) -> u32 {
-        self.params.levels >> 8
-    }
-
     /// The unit smooth normal of `open`'s surface at lattice point `p`, differentiated with
     /// steps of `step` lattice units over a lattice `m` steps a side; zero where the
     /// differences vanish (a degenerate patch).
@@ -154,20 +146,29 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         let stencils = [stencil(room(ijk, pair[0])), stencil(room(ijk, pair[1]))];
         // Positions relative to `p`'s, so a grid far from the origin loses no more than one
         // near it.
-        let centre = self.vertex(open, p);
+        let mut centre = Vec3::ZERO;
         let mut d = [Vec3::ZERO; 4];
-        // One loop and one vertex read for all four points, which the shader compiler must
-        // not unroll: each read inlines the buffer access, which split scenes make long.
+        // One loop and one vertex read for `p` (pass 0) and the four points, which the shader
+        // compiler must not unroll: each read inlines the buffer access, which split scenes
+        // and compressed values make long.
         let mut k = 0;
-        while k < 4 + self.opaque_zero() as usize {
-            let offset = stencils[k / 2][k % 2];
-            if offset != 0 {
-                let dir = direction(pair[k / 2]);
+        while k < 5 + self.opaque_zero() as usize {
+            let (offset, dir) = if k == 0 {
+                (0, [0, 0])
+            } else {
+                (stencils[(k - 1) / 2][(k - 1) % 2], direction(pair[(k - 1) / 2]))
+            };
+            if k == 0 || offset != 0 {
                 let q = [
                     (p[0] as i32 + offset * dir[0] * step as i32) as u32,
                     (p[1] as i32 + offset * dir[1] * step as i32) as u32,
                 ];
-                d[k] = self.vertex(open, q) - centre;
+                let v = self.vertex(open, q);
+                if k == 0 {
+                    centre = v;
+                } else {
+                    d[k - 1] = v - centre;
+                }
             }
             k += 1;
         }
