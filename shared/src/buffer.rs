@@ -49,17 +49,36 @@ pub trait Buffer<T>: Copy {
     }
 }
 
+/// Element `i` of a buffer: bounds-checked natively, where a read out of bounds is a bug that
+/// panics; unchecked in a shader, where wgpu's translation of the module already keeps every
+/// index within its buffer, and a check of Rust's own would inline a branch and a panic into
+/// every read (a shader inlines every read of its traversal).
+#[cfg(target_arch = "spirv")]
+#[inline(always)]
+pub fn element<T: Copy>(buffer: &[T], i: usize) -> T {
+    use spirv_std::arch::IndexUnchecked;
+    // SAFETY: wgpu's translation of the module keeps every index within its buffer.
+    unsafe { *buffer.index_unchecked(i) }
+}
+
+/// [`element`] natively: checked.
+#[cfg(not(target_arch = "spirv"))]
+#[inline(always)]
+pub fn element<T: Copy>(buffer: &[T], i: usize) -> T {
+    buffer[i]
+}
+
 impl<T: Copy> Buffer<T> for &[T] {
     #[inline(always)]
     fn load(self, index: u32) -> T {
-        self[index as usize]
+        element(self, index as usize)
     }
 
     /// Indexed in `usize`, so that the compiler sees three neighbours (one bounds check).
     #[inline(always)]
     fn load3(self, first: u32) -> [T; 3] {
         let i = first as usize;
-        [self[i], self[i + 1], self[i + 2]]
+        [element(self, i), element(self, i + 1), element(self, i + 2)]
     }
 
     #[inline(always)]
@@ -159,8 +178,8 @@ macro_rules! declare_chunks {
             pub fn word(&self, chunk: u32, offset: u32) -> u32 {
                 let o = offset as usize;
                 match chunk {
-                    $($k => self.$field[o],)*
-                    _ => self.$last[o],
+                    $($k => element(self.$field, o),)*
+                    _ => element(self.$last, o),
                 }
             }
 
@@ -170,9 +189,12 @@ macro_rules! declare_chunks {
             #[inline(always)]
             pub fn word4(&self, chunk: u32, offset: u32) -> [u32; 4] {
                 let o = offset as usize;
+                let four = |words: &[u32]| {
+                    [element(words, o), element(words, o + 1), element(words, o + 2), element(words, o + 3)]
+                };
                 match chunk {
-                    $($k => [self.$field[o], self.$field[o + 1], self.$field[o + 2], self.$field[o + 3]],)*
-                    _ => [self.$last[o], self.$last[o + 1], self.$last[o + 2], self.$last[o + 3]],
+                    $($k => four(self.$field),)*
+                    _ => four(self.$last),
                 }
             }
 

@@ -2,7 +2,7 @@
 //! sphere first, down to leaves whose micro-triangles the static index list names; under the
 //! top-level BVH of [`crate::traverse`].
 
-use crate::buffer::{Buffer, Chunks, Split};
+use crate::buffer::{element, Buffer, Chunks, Split};
 use crate::compressed_values::{read_bits, CodedGrid, CodedScene, ValueCode};
 use crate::cost::Tally;
 use crate::displacement::{decimated_grid_point, displaced_point, unorm11_displacement, DisplacedTriangle};
@@ -637,7 +637,10 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                 let in_row = la < la_end;
                 let has_inverted = la + lb + 2 <= m;
                 if in_row {
-                    let entry = self.micro_triangles[(cells + 2 * lattice_index(la, lb, m) + second) as usize];
+                    let entry = element(
+                        self.micro_triangles,
+                        (cells + 2 * lattice_index(la, lb, m) + second) as usize,
+                    );
                     let i0 = corner_slot(entry, 0);
                     let i1 = corner_slot(entry, 1);
                     let i2 = corner_slot(entry, 2);

@@ -17,13 +17,17 @@
 //! cannot); decoding is the same arithmetic on the CPU and the GPU; the topology (links,
 //! leaf ranges) is the full hierarchy's, so both forms visit the same nodes.
 
+use crate::aabb::intersect_aabb;
 use crate::buffer::Buffer;
 use crate::cost::Tally;
 use crate::glam::Vec3;
 use crate::layout::{BvhNode, Hit, HitRecord, WalkState};
 use crate::ray::Ray;
-use crate::traverse::{traverse_bvh, walk_first_round, walk_round, Hierarchy, LeafPrimitives, WalkStack};
-use crate::wide_nodes::{traverse_wide, walk_first_round_wide, walk_round_wide, WIDE};
+use crate::ray::T_FAR;
+use crate::traverse::{
+    descend, traverse_bvh, walk_first_round, walk_round, Hierarchy, LeafPrimitives, LocalStack, WalkStack, NO_NODE,
+};
+use crate::wide_nodes::{leaf_grids, next_leaf, push_root, scene_frame, walk_first_round_wide, walk_round_wide, WIDE};
 
 /// `count` of the header element of a compact hierarchy (never a node's count).
 pub const COMPACT: u32 = u32::MAX;
@@ -113,10 +117,72 @@ impl<N: Buffer<BvhNode>> Hierarchy for TopNodes<N> {
         // Split kernels leave the wide walk out: with it their first compile takes far longer.
         // Split scenes never hold a wide top level (the host refuses to split one), and plain
         // grids' kernels leave it out too (see `LeafPrimitives::DISPLACED_FORMATS`).
-        if !N::SPLIT && P::DISPLACED_FORMATS && self.wide {
-            traverse_wide(self.nodes, prims, ray, hit, tally)
+        if !N::SPLIT && P::DISPLACED_FORMATS {
+            self.search_either(prims, ray, hit, tally)
         } else {
             traverse_bvh(self, prims, ray, hit, tally)
+        }
+    }
+}
+
+impl<N: Buffer<BvhNode>> TopNodes<N> {
+    /// Closest hit along `ray` closer than `hit.t`, walking binary nodes as
+    /// `crate::traverse::traverse_bvh` does or wide ones as their two-phase rounds do
+    /// (`crate::wide_nodes`): either walk down to the next leaf, then one test of that leaf's
+    /// grids. A shader inlines each call of the leaf test whole, so a kernel that carries both
+    /// walks holds one copy of the grids' traversal rather than one per walk.
+    ///
+    /// The wide walk keeps every entry on the stack, nodes and leaves alike, sorted nearest on
+    /// top, and takes the next leaf off it; the binary walk goes down to the next leaf, the
+    /// farther children waiting on the stack, and pops the nearest one left after the leaf's
+    /// test.
+    #[inline(always)]
+    fn search_either<P: LeafPrimitives, T: Tally>(self, prims: &P, ray: &Ray, hit: &mut Hit, tally: &mut T) {
+        if self.nodes.is_empty() {
+            return;
+        }
+        let wide = self.wide;
+        let scene = scene_frame(&self.nodes.load(0));
+        let mut stack = LocalStack::new();
+        let mut sp = 0usize;
+        // The binary walk's node to go down from next.
+        let mut node = 0u32;
+        if wide {
+            sp = push_root(self.nodes, &scene, ray, hit.t, &mut stack, tally);
+            if sp == 0 {
+                return;
+            }
+        } else {
+            let root = self.load(0);
+            tally.nodes(1);
+            if intersect_aabb(Vec3::from(root.min), Vec3::from(root.max), ray, hit.t) == T_FAR {
+                return;
+            }
+        }
+        let mut scratch = prims.scratch(ray);
+        // Tested at the bottom, as `traverse_bvh`'s loop, but for the walk's end found on the
+        // way to a leaf.
+        loop {
+            let leaf = if wide {
+                let entry = next_leaf(self.nodes, &scene, ray, hit.t, &mut stack, &mut sp, tally);
+                if entry == NO_NODE {
+                    BvhNode::default()
+                } else {
+                    leaf_grids(entry)
+                }
+            } else {
+                descend(self, ray, hit.t, self.load(node), &mut stack, &mut sp, tally)
+            };
+            if !leaf.is_leaf() {
+                break;
+            }
+            prims.intersect_leaf(leaf.first, leaf.count, ray, hit, &mut scratch, tally);
+            if !wide {
+                node = stack.pop_closer(&mut sp, hit.t);
+                if node == NO_NODE {
+                    break;
+                }
+            }
         }
     }
 }

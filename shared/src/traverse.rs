@@ -163,7 +163,7 @@ pub fn traverse_bvh<N: Buffer<BvhNode>, P: LeafPrimitives, T: Tally>(
 /// nearest waiting node that is still closer than `t`. Returns the leaf, or an inner node
 /// when nothing is left to pop.
 #[inline(always)]
-fn descend<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
+pub(crate) fn descend<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
     nodes: N,
     ray: &Ray,
     t: f32,

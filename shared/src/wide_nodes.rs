@@ -41,9 +41,9 @@ use crate::aabb::intersect_aabb;
 use crate::buffer::Buffer;
 use crate::cost::{Tally, Uncounted};
 use crate::glam::Vec3;
-use crate::layout::{BvhNode, Hit, HitRecord, WalkState};
+use crate::layout::{BvhNode, HitRecord, WalkState};
 use crate::ray::{Ray, T_FAR};
-use crate::traverse::{take_results, LeafPrimitives, LocalStack, WalkStack, MAX_BVH_DEPTH, NO_NODE};
+use crate::traverse::{take_results, WalkStack, MAX_BVH_DEPTH, NO_NODE};
 
 /// `count` of the header element of a wide hierarchy (never a node's count).
 pub const WIDE: u32 = u32::MAX - 1;
@@ -186,42 +186,10 @@ pub fn frame_box(frame: &Frame) -> (Vec3, Vec3) {
     (frame.origin, frame.point(Vec3::splat(CODE_MAX as f32)))
 }
 
-/// Closest hit along `ray` closer than `hit.t` in the wide hierarchy `nodes` (header first).
-///
-/// Shaped as the binary walk (`crate::traverse::traverse_bvh`): an inner loop takes nodes
-/// off the stack, nearest first, pushing each one's children that the ray enters (sorted, so
-/// the nearest is on top) until it takes a leaf; the leaf is tested after it, once per leaf.
-pub fn traverse_wide<N: Buffer<BvhNode>, P: LeafPrimitives, T: Tally>(
-    nodes: N,
-    prims: &P,
-    ray: &Ray,
-    hit: &mut Hit,
-    tally: &mut T,
-) {
-    if nodes.is_empty() {
-        return;
-    }
-    let scene = scene_frame(&nodes.load(0));
-    let mut stack = LocalStack::new();
-    let mut sp = push_root(nodes, &scene, ray, hit.t, &mut stack, tally);
-    if sp == 0 {
-        return;
-    }
-    let mut scratch = prims.scratch(ray);
-    loop {
-        let leaf = next_leaf(nodes, &scene, ray, hit.t, &mut stack, &mut sp, tally);
-        if leaf == NO_NODE {
-            break;
-        }
-        let grids = leaf_grids(leaf);
-        prims.intersect_leaf(grids.first, grids.count, ray, hit, &mut scratch, tally);
-    }
-}
-
 /// Pushes the root on the empty `stack` where `ray` enters its box closer than `t`; returns
 /// the stack's height, 0 when the ray misses the scene.
 #[inline(always)]
-fn push_root<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
+pub(crate) fn push_root<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
     nodes: N,
     scene: &Frame,
     ray: &Ray,
@@ -241,7 +209,7 @@ fn push_root<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
 
 /// The grids a leaf entry names, as a node's range (`first`, `count`).
 #[inline(always)]
-fn leaf_grids(entry: u32) -> BvhNode {
+pub(crate) fn leaf_grids(entry: u32) -> BvhNode {
     BvhNode {
         first: (entry & !LEAF) >> LEAF_SHIFT,
         count: entry & ((1 << LEAF_SHIFT) - 1),
@@ -252,7 +220,7 @@ fn leaf_grids(entry: u32) -> BvhNode {
 /// Takes entries off `stack` until a leaf the ray may hit closer than `t`, opening the nodes
 /// on the way; the leaf's entry, or [`NO_NODE`] when the stack runs out.
 #[inline(always)]
-fn next_leaf<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
+pub(crate) fn next_leaf<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
     nodes: N,
     scene: &Frame,
     ray: &Ray,
