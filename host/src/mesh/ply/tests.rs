@@ -142,7 +142,7 @@ fn triangle_strips_read_as_the_same_surface() {
                 ((b - a).cross(c - a).normalize(), sorted)
             })
             .collect();
-        t.sort_by(|x, y| x.1.cmp(&y.1));
+        t.sort_by_key(|x| x.1);
         t
     };
     let (cube_mesh, _) = load_ok("cube.ply", &cube("ascii"));
