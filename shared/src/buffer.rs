@@ -53,19 +53,19 @@ pub trait Buffer<T>: Copy {
 /// panics; unchecked in a shader, where wgpu's translation of the module already keeps every
 /// index within its buffer, and a check of Rust's own would inline a branch and a panic into
 /// every read (a shader inlines every read of its traversal).
+#[cfg(not(target_arch = "spirv"))]
+#[inline(always)]
+pub fn element<T: Copy>(buffer: &[T], i: usize) -> T {
+    buffer[i]
+}
+
+/// `element` in a shader: unchecked.
 #[cfg(target_arch = "spirv")]
 #[inline(always)]
 pub fn element<T: Copy>(buffer: &[T], i: usize) -> T {
     use spirv_std::arch::IndexUnchecked;
     // SAFETY: wgpu's translation of the module keeps every index within its buffer.
     unsafe { *buffer.index_unchecked(i) }
-}
-
-/// [`element`] natively: checked.
-#[cfg(not(target_arch = "spirv"))]
-#[inline(always)]
-pub fn element<T: Copy>(buffer: &[T], i: usize) -> T {
-    buffer[i]
 }
 
 impl<T: Copy> Buffer<T> for &[T] {
