@@ -17,17 +17,15 @@
 //! cannot); decoding is the same arithmetic on the CPU and the GPU; the topology (links,
 //! leaf ranges) is the full hierarchy's, so both forms visit the same nodes.
 
-use crate::aabb::intersect_aabb;
 use crate::buffer::Buffer;
 use crate::cost::Tally;
 use crate::glam::Vec3;
 use crate::layout::{BvhNode, Hit, HitRecord, WalkState};
 use crate::ray::Ray;
-use crate::ray::T_FAR;
 use crate::traverse::{
-    descend, traverse_bvh, walk_first_round, walk_round, Hierarchy, LeafPrimitives, LocalStack, WalkStack, NO_NODE,
+    traverse_bvh, walk_first_round, walk_round, BinaryWalk, Hierarchy, LeafPrimitives, LeafWalk, WalkStack, NO_NODE,
 };
-use crate::wide_nodes::{leaf_grids, next_leaf, push_root, scene_frame, walk_first_round_wide, walk_round_wide, WIDE};
+use crate::wide_nodes::{leaf_grids, next_leaf, root_entry, Frame, WIDE};
 
 /// `count` of the header element of a compact hierarchy (never a node's count).
 pub const COMPACT: u32 = u32::MAX;
@@ -68,16 +66,21 @@ impl<N: Buffer<BvhNode>> TopNodes<N> {
 }
 
 impl<N: Buffer<BvhNode>> TopNodes<N> {
-    /// Whether the nodes are wide, which only [`Hierarchy::search`] and the two-phase rounds
-    /// read.
+    /// Whether the nodes are wide, which only [`TopWalk`] reads.
     #[inline]
     pub fn is_wide(self) -> bool {
         self.wide
     }
 
+    /// The walk over these nodes in their form. `WIDE_WALK`: whether the kernel carries the
+    /// wide walk (see [`TopWalk`]).
+    #[inline(always)]
+    pub fn walk<const WIDE_WALK: bool>(self) -> TopWalk<N, WIDE_WALK> {
+        TopWalk(self)
+    }
+
     /// The two-phase schedule's first round (see `crate::traverse::walk_first_round`) over
-    /// these nodes in their form. `WIDE_WALK`: whether the kernel carries the wide walk (plain
-    /// grids' kernels do not, see `LeafPrimitives::DISPLACED_FORMATS`).
+    /// these nodes in their form, as [`Self::walk`].
     #[inline(always)]
     pub fn first_round<const WIDE_WALK: bool, S: WalkStack>(
         self,
@@ -86,15 +89,11 @@ impl<N: Buffer<BvhNode>> TopNodes<N> {
         state: &mut WalkState,
         stack: &mut S,
     ) -> BvhNode {
-        if WIDE_WALK && !N::SPLIT && self.wide {
-            walk_first_round_wide(self.nodes, ray, t_max, state, stack)
-        } else {
-            walk_first_round(self, ray, t_max, state, stack)
-        }
+        walk_first_round(self.walk::<WIDE_WALK>(), ray, t_max, state, stack)
     }
 
     /// Every later round of the two-phase schedule (see `crate::traverse::walk_round`) over
-    /// these nodes in their form, as [`Self::first_round`].
+    /// these nodes in their form, as [`Self::walk`].
     #[inline(always)]
     pub fn next_round<const WIDE_WALK: bool, R: Buffer<HitRecord>, S: WalkStack>(
         self,
@@ -103,10 +102,15 @@ impl<N: Buffer<BvhNode>> TopNodes<N> {
         state: &mut WalkState,
         stack: &mut S,
     ) -> BvhNode {
-        if WIDE_WALK && !N::SPLIT && self.wide {
-            walk_round_wide(self.nodes, results, ray, state, stack)
-        } else {
-            walk_round(self, results, ray, state, stack)
+        walk_round(self.walk::<WIDE_WALK>(), results, ray, state, stack)
+    }
+
+    /// The scene's frame, which wide nodes' frames are codes of: the compact frame's fields.
+    #[inline(always)]
+    fn scene_frame(self) -> Frame {
+        Frame {
+            origin: self.origin,
+            step: self.step,
         }
     }
 }
@@ -114,75 +118,56 @@ impl<N: Buffer<BvhNode>> TopNodes<N> {
 impl<N: Buffer<BvhNode>> Hierarchy for TopNodes<N> {
     #[inline(always)]
     fn search<P: LeafPrimitives, T: Tally>(self, prims: &P, ray: &Ray, hit: &mut Hit, tally: &mut T) {
-        // Split kernels leave the wide walk out: with it their first compile takes far longer.
-        // Split scenes never hold a wide top level (the host refuses to split one), and plain
-        // grids' kernels leave it out too (see `LeafPrimitives::DISPLACED_FORMATS`).
-        if !N::SPLIT && P::DISPLACED_FORMATS {
-            self.search_either(prims, ray, hit, tally)
+        // A constant condition: each kernel holds one of the two walks' instances.
+        if P::DISPLACED_FORMATS {
+            traverse_bvh(self.walk::<true>(), prims, ray, hit, tally)
         } else {
-            traverse_bvh(self, prims, ray, hit, tally)
+            traverse_bvh(self.walk::<false>(), prims, ray, hit, tally)
         }
     }
 }
 
-impl<N: Buffer<BvhNode>> TopNodes<N> {
-    /// Closest hit along `ray` closer than `hit.t`, walking binary nodes as
-    /// `crate::traverse::traverse_bvh` does or wide ones as their two-phase rounds do
-    /// (`crate::wide_nodes`): either walk down to the next leaf, then one test of that leaf's
-    /// grids. A shader inlines each call of the leaf test whole, so a kernel that carries both
-    /// walks holds one copy of the grids' traversal rather than one per walk.
-    ///
-    /// The wide walk keeps every entry on the stack, nodes and leaves alike, sorted nearest on
-    /// top, and takes the next leaf off it; the binary walk goes down to the next leaf, the
-    /// farther children waiting on the stack, and pops the nearest one left after the leaf's
-    /// test.
+/// The walk over the grids' top level in any of its forms: binary nodes (full or compact) read
+/// one by one, or wide nodes as `crate::wide_nodes` walks them, every entry on the stack, nodes
+/// and leaves alike, sorted nearest on top.
+///
+/// `WIDE_WALK`: whether the walk may meet wide nodes. Kernels of plain grids leave the wide
+/// walk out (see `LeafPrimitives::DISPLACED_FORMATS`), and so do split kernels: with it their
+/// first compile takes far longer, and split scenes never hold a wide top level (the host
+/// refuses to split one).
+#[derive(Copy, Clone)]
+pub struct TopWalk<N, const WIDE_WALK: bool>(TopNodes<N>);
+
+impl<N: Buffer<BvhNode>, const WIDE_WALK: bool> LeafWalk for TopWalk<N, WIDE_WALK> {
     #[inline(always)]
-    fn search_either<P: LeafPrimitives, T: Tally>(self, prims: &P, ray: &Ray, hit: &mut Hit, tally: &mut T) {
-        if self.nodes.is_empty() {
-            return;
+    fn enter<T: Tally>(self, ray: &Ray, t: f32, tally: &mut T) -> f32 {
+        let top = self.0;
+        if WIDE_WALK && !N::SPLIT && top.wide {
+            root_entry(top.nodes, &top.scene_frame(), ray, t, tally)
+        } else {
+            BinaryWalk(top).enter(ray, t, tally)
         }
-        let wide = self.wide;
-        let scene = scene_frame(&self.nodes.load(0));
-        let mut stack = LocalStack::new();
-        let mut sp = 0usize;
-        // The binary walk's node to go down from next.
-        let mut node = 0u32;
-        if wide {
-            sp = push_root(self.nodes, &scene, ray, hit.t, &mut stack, tally);
-            if sp == 0 {
-                return;
+    }
+
+    #[inline(always)]
+    fn next_leaf<S: WalkStack, T: Tally>(
+        self,
+        ray: &Ray,
+        t: f32,
+        stack: &mut S,
+        sp: &mut usize,
+        tally: &mut T,
+    ) -> BvhNode {
+        let top = self.0;
+        if WIDE_WALK && !N::SPLIT && top.wide {
+            let entry = next_leaf(top.nodes, &top.scene_frame(), ray, t, stack, sp, tally);
+            if entry == NO_NODE {
+                BvhNode::default()
+            } else {
+                leaf_grids(entry)
             }
         } else {
-            let root = self.load(0);
-            tally.nodes(1);
-            if intersect_aabb(Vec3::from(root.min), Vec3::from(root.max), ray, hit.t) == T_FAR {
-                return;
-            }
-        }
-        let mut scratch = prims.scratch(ray);
-        // Tested at the bottom, as `traverse_bvh`'s loop, but for the walk's end found on the
-        // way to a leaf.
-        loop {
-            let leaf = if wide {
-                let entry = next_leaf(self.nodes, &scene, ray, hit.t, &mut stack, &mut sp, tally);
-                if entry == NO_NODE {
-                    BvhNode::default()
-                } else {
-                    leaf_grids(entry)
-                }
-            } else {
-                descend(self, ray, hit.t, self.load(node), &mut stack, &mut sp, tally)
-            };
-            if !leaf.is_leaf() {
-                break;
-            }
-            prims.intersect_leaf(leaf.first, leaf.count, ray, hit, &mut scratch, tally);
-            if !wide {
-                node = stack.pop_closer(&mut sp, hit.t);
-                if node == NO_NODE {
-                    break;
-                }
-            }
+            BinaryWalk(top).next_leaf(ray, t, stack, sp, tally)
         }
     }
 }

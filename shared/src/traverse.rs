@@ -54,14 +54,73 @@ pub trait Hierarchy: Copy {
 impl Hierarchy for &[BvhNode] {
     #[inline(always)]
     fn search<P: LeafPrimitives, T: Tally>(self, prims: &P, ray: &Ray, hit: &mut Hit, tally: &mut T) {
-        traverse_bvh(self, prims, ray, hit, tally)
+        traverse_bvh(BinaryWalk(self), prims, ray, hit, tally)
     }
 }
 
 impl Hierarchy for Split<'_, BvhNode> {
     #[inline(always)]
     fn search<P: LeafPrimitives, T: Tally>(self, prims: &P, ray: &Ray, hit: &mut Hit, tally: &mut T) {
-        traverse_bvh(self, prims, ray, hit, tally)
+        traverse_bvh(BinaryWalk(self), prims, ray, hit, tally)
+    }
+}
+
+/// The stack entry of a hierarchy's root, in every form.
+pub const ROOT: u32 = 0;
+
+/// A walk over a hierarchy's nodes down to its leaves, nearest first, the entries it passes
+/// waiting on a [`WalkStack`] with their entry distances, the root's entry being [`ROOT`]. The
+/// closest-hit loop ([`traverse_bvh`]) and the two-phase schedule's rounds
+/// ([`walk_first_round`], [`walk_round`]) drive it, so each holds one leaf test whatever form
+/// the nodes take: binary ([`BinaryWalk`]) or the grids' top level in any of its forms
+/// (`crate::top_nodes::TopWalk`).
+pub trait LeafWalk: Copy {
+    /// Where `ray` enters the root's box closer than `t`; [`T_FAR`] where it misses it or the
+    /// hierarchy is empty.
+    fn enter<T: Tally>(self, ray: &Ray, t: f32, tally: &mut T) -> f32;
+    /// Takes entries off `stack` (`sp` high) down to the next leaf the ray may hit closer than
+    /// `t`, the entries passed on the way left waiting; the leaf as a node of its primitives,
+    /// or a node with `count` 0 when the walk is over.
+    fn next_leaf<S: WalkStack, T: Tally>(
+        self,
+        ray: &Ray,
+        t: f32,
+        stack: &mut S,
+        sp: &mut usize,
+        tally: &mut T,
+    ) -> BvhNode;
+}
+
+/// The walk over binary nodes (full `f32` boxes, or anything read node by node as such).
+#[derive(Copy, Clone)]
+pub struct BinaryWalk<N>(pub N);
+
+impl<N: Buffer<BvhNode>> LeafWalk for BinaryWalk<N> {
+    #[inline(always)]
+    fn enter<T: Tally>(self, ray: &Ray, t: f32, tally: &mut T) -> f32 {
+        if self.0.is_empty() {
+            return T_FAR;
+        }
+        let root = self.0.load(ROOT);
+        tally.nodes(1);
+        intersect_aabb(Vec3::from(root.min), Vec3::from(root.max), ray, t)
+    }
+
+    #[inline(always)]
+    fn next_leaf<S: WalkStack, T: Tally>(
+        self,
+        ray: &Ray,
+        t: f32,
+        stack: &mut S,
+        sp: &mut usize,
+        tally: &mut T,
+    ) -> BvhNode {
+        let node = stack.pop_closer(sp, t);
+        if node == NO_NODE {
+            return BvhNode::default();
+        }
+        // An inner node where nothing is left to pop: its `count` is 0.
+        descend(self.0, ray, t, self.0.load(node), stack, sp, tally)
     }
 }
 
@@ -110,51 +169,43 @@ pub fn closest_hit<N: Hierarchy, P: LeafPrimitives, T: Tally>(
 /// No node: the stack is empty.
 pub const NO_NODE: u32 = u32::MAX;
 
-/// Closest hit along `ray` closer than `hit.t`. A near-first, stack-based loop: descend into
-/// the nearer child while the farther one waits on the stack with its entry distance, so it can
-/// be skipped once a closer hit is known.
+/// Closest hit along `ray` closer than `hit.t`. A near-first, stack-based loop: `walk` goes
+/// down to the nearer child while the farther one waits on the stack with its entry distance,
+/// so it can be skipped once a closer hit is known.
 ///
-/// Shaped while-while (Aila and Laine 2009): an inner loop descends to the next leaf, popping
-/// past dead ends, and the leaf is tested after it, once per leaf rather than inside every node
+/// Shaped while-while (Aila and Laine 2009): the walk descends to the next leaf, popping past
+/// dead ends, and the leaf is tested after it, once per leaf rather than inside every node
 /// step. On SIMD hardware a group's rays then test their leaves together, and some targets
 /// (lavapipe) run the code under a branch even when none of the group's rays takes it: with
 /// the leaf test inside the node loop, every node step paid for a grid's whole bottom level.
-pub fn traverse_bvh<N: Buffer<BvhNode>, P: LeafPrimitives, T: Tally>(
-    nodes: N,
+/// A shader inlines the leaf test whole at each call, so this loop is its only call site,
+/// whatever form the nodes take.
+pub fn traverse_bvh<W: LeafWalk, P: LeafPrimitives, T: Tally>(
+    walk: W,
     prims: &P,
     ray: &Ray,
     hit: &mut Hit,
     tally: &mut T,
 ) {
-    if nodes.is_empty() {
-        return;
-    }
-    let root = nodes.load(0);
-    tally.nodes(1);
-    if intersect_aabb(Vec3::from(root.min), Vec3::from(root.max), ray, hit.t) == T_FAR {
+    let t_root = walk.enter(ray, hit.t, tally);
+    if t_root == T_FAR {
         // Before any working memory is made: clearing it would cost a missing ray more than
         // the box test.
         return;
     }
     let mut stack = LocalStack::new();
-    let mut sp = 0usize;
+    stack.push(0, ROOT, t_root);
+    let mut sp = 1usize;
     let mut scratch = prims.scratch(ray);
-    let mut node = 0u32;
     // Every loop here tests its condition at the bottom: in lockstep a loop tested at the top
     // runs its body once more than any ray needs (with every lane masked off), and for the
     // outer loop that pass is a whole leaf test.
     loop {
-        // Down to the next leaf: dead ends (both children missed) pop and go on there, so every
-        // round of the outer loop tests a leaf for each ray still going.
-        let n = descend(nodes, ray, hit.t, nodes.load(node), &mut stack, &mut sp, tally);
-        if !n.is_leaf() {
+        let leaf = walk.next_leaf(ray, hit.t, &mut stack, &mut sp, tally);
+        if !leaf.is_leaf() {
             break;
         }
-        prims.intersect_leaf(n.first, n.count, ray, hit, &mut scratch, tally);
-        node = stack.pop_closer(&mut sp, hit.t);
-        if node == NO_NODE {
-            break;
-        }
+        prims.intersect_leaf(leaf.first, leaf.count, ray, hit, &mut scratch, tally);
     }
 }
 
@@ -163,7 +214,7 @@ pub fn traverse_bvh<N: Buffer<BvhNode>, P: LeafPrimitives, T: Tally>(
 /// nearest waiting node that is still closer than `t`. Returns the leaf, or an inner node
 /// when nothing is left to pop.
 #[inline(always)]
-pub(crate) fn descend<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
+fn descend<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
     nodes: N,
     ray: &Ray,
     t: f32,
@@ -210,58 +261,41 @@ pub(crate) fn descend<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
 /// returned (a node with `count` 0 when the ray misses the scene). The state and the stack are
 /// the ray's, kept by the caller for [`walk_round`]. A round of its own, because at its start
 /// there is nothing to read back: no state, no results, no stack.
-pub fn walk_first_round<N: Buffer<BvhNode>, S: WalkStack>(
-    nodes: N,
+pub fn walk_first_round<W: LeafWalk, S: WalkStack>(
+    walk: W,
     ray: &Ray,
     t_max: f32,
     state: &mut WalkState,
     stack: &mut S,
 ) -> BvhNode {
-    let done = BvhNode::default();
     *state = WalkState::begun(t_max);
-    if nodes.is_empty() {
-        return done;
+    let t_root = walk.enter(ray, t_max, &mut Uncounted);
+    if t_root == T_FAR {
+        return BvhNode::default();
     }
-    let root = nodes.load(0);
-    if intersect_aabb(Vec3::from(root.min), Vec3::from(root.max), ray, t_max) == T_FAR {
-        return done;
-    }
-    let mut sp = 0;
-    let n = descend(nodes, ray, t_max, root, stack, &mut sp, &mut Uncounted);
+    stack.push(0, ROOT, t_root);
+    let mut sp = 1;
+    let leaf = walk.next_leaf(ray, t_max, stack, &mut sp, &mut Uncounted);
     state.sp = sp as u32;
-    if n.is_leaf() {
-        n
-    } else {
-        done
-    }
+    leaf
 }
 
 /// Every later round of the two-phase schedule's top-level walk: the results of the grids
 /// queued in the last round taken (`results`), then down to the next leaf the ray may hit
 /// closer than its closest hit, which is returned (a node with `count` 0 when the walk is
 /// over). The state and the stack are the ray's, kept between rounds by the caller.
-pub fn walk_round<N: Buffer<BvhNode>, R: Buffer<HitRecord>, S: WalkStack>(
-    nodes: N,
+pub fn walk_round<W: LeafWalk, R: Buffer<HitRecord>, S: WalkStack>(
+    walk: W,
     results: R,
     ray: &Ray,
     state: &mut WalkState,
     stack: &mut S,
 ) -> BvhNode {
-    let done = BvhNode::default();
-    let mut sp = state.sp as usize;
     take_results(results, state);
-    let node = stack.pop_closer(&mut sp, state.t);
-    if node == NO_NODE {
-        state.sp = 0;
-        return done;
-    }
-    let n = descend(nodes, ray, state.t, nodes.load(node), stack, &mut sp, &mut Uncounted);
+    let mut sp = state.sp as usize;
+    let leaf = walk.next_leaf(ray, state.t, stack, &mut sp, &mut Uncounted);
     state.sp = sp as u32;
-    if n.is_leaf() {
-        n
-    } else {
-        done
-    }
+    leaf
 }
 
 impl WalkState {
@@ -282,7 +316,7 @@ impl WalkState {
 
 /// The results of the grids a ray queued in the last round (`results`), taken into its state.
 #[inline(always)]
-pub(crate) fn take_results<R: Buffer<HitRecord>>(results: R, state: &mut WalkState) {
+fn take_results<R: Buffer<HitRecord>>(results: R, state: &mut WalkState) {
     // In grid order, the first of equal distances kept: as the one-pass walk tests them.
     let mut k = 0;
     if state.entries > 0 {

@@ -39,11 +39,11 @@
 
 use crate::aabb::intersect_aabb;
 use crate::buffer::Buffer;
-use crate::cost::{Tally, Uncounted};
+use crate::cost::Tally;
 use crate::glam::Vec3;
-use crate::layout::{BvhNode, HitRecord, WalkState};
+use crate::layout::BvhNode;
 use crate::ray::{Ray, T_FAR};
-use crate::traverse::{take_results, WalkStack, MAX_BVH_DEPTH, NO_NODE};
+use crate::traverse::{WalkStack, MAX_BVH_DEPTH, NO_NODE};
 
 /// `count` of the header element of a wide hierarchy (never a node's count).
 pub const WIDE: u32 = u32::MAX - 1;
@@ -186,25 +186,18 @@ pub fn frame_box(frame: &Frame) -> (Vec3, Vec3) {
     (frame.origin, frame.point(Vec3::splat(CODE_MAX as f32)))
 }
 
-/// Pushes the root on the empty `stack` where `ray` enters its box closer than `t`; returns
-/// the stack's height, 0 when the ray misses the scene.
+/// Where `ray` enters the root's box closer than `t`, [`T_FAR`] where it misses it.
 #[inline(always)]
-pub(crate) fn push_root<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
+pub(crate) fn root_entry<N: Buffer<BvhNode>, T: Tally>(
     nodes: N,
     scene: &Frame,
     ray: &Ray,
     t: f32,
-    stack: &mut S,
     tally: &mut T,
-) -> usize {
+) -> f32 {
     let (lo, hi) = frame_box(&node_frame(&load_node(nodes, 0), scene));
     tally.nodes(1);
-    let t_root = intersect_aabb(lo, hi, ray, t);
-    if t_root == T_FAR {
-        return 0;
-    }
-    stack.push(0, 0, t_root);
-    1
+    intersect_aabb(lo, hi, ray, t)
 }
 
 /// The grids a leaf entry names, as a node's range (`first`, `count`).
@@ -281,53 +274,4 @@ fn push_sorted<S: WalkStack>(stack: &mut S, bottom: usize, sp: &mut usize, entry
     }
     stack.push(at, entry, t);
     *sp += 1;
-}
-
-/// The two-phase schedule's first round over a wide hierarchy, as
-/// `crate::traverse::walk_first_round` over a binary one: the ray's state begun, then down to
-/// the first leaf the ray may hit, returned as a node of its grids (`count` 0 when the ray
-/// misses the scene). The stack holds leaf entries too, sorted as the one-pass walk sorts them.
-pub fn walk_first_round_wide<N: Buffer<BvhNode>, S: WalkStack>(
-    nodes: N,
-    ray: &Ray,
-    t_max: f32,
-    state: &mut WalkState,
-    stack: &mut S,
-) -> BvhNode {
-    *state = WalkState::begun(t_max);
-    if nodes.is_empty() {
-        return BvhNode::default();
-    }
-    let scene = scene_frame(&nodes.load(0));
-    // A ray that misses the root leaves nothing to pop: the walk is over at once.
-    let mut sp = push_root(nodes, &scene, ray, t_max, stack, &mut Uncounted);
-    let leaf = next_leaf(nodes, &scene, ray, t_max, stack, &mut sp, &mut Uncounted);
-    leaf_node(leaf, state, sp)
-}
-
-/// Every later round over a wide hierarchy, as `crate::traverse::walk_round` over a binary one.
-pub fn walk_round_wide<N: Buffer<BvhNode>, R: Buffer<HitRecord>, S: WalkStack>(
-    nodes: N,
-    results: R,
-    ray: &Ray,
-    state: &mut WalkState,
-    stack: &mut S,
-) -> BvhNode {
-    take_results(results, state);
-    let scene = scene_frame(&nodes.load(0));
-    let mut sp = state.sp as usize;
-    let leaf = next_leaf(nodes, &scene, ray, state.t, stack, &mut sp, &mut Uncounted);
-    leaf_node(leaf, state, sp)
-}
-
-/// A leaf entry of the wide walk as the node the two-phase schedule queues the grids of
-/// (`count` 0 for [`NO_NODE`]), the stack's height kept in `state`.
-#[inline(always)]
-fn leaf_node(entry: u32, state: &mut WalkState, sp: usize) -> BvhNode {
-    if entry == NO_NODE {
-        state.sp = 0;
-        return BvhNode::default();
-    }
-    state.sp = sp as u32;
-    leaf_grids(entry)
 }
