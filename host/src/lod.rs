@@ -39,8 +39,8 @@ impl LodReport {
         // A grid of mixed levels renders at most its own level, and at that level its decimated
         // edges only at the level below, as its coarser neighbour does.
         let opened: Vec<_> = (0..scene.grid_count() as u32).map(|g| view.open(g)).collect();
-        let levels: Vec<u32> = (opened.iter().enumerate())
-            .map(|(g, open)| grid_level(&params, open.origin, view.radius(g as u32, 0)).min(view.own_level(open)))
+        let levels: Vec<u32> = (opened.iter())
+            .map(|open| grid_level(&params, open.origin, view.radius(open, 0)).min(view.own_level(open)))
             .collect();
         let edge_level = |g: u32, e: usize| {
             let (level, open) = (levels[g as usize], &opened[g as usize]);

@@ -65,6 +65,8 @@ pub struct OpenGrid {
     /// edges (see `GridParams::level_element`). Zero otherwise.
     pub shift: u32,
     pub decimated: u32,
+    /// Where its spheres and leaf bytes lie.
+    pub spheres: SphereRoom,
     /// Length of one code step (zero for `f32` inner vertices).
     unit: f32,
     /// The grid's corners: lattice points `(0, 0)`, `(n, 0)`, `(0, n)`.
@@ -73,6 +75,20 @@ pub struct OpenGrid {
     pub origin: Vec3,
     /// The base triangle a displaced grid decodes its lattice points from (unused otherwise).
     base: DisplacedTriangle,
+}
+
+/// Where a grid's spheres and leaf bytes lie in the radius buffer, and how deep its hierarchy
+/// is: the scene's layout, or a room of the grid's own level (see `GridParams::own_rooms`).
+#[repr(C)]
+#[derive(Copy, Clone)]
+pub struct SphereRoom {
+    /// The grid's first radius: a word of the buffer for relative radii, else the index of the
+    /// grid's first radius among all radii (`f32` words or halves).
+    first_radius: u32,
+    /// The word where its leaves' bytes begin.
+    first_leaf_word: u32,
+    /// The deepest level of its sphere hierarchy.
+    pub leaf_level: u32,
 }
 
 /// Bits of one stored displacement value.
@@ -241,6 +257,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             coded: CodedGrid::default(),
             shift: 0,
             decimated: 0,
+            spheres: self.sphere_room(grid, g.levels),
         }
     }
 
@@ -286,6 +303,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             coded,
             shift: g.levels - (own >> 3),
             decimated: own & 7,
+            spheres: self.sphere_room(grid, own >> 3),
         };
         // A corner's compressed value is stored plain: read as it is, not walked down to (a
         // shader inlines each walk).
@@ -443,12 +461,13 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         ]
     }
 
-    /// Whether the leaves' radii are in their bytes ([`GridParams::leaf_pairs`]). Never in a
-    /// split scene: the host refuses to split such scenes, and their kernels leave the pairs'
-    /// reads out, since every read of a split buffer is a branch per chunk.
+    /// Whether the leaves of `room` hold their radii in their bytes
+    /// ([`GridParams::leaf_pairs_at`]). Never in a split scene: the host refuses to split such
+    /// scenes, and their kernels leave the pairs' reads out, since every read of a split buffer
+    /// is a branch per chunk.
     #[inline(always)]
-    fn leaf_pairs(&self) -> bool {
-        !W::SPLIT && W::DISPLACED_FORMATS && self.params.leaf_pairs()
+    fn leaf_pairs(&self, room: &SphereRoom) -> bool {
+        !W::SPLIT && W::DISPLACED_FORMATS && self.params.leaf_pairs_at(room.leaf_level)
     }
 
     /// Whether the radii are bytes relative to each grid's root ([`RADII_RELATIVE`]), a
@@ -458,25 +477,52 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         W::DISPLACED_FORMATS && self.params.radius_format == RADII_RELATIVE
     }
 
-    /// Spheres per grid in the radius area (see [`GridParams::stored_spheres`]).
+    /// Whether each grid's spheres are at its own level (see `GridParams::own_rooms`): only
+    /// for displaced grids, which are never split.
     #[inline(always)]
-    fn stored_spheres(&self) -> u32 {
-        self.params.spheres_in_radius_area(self.leaf_pairs())
+    fn own_rooms(&self) -> bool {
+        !W::SPLIT && W::DISPLACED_FORMATS && self.params.own_rooms != 0
     }
 
-    /// Radius of sphere `node` (breadth-first id) of `grid`.
+    /// Where the spheres of `grid`, whose own level is `own`, lie in the radius buffer.
     #[inline]
-    pub fn radius(&self, grid: u32, node: u32) -> f32 {
-        if self.relative_radii() {
-            let first = grid * relative_radius_words(self.stored_spheres());
-            let first_leaf = level_start(self.params.leaf_level);
-            if self.leaf_pairs() && node >= first_leaf {
-                let parent = relative_radius_at(self.radii, first, (node - 1) / 4);
-                return leaf_radius(parent, self.leaf_byte(grid, node - first_leaf));
-            }
-            return relative_radius_at(self.radii, first, node);
+    fn sphere_room(&self, grid: u32, own: u32) -> SphereRoom {
+        let g = &self.params;
+        if self.own_rooms() {
+            let room = g.own_room(own);
+            let first_radius = self.radii.load(grid);
+            return SphereRoom {
+                first_radius,
+                first_leaf_word: first_radius + room.radius_words,
+                leaf_level: room.leaf_level,
+            };
         }
-        let k = grid * self.params.sphere_count + node;
+        let first_radius = if self.relative_radii() {
+            let stored = g.spheres_in_radius_area(!W::SPLIT && g.leaf_pairs());
+            grid * relative_radius_words(stored)
+        } else {
+            grid * g.sphere_count
+        };
+        SphereRoom {
+            first_radius,
+            first_leaf_word: g.thickness_word + grid * triangle_count(g.leaf_level).div_ceil(4),
+            leaf_level: g.leaf_level,
+        }
+    }
+
+    /// Radius of sphere `node` (breadth-first id) of grid `open`.
+    #[inline]
+    pub fn radius(&self, open: &OpenGrid, node: u32) -> f32 {
+        let room = &open.spheres;
+        if self.relative_radii() {
+            let first_leaf = level_start(room.leaf_level);
+            if self.leaf_pairs(room) && node >= first_leaf {
+                let parent = relative_radius_at(self.radii, room.first_radius, (node - 1) / 4);
+                return leaf_radius(parent, self.leaf_byte(open, node - first_leaf));
+            }
+            return relative_radius_at(self.radii, room.first_radius, node);
+        }
+        let k = room.first_radius + node;
         // One read either way (see `ids`).
         let half_radii = self.params.radius_format == RADII_HALF;
         let word = self.radii.load(if half_radii { k / 2 } else { k });
@@ -486,14 +532,22 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         decode_radius((word >> (16 * (k & 1))) & 0xffff, self.params.radius_scale)
     }
 
-    /// Radii of the four children of a sphere whose first child is `first_child` at level
-    /// `level`, whose own radius is `parent_radius`, in a grid whose root has radius
-    /// `root_radius`.
+    /// Radii of the four children of a sphere of grid `open` whose first child is
+    /// `first_child` at level `level`, whose own radius is `parent_radius`, in a grid whose
+    /// root has radius `root_radius`.
     #[inline]
-    fn child_radii(&self, grid: u32, first_child: u32, level: u32, parent_radius: f32, root_radius: f32) -> [f32; 4] {
-        if self.leaf_pairs() && level == self.params.leaf_level {
+    fn child_radii(
+        &self,
+        open: &OpenGrid,
+        first_child: u32,
+        level: u32,
+        parent_radius: f32,
+        root_radius: f32,
+    ) -> [f32; 4] {
+        let room = &open.spheres;
+        if self.leaf_pairs(room) && level == room.leaf_level {
             // The leaves' own bytes, four to a word.
-            let word = self.leaf_word(grid, first_child - level_start(level));
+            let word = self.leaf_word(open, first_child - level_start(level));
             return [
                 leaf_radius(parent_radius, word),
                 leaf_radius(parent_radius, word >> 8),
@@ -503,8 +557,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         }
         if self.relative_radii() {
             // The four bytes of one word.
-            let first = grid * relative_radius_words(self.stored_spheres());
-            let word = self.radii.load(first + 1 + (first_child - 1) / 4);
+            let word = self.radii.load(room.first_radius + 1 + (first_child - 1) / 4);
             return [
                 relative_radius(root_radius, word, 0),
                 relative_radius(root_radius, word, 1),
@@ -513,37 +566,35 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             ];
         }
         [
-            self.radius(grid, first_child),
-            self.radius(grid, first_child + 1),
-            self.radius(grid, first_child + 2),
-            self.radius(grid, first_child + 3),
+            self.radius(open, first_child),
+            self.radius(open, first_child + 1),
+            self.radius(open, first_child + 2),
+            self.radius(open, first_child + 3),
         ]
     }
 
-    /// Thickness of leaf `leaf` (its index at the stored leaf level) of `grid`, whose sphere
-    /// has radius `radius`.
+    /// Thickness of leaf `leaf` (its index at its grid's stored leaf level) of grid `open`,
+    /// whose sphere has radius `radius`.
     #[inline]
-    pub fn thickness(&self, grid: u32, leaf: u32, radius: f32) -> f32 {
-        let byte = self.leaf_byte(grid, leaf);
-        if self.leaf_pairs() {
+    pub fn thickness(&self, open: &OpenGrid, leaf: u32, radius: f32) -> f32 {
+        let byte = self.leaf_byte(open, leaf);
+        if self.leaf_pairs(&open.spheres) {
             return leaf_thickness(radius, byte >> 4);
         }
         byte_thickness(radius, byte)
     }
 
-    /// The word of `grid`'s leaf bytes that holds leaf `leaf`'s, in its lowest byte when
+    /// The word of grid `open`'s leaf bytes that holds leaf `leaf`'s, in its lowest byte when
     /// `leaf` is a multiple of 4.
     #[inline]
-    fn leaf_word(&self, grid: u32, leaf: u32) -> u32 {
-        let words_per_grid = triangle_count(self.params.leaf_level).div_ceil(4);
-        self.radii
-            .load(self.params.thickness_word + grid * words_per_grid + leaf / 4)
+    fn leaf_word(&self, open: &OpenGrid, leaf: u32) -> u32 {
+        self.radii.load(open.spheres.first_leaf_word + leaf / 4)
     }
 
     /// Leaf `leaf`'s byte (see `GridParams::thickness_word`).
     #[inline]
-    fn leaf_byte(&self, grid: u32, leaf: u32) -> u32 {
-        (self.leaf_word(grid, leaf) >> (8 * (leaf & 3))) & 0xff
+    fn leaf_byte(&self, open: &OpenGrid, leaf: u32) -> u32 {
+        (self.leaf_word(open, leaf) >> (8 * (leaf & 3))) & 0xff
     }
 
     /// Tests the `4^k` micro-triangles of a leaf sub-triangle: its first corner is `corner`,
@@ -728,17 +779,14 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     #[inline(always)]
     fn open_visit(&self, grid: u32, ray: &Ray) -> GridVisit {
         let open = self.open(grid);
-        let root_radius = self.radius(grid, 0);
+        let root_radius = self.radius(&open, 0);
         let lod = grid_level(&self.params, open.origin, root_radius);
         // A grid of mixed levels has no points deeper than its own level.
         let own = self.own_level(&open);
         let lod = if lod < own { lod } else { own };
         // At a coarse level of detail the hierarchy is cut where the rendered triangles are.
-        let leaf_level = if self.params.leaf_level < lod {
-            self.params.leaf_level
-        } else {
-            lod
-        };
+        let stored = open.spheres.leaf_level;
+        let leaf_level = if stored < lod { stored } else { lod };
         GridVisit {
             grid,
             open,
@@ -829,7 +877,6 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         untested: &mut [u32; 4],
     ) -> usize {
         let GridVisit {
-            grid,
             open,
             lod,
             leaf_level,
@@ -883,7 +930,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             // are adjacent in BFS order.
             let first_child = level_start(level + 1) + 4 * index;
             let radius = if level == 0 { visit.root_radius } else { sub.radius };
-            let r = self.child_radii(grid, first_child, level + 1, radius, visit.root_radius);
+            let r = self.child_radii(&open, first_child, level + 1, radius, visit.root_radius);
             let entry = |center: Vec3, child: u32| {
                 Entry::new(
                     intersect_sphere_scaled(center, r[child as usize], ray, inv_dir_len2, hit.t),
@@ -902,7 +949,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                 // without footprints), and one leaf test covers the box around those boxes in
                 // this sub-triangle's lattice, a step finer. One test instead of a test per
                 // child: in lockstep each is as long as the group's longest.
-                let footprint = self.params.leaf_footprint != 0 && leaf_level == self.params.leaf_level;
+                let footprint = self.params.leaf_footprint != 0 && leaf_level == open.spheres.leaf_level;
                 let m = 1u32 << (k - 1);
                 let whole = [0, m, 0, m];
                 let [mut w0, mut w1, mut w2, mut w3] = [whole; 4];
@@ -916,7 +963,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                         shear(pca, ray),
                     ];
                     let child_window = |t: f32, leaf: u32, radius: f32, ca: Vec3, cb: Vec3, cc: Vec3| {
-                        let thickness = self.thickness(grid, leaf, radius);
+                        let thickness = self.thickness(&open, leaf, radius);
                         if t < T_FAR && frame.overlaps(ca, cb, cc, thickness, slack) {
                             frame.leaf_window(ca, cb, cc, m, thickness, slack)
                         } else {
@@ -950,7 +997,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                         scratch.stack[sp] = ((4 * index + e.child) << 4) | (level + 1);
                         scratch.stack_corner[sp] = child_corner(e.child);
                         scratch.stack_t[sp] = e.t;
-                        if self.leaf_pairs() {
+                        if self.leaf_pairs(&open.spheres) {
                             scratch.stack_radius[sp] = e.radius;
                         }
                         sp += 1;

@@ -3,7 +3,8 @@
 //! All fields are 4-byte scalars or arrays of them, so `#[repr(C)]` gives the same offsets in
 //! Rust, in the SPIR-V that rust-gpu emits and in std430 storage buffers.
 
-use crate::grid_index::sphere_count;
+use crate::grid_index::{sphere_count, triangle_count};
+use crate::sphere::relative_radius_words;
 #[cfg(not(target_arch = "spirv"))]
 use bytemuck::{Pod, Zeroable};
 
@@ -264,6 +265,22 @@ pub struct GridParams {
     /// lattice, and is rendered at most that deep. Zero when every grid is at `levels` and no
     /// edge is decimated (element 0 is always a header).
     pub level_element: u32,
+    /// Nonzero when each grid of mixed levels holds the spheres and leaf bytes of its own
+    /// level rather than the scene's (relative radii only, see [`GridParams::own_room`]): the
+    /// radius buffer then begins with a word per grid, the word where the grid's record
+    /// begins, and each record is the grid's relative radii (as [`RADII_RELATIVE`] lays out a
+    /// grid's) followed by its leaves' bytes (as [`GridParams::thickness_word`] lays out a
+    /// grid's), both at its own leaf level. `thickness_word` is then unused.
+    pub own_rooms: u32,
+}
+
+/// A grid's record in a room of its own level (see [`GridParams::own_room`]): the deepest
+/// level of its sphere hierarchy, and the words of its relative radii and of its leaves' bytes.
+#[derive(Copy, Clone)]
+pub struct OwnRoom {
+    pub leaf_level: u32,
+    pub radius_words: u32,
+    pub leaf_words: u32,
 }
 
 /// [`GridParams::radius_format`]: one `f32` per radius.
@@ -301,6 +318,43 @@ impl GridParams {
     #[inline]
     pub fn stored_spheres(&self) -> u32 {
         self.spheres_in_radius_area(self.leaf_pairs())
+    }
+
+    /// Whether leaves at `leaf_level` hold their radii in their bytes: as
+    /// [`Self::leaf_pairs`] for a hierarchy that deep.
+    #[inline]
+    pub fn leaf_pairs_at(&self, leaf_level: u32) -> bool {
+        self.radius_format == RADII_RELATIVE && self.leaf_footprint != 0 && leaf_level >= 2
+    }
+
+    /// The hierarchy of a grid of level `own` in a room of its own level (see
+    /// [`Self::own_rooms`]): its leaf level, the scene's as many levels above `own` as
+    /// `leaf_level` is above `levels`, and the words of its record's relative radii and of its
+    /// leaves' bytes.
+    #[inline]
+    pub fn own_room(&self, own: u32) -> OwnRoom {
+        // Not `saturating_sub`, which rust-gpu does not compile.
+        #[allow(clippy::implicit_saturating_sub)]
+        let leaf_level = if own + self.leaf_level > self.levels {
+            own + self.leaf_level - self.levels
+        } else {
+            0
+        };
+        let spheres = if self.leaf_pairs_at(leaf_level) {
+            sphere_count(leaf_level - 1)
+        } else {
+            sphere_count(leaf_level)
+        };
+        let leaf_words = if self.leaf_footprint != 0 {
+            triangle_count(leaf_level).div_ceil(4)
+        } else {
+            0
+        };
+        OwnRoom {
+            leaf_level,
+            radius_words: relative_radius_words(spheres),
+            leaf_words,
+        }
     }
 
     /// Spheres per grid in the radius area of a buffer whose leaves do (`leaf_pairs`) or do

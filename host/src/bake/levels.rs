@@ -375,12 +375,17 @@ mod tests {
     /// The dome baked up to level 3 within the bytes of level 2 (triangles of levels 0 to 3,
     /// with decimated edges): its values plain, and compressed.
     fn mixed_domes() -> [(&'static str, DisplacedMesh); 2] {
+        mixed_domes_up_to(3)
+    }
+
+    /// The dome baked up to level `levels` within the bytes of the level above.
+    fn mixed_domes_up_to(levels: u32) -> [(&'static str, DisplacedMesh); 2] {
         let reference = bumpy_dome();
         let options = BakeOptions {
             base: Base::Decimated { triangles: 128 },
-            ..BakeOptions::for_reference(&reference, 3)
+            ..BakeOptions::for_reference(&reference, levels)
         };
-        let budget = (128 * packed_bytes(2)) as u64;
+        let budget = (128 * packed_bytes(levels - 1)) as u64;
         let plain = bake_levels(&reference, &options, LevelTarget::MaxBytes(budget))
             .unwrap()
             .mesh;
@@ -401,16 +406,108 @@ mod tests {
             assert_ne!(grids.params.level_element, 0);
             assert_eq!(grids.params.displaced == 2, variant == "compressed");
             let folded = mixed.with_ranges_folded();
-            let view = grids.view();
-            for (slot, &t) in grids.base_triangle.iter().enumerate() {
-                let open = view.open(slot as u32);
-                let shift = 3 - levels[t as usize];
-                let expected = folded.micro_vertices(t as usize);
-                for (q, want) in lattice_points(grid_size(levels[t as usize])).zip(expected) {
-                    let got = view.vertex(&open, [q[0] << shift, q[1] << shift]);
-                    assert_eq!(got, want, "{variant}: triangle {t} at {q:?}");
+            // Their headers widened too, which keeps their level bytes.
+            for grids in [grids.clone(), grids.with_wide_headers()] {
+                let view = grids.view();
+                for (slot, &t) in grids.base_triangle.iter().enumerate() {
+                    let open = view.open(slot as u32);
+                    let shift = 3 - levels[t as usize];
+                    let expected = folded.micro_vertices(t as usize);
+                    for (q, want) in lattice_points(grid_size(levels[t as usize])).zip(expected) {
+                        let got = view.vertex(&open, [q[0] << shift, q[1] << shift]);
+                        assert_eq!(got, want, "{variant}: triangle {t} at {q:?}");
+                    }
                 }
             }
+        }
+    }
+
+    /// Grids of mixed levels from level 4 on each hold the sphere hierarchy of their own level
+    /// (`GridParams::own_rooms`), and those up to level 3 the scene's: either way, every sphere
+    /// down to the grid's leaves holds the points the grid renders below it, each leaf's
+    /// thickness bounds how far those points lie from the leaf's flat triangle, and own rooms
+    /// take fewer words than the scene's room for every grid.
+    #[test]
+    fn grids_of_mixed_levels_keep_conservative_spheres() {
+        use gridrt_shared::grid_index::{grid_size, level_start, sub_triangle, triangle_count};
+        use gridrt_shared::grid_traverse::sphere_center;
+        use gridrt_shared::sphere::relative_radius_words;
+        for deepest in [3, 4] {
+            for (variant, mixed) in mixed_domes_up_to(deepest) {
+                let levels: Vec<u32> = mixed.micromap.triangles.iter().map(|t| t.level).collect();
+                let coarse_level = levels.iter().any(|&l| l + 1 < deepest);
+                assert!(levels.contains(&deepest) && coarse_level, "{variant}: {levels:?}");
+                let grids = crate::grid::displaced::build(&mixed, &crate::grid::GridOptions::for_displaced()).unwrap();
+                let params = grids.params;
+                assert_eq!(params.own_rooms != 0, deepest >= 4, "{variant}");
+                let thick = check_spheres(&grids);
+                assert!(thick > 0, "{variant}: every leaf was flat");
+                let scene_room = relative_radius_words(params.spheres_in_radius_area(params.leaf_pairs()))
+                    + triangle_count(params.leaf_level).div_ceil(4);
+                let words = grids.grid_count() * scene_room as usize;
+                assert!(
+                    grids.radii.len() < words || params.own_rooms == 0,
+                    "{variant}: {} words, {words} in the scene's room",
+                    grids.radii.len()
+                );
+            }
+        }
+
+        /// Checks every grid's spheres and leaf thicknesses; the number of leaves not flat.
+        fn check_spheres(grids: &crate::grid::GridScene) -> usize {
+            let params = grids.params;
+            let n = grid_size(params.levels);
+            let view = grids.view();
+            let mut thick = 0;
+            for slot in 0..grids.grid_count() as u32 {
+                let open = view.open(slot);
+                let own = view.own_level(&open);
+                let leaf_level = open.spheres.leaf_level;
+                match params.own_rooms {
+                    0 => assert_eq!(leaf_level, params.leaf_level),
+                    _ => assert_eq!(leaf_level, (own + params.leaf_level).saturating_sub(params.levels)),
+                }
+                let at = |p: [u32; 2]| view.vertex(&open, p);
+                for level in 0..=leaf_level.min(own) {
+                    for index in 0..triangle_count(level) {
+                        let c = sub_triangle(n, level, index);
+                        let center = sphere_center(at(c[0]), at(c[1]), at(c[2]));
+                        let r = view.radius(&open, level_start(level) + index);
+                        let below = own - level;
+                        for t in 0..triangle_count(below) {
+                            for p in sub_triangle(n, own, index * triangle_count(below) + t) {
+                                let d = at(p).distance(center);
+                                assert!(d <= r, "grid {slot}, level {level}: {d} outside {r}");
+                            }
+                        }
+                    }
+                }
+                // Leaves deeper than the grid are never reached: its walk stops at its level.
+                if params.leaf_footprint == 0 || own < leaf_level {
+                    continue;
+                }
+                let m = 1i32 << (own - leaf_level);
+                for leaf in 0..triangle_count(leaf_level) {
+                    let lattice = sub_triangle(n, leaf_level, leaf).map(|p| [p[0] as i32, p[1] as i32]);
+                    let c = lattice.map(|p| at([p[0] as u32, p[1] as u32]));
+                    let d = view.thickness(&open, leaf, view.radius(&open, level_start(leaf_level) + leaf));
+                    let mut moved = 0f32;
+                    for lb in 0..=m {
+                        for la in 0..=m - lb {
+                            let p = [0, 1].map(|x| {
+                                lattice[0][x]
+                                    + (la * (lattice[1][x] - lattice[0][x]) + lb * (lattice[2][x] - lattice[0][x])) / m
+                            });
+                            let (u, w) = (la as f32 / m as f32, lb as f32 / m as f32);
+                            let flat = c[0] + (c[1] - c[0]) * u + (c[2] - c[0]) * w;
+                            moved = moved.max(at([p[0] as u32, p[1] as u32]).distance(flat));
+                        }
+                    }
+                    assert!(moved <= d, "grid {slot}: moved {moved}, thickness {d}");
+                    thick += (moved > 0.0) as usize;
+                }
+            }
+            thick
         }
     }
 }

@@ -15,7 +15,7 @@ use gridrt_shared::grid_index::{
 };
 use gridrt_shared::grid_traverse::MAX_SPHERE_LEVEL;
 use gridrt_shared::layout::{
-    BvhNode, GridHeader, GridIds, GridParams, DISPLACED_COMPRESSED, DISPLACED_PLAIN, MAX_HEADER_ID,
+    BvhNode, GridHeader, GridIds, GridParams, OwnRoom, DISPLACED_COMPRESSED, DISPLACED_PLAIN, MAX_HEADER_ID,
 };
 use gridrt_shared::quantize;
 use gridrt_shared::sphere::relative_radius_words;
@@ -195,9 +195,16 @@ impl GridScene {
     pub fn with_wide_headers(mut self) -> GridScene {
         if self.params.wide_headers == 0 {
             let view = self.view();
-            self.headers = (0..self.grid_count() as u32)
+            let mut headers: Vec<GridHeader> = (0..self.grid_count() as u32)
                 .flat_map(|g| view.ids(g).pack_wide())
                 .collect();
+            // Grids of mixed levels keep their level bytes, after the new headers.
+            if self.params.level_element != 0 {
+                let levels = &self.headers[self.params.level_element as usize..];
+                self.params.level_element = headers.len() as u32;
+                headers.extend_from_slice(levels);
+            }
+            self.headers = headers;
             self.params.wide_headers = 1;
             self.params.header_bits = 0;
         }
@@ -229,17 +236,32 @@ impl GridScene {
         let mut parts = self.vertex_memory();
         parts.insert(0, ("headers", std::mem::size_of_val(self.headers.as_slice())));
         parts.insert(0, ("top_bvh", std::mem::size_of_val(self.nodes.as_slice())));
+        let leaf_words = match self.params.own_rooms {
+            0 => self.radii.len() - self.params.thickness_word as usize,
+            _ => self
+                .own_levels()
+                .map(|own| self.params.own_room(own).leaf_words as usize)
+                .sum(),
+        };
         parts.extend([
-            ("sphere_radii", self.params.thickness_word as usize * 4),
+            ("sphere_radii", (self.radii.len() - leaf_words) * 4),
             (
                 match self.params.leaf_pairs() {
                     true => "leaf_radii_and_thickness",
                     false => "leaf_thickness",
                 },
-                (self.radii.len() - self.params.thickness_word as usize) * 4,
+                leaf_words * 4,
             ),
         ]);
         parts
+    }
+
+    /// Each grid's own level, in leaf order, where the grids are of mixed levels (see
+    /// `GridParams::level_element`).
+    fn own_levels(&self) -> impl Iterator<Item = u32> + '_ {
+        let element = (self.params.level_element as usize).min(self.headers.len());
+        let bytes: &[u8] = bytemuck::cast_slice(&self.headers[element..]);
+        bytes.iter().take(self.grid_count()).map(|&b| b as u32 >> 3)
     }
 
     /// Bytes of the vertex buffer's areas.
@@ -349,6 +371,7 @@ impl GridShape {
     /// the rule is `GridParams`' alone.
     fn radius_params(&self) -> GridParams {
         GridParams {
+            levels: self.levels,
             radius_format: self.radii.code(),
             leaf_footprint: self.leaf_footprint as u32,
             leaf_level: self.leaf_level,
@@ -693,21 +716,41 @@ pub fn build_from_layout(layout: &mut GridLayout) -> GridScene {
     let grids = layout.ids.len();
     let mut vertices = std::mem::take(&mut layout.buffer);
     let layout = &*layout;
+    let shape = &layout.shape;
+    // Grids of mixed levels each get a hierarchy of their own level, where the radii's
+    // layout allows records of different lengths.
+    let own_rooms = own_rooms_save_words(shape, &layout.own_levels);
+    let params = shape.radius_params();
+    let leaf_level_of = |g: usize| match own_rooms {
+        true => params.own_room(layout.own_levels[g] as u32 >> 3).leaf_level,
+        false => shape.leaf_level,
+    };
+    let tables: Vec<Option<SphereTable>> = (0..=shape.leaf_level)
+        .map(|l| (own_rooms || l == shape.leaf_level).then(|| SphereTable::new(shape.levels, l)))
+        .collect();
     // One pass over each grid's vertices gives its box, its radii and its leaves' thicknesses.
-    let table = SphereTable::new(layout.shape.levels, layout.shape.leaf_level);
-    let mut per_grid = PerGrid::new(grids, &layout.shape);
+    let mut per_grid = PerGrid::new(grids, shape);
     per_grid
         .tasks()
         .into_par_iter()
         .for_each_init(Vec::new, |points, mut task| {
             for (i, g) in task.grids.clone().enumerate() {
+                let leaf_level = leaf_level_of(g);
+                let table = tables[leaf_level as usize]
+                    .as_ref()
+                    .expect("a table for every leaf level used");
                 let (bounds, radii, thickness) = task.grid(i);
-                *bounds = grid_bounds_and_radii(layout, &table, g, radii, thickness, points);
+                let radii = &mut radii[..sphere_count(leaf_level) as usize];
+                let thickness = &mut thickness[..leaves_with_bytes(shape, leaf_level)];
+                *bounds = grid_bounds_and_radii(layout, table, g, radii, thickness, points);
             }
         });
     vertices[..layout.inner_by_grid.len()].copy_from_slice(&layout.inner_by_grid);
-    let mut scene = assemble(&layout.shape, &layout.ids, &per_grid, vertices);
+    let mut scene = assemble(shape, &layout.ids, &per_grid, vertices);
     append_own_levels(&mut scene, &layout.own_levels);
+    if own_rooms {
+        lay_out_own_rooms(&mut scene, shape, &per_grid, &layout.own_levels);
+    }
     if let Some(blocks) = &layout.value_blocks {
         blocks.write(&scene.base_triangle, &mut scene.vertices);
     }
@@ -739,13 +782,19 @@ struct PerGridTask<'a> {
     leaf_bytes: usize,
 }
 
+/// Leaves with a thickness code in a hierarchy whose leaves are at `leaf_level` (none
+/// without footprints).
+fn leaves_with_bytes(shape: &GridShape, leaf_level: u32) -> usize {
+    match shape.leaf_footprint {
+        true => triangle_count(leaf_level) as usize,
+        false => 0,
+    }
+}
+
 impl PerGrid {
     fn new(grids: usize, shape: &GridShape) -> PerGrid {
         let spheres = sphere_count(shape.leaf_level) as usize;
-        let leaves = match shape.leaf_footprint {
-            true => triangle_count(shape.leaf_level) as usize,
-            false => 0,
-        };
+        let leaves = leaves_with_bytes(shape, shape.leaf_level);
         let leaf_bytes = (leaves.div_ceil(4) * 4).max(1);
         PerGrid {
             boxes: vec![Aabb::EMPTY; grids],
@@ -831,30 +880,14 @@ fn assemble(shape: &GridShape, ids: &[GridIds], per_grid: &PerGrid, mut vertices
                 (0, false) => into[i] = ids[g].pack(),
                 _ => {}
             }
-            let from = &per_grid.radii[g * spheres..][..spheres];
+            let grid_spheres = GridSpheres {
+                radii: &per_grid.radii[g * spheres..][..spheres],
+                leaves: per_grid.leaves,
+                bytes: &per_grid.thickness[g * per_grid.leaf_bytes..][..leaf_words * 4],
+            };
             let into = &mut radii[i * sphere_words..][..sphere_words];
-            let bytes = &per_grid.thickness[g * per_grid.leaf_bytes..][..leaf_words * 4];
             let leaf_bytes = &mut thickness[i * leaf_words..][..leaf_words];
-            for (w, b) in leaf_bytes.iter_mut().zip(bytes.chunks(4)) {
-                *w = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
-            }
-            match shape.radii {
-                RadiusFormat::F32 => into.iter_mut().zip(from).for_each(|(r, &f)| *r = f.to_bits()),
-                RadiusFormat::Half => {}
-                RadiusFormat::Relative if shape.leaf_pairs() => {
-                    encode_leaf_pairs(from, per_grid.leaves, into, leaf_bytes);
-                    continue;
-                }
-                RadiusFormat::Relative => encode_relative_radii(from, into),
-            }
-            if shape.radii == RadiusFormat::Relative {
-                rescale_thickness(
-                    into,
-                    from,
-                    per_grid.leaves,
-                    &mut thickness[i * leaf_words..][..leaf_words],
-                );
-            }
+            grid_spheres.encode(shape.radii, shape.leaf_pairs(), into, leaf_bytes);
         }
     });
     let radius_scale = radius_scale(per_grid.radii.iter().fold(0f32, |m, &r| m.max(r)));
@@ -919,6 +952,88 @@ fn assemble(shape: &GridShape, ids: &[GridIds], per_grid: &PerGrid, mut vertices
         },
         base_triangle: top.order,
     }
+}
+
+/// One grid's spheres as the pass over its vertices found them: radii in breadth-first
+/// order, and the thickness codes of its `leaves` leaves (`bytes`, in whole words).
+struct GridSpheres<'a> {
+    radii: &'a [f32],
+    leaves: usize,
+    bytes: &'a [u8],
+}
+
+impl GridSpheres<'_> {
+    /// Encoded into the grid's radius words `into` (none for half radii, packed across grids)
+    /// and leaf words `leaf_words`, in `format`, the leaves holding their radii in their bytes
+    /// where `leaf_pairs` says.
+    fn encode(&self, format: RadiusFormat, leaf_pairs: bool, into: &mut [u32], leaf_words: &mut [u32]) {
+        for (w, b) in leaf_words.iter_mut().zip(self.bytes.chunks(4)) {
+            *w = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+        }
+        match format {
+            RadiusFormat::F32 => into.iter_mut().zip(self.radii).for_each(|(r, &f)| *r = f.to_bits()),
+            RadiusFormat::Half => {}
+            RadiusFormat::Relative if leaf_pairs => encode_leaf_pairs(self.radii, self.leaves, into, leaf_words),
+            RadiusFormat::Relative => {
+                encode_relative_radii(self.radii, into);
+                rescale_thickness(into, self.radii, self.leaves, leaf_words);
+            }
+        }
+    }
+}
+
+/// Whether grids of mixed levels (`own_levels`, see `GridParams::level_element`) take fewer
+/// radius words in rooms of their own levels, with their table, than in the scene's room each
+/// (see `GridParams::own_rooms`). Only relative radii have such rooms. With the scene's leaves
+/// the root's children or the root (`L <= 3`) the records save less than their table costs.
+fn own_rooms_save_words(shape: &GridShape, own_levels: &[u8]) -> bool {
+    if own_levels.is_empty() || shape.radii != RadiusFormat::Relative {
+        return false;
+    }
+    let params = shape.radius_params();
+    let scene_room =
+        relative_radius_words(shape.stored_spheres()) as usize + leaves_with_bytes(shape, shape.leaf_level).div_ceil(4);
+    let own: usize = (own_levels.iter())
+        .map(|&own| params.own_room(own as u32 >> 3))
+        .map(|room| 1 + (room.radius_words + room.leaf_words) as usize)
+        .sum();
+    own < own_levels.len() * scene_room
+}
+
+/// Lays the radius buffer out anew for grids of mixed levels, each grid's spheres and leaf
+/// bytes at its own level (see `GridParams::own_rooms`): a word per grid where its record
+/// begins, then the records, grids in leaf order. A grid coarser than the scene then takes
+/// its own level's bytes, and its walk stops at its own leaves, with their thicknesses.
+fn lay_out_own_rooms(scene: &mut GridScene, shape: &GridShape, per_grid: &PerGrid, own_levels: &[u8]) {
+    let params = shape.radius_params();
+    let rooms: Vec<OwnRoom> = scene
+        .base_triangle
+        .iter()
+        .map(|&g| params.own_room(own_levels[g as usize] as u32 >> 3))
+        .collect();
+    let mut radii = Vec::with_capacity(rooms.len());
+    let mut next = rooms.len() as u32;
+    for room in &rooms {
+        radii.push(next);
+        next += room.radius_words + room.leaf_words;
+    }
+    radii.resize(next as usize, 0);
+    let mut records = &mut radii[rooms.len()..];
+    for (&g, room) in scene.base_triangle.iter().zip(&rooms) {
+        let g = g as usize;
+        let (record, rest) = records.split_at_mut((room.radius_words + room.leaf_words) as usize);
+        records = rest;
+        let leaves = leaves_with_bytes(shape, room.leaf_level);
+        let spheres = GridSpheres {
+            radii: &per_grid.radii[g * per_grid.spheres..][..sphere_count(room.leaf_level) as usize],
+            leaves,
+            bytes: &per_grid.thickness[g * per_grid.leaf_bytes..][..4 * room.leaf_words as usize],
+        };
+        let (into, leaf_words) = record.split_at_mut(room.radius_words as usize);
+        spheres.encode(shape.radii, params.leaf_pairs_at(room.leaf_level), into, leaf_words);
+    }
+    scene.radii = radii;
+    scene.params.own_rooms = 1;
 }
 
 /// Appends to the header buffer a byte per grid of its own level and decimated edges, in leaf

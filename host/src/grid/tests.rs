@@ -81,7 +81,8 @@ fn spheres_are_conservative() {
                 for index in 0..triangle_count(level) {
                     let c = sub_triangle(n, level, index).map(|p| lattice_vertex(&scene, slot, p));
                     let center = sphere_center(c[0], c[1], c[2]);
-                    let r = scene.view().radius(slot as u32, level_start(level) + index);
+                    let view = scene.view();
+                    let r = view.radius(&view.open(slot as u32), level_start(level) + index);
                     // Every micro-triangle below this node, through its corners.
                     let below = levels - level;
                     for t in 0..triangle_count(below) {
@@ -118,11 +119,8 @@ fn leaf_thickness_is_conservative() {
                 let lattice = sub_triangle(n, leaf_level, leaf).map(|p| [p[0] as i32, p[1] as i32]);
                 let c = lattice.map(|p| lattice_vertex(&scene, slot, [p[0] as u32, p[1] as u32]));
                 let view = scene.view();
-                let d = view.thickness(
-                    slot as u32,
-                    leaf,
-                    view.radius(slot as u32, level_start(leaf_level) + leaf),
-                );
+                let open = view.open(slot as u32);
+                let d = view.thickness(&open, leaf, view.radius(&open, level_start(leaf_level) + leaf));
                 let mut moved = 0f32;
                 for lb in 0..=m {
                     for la in 0..=m - lb {
@@ -140,7 +138,7 @@ fn leaf_thickness_is_conservative() {
                 let size = (c[1] - c[0]).length().max((c[2] - c[0]).length());
                 // Codes step in 2 / 255ths of the leaf's radius; leaf pairs' in 32nds of it
                 // below a quarter, then in quarters.
-                let r = view.radius(slot as u32, level_start(leaf_level) + leaf);
+                let r = view.radius(&open, level_start(leaf_level) + leaf);
                 let step = match scene.params.leaf_pairs() {
                     true if moved < 0.2 * r => r / 32.0,
                     true => r / 4.0,
