@@ -109,6 +109,33 @@ impl DisplacedMesh {
         self.decimated_edges.get(t).map_or(0, |&f| f as u32 & DECIMATED_EDGES)
     }
 
+    /// The level triangle `t` renders its edge `e` (from its corner `e` to corner `e + 1`)
+    /// at: its own, one less where the edge is decimated.
+    pub fn rendered_edge_level(&self, t: usize, e: usize) -> u32 {
+        let level = self.micromap.triangles[t].level;
+        level - (level > 0 && self.decimated(t) >> e & 1 != 0) as u32
+    }
+
+    /// Base edges that the triangles around them render at different levels (see
+    /// [`Self::rendered_edge_level`]): levels more than one apart, a step of one whose finer
+    /// side does not decimate the edge, or a decimated edge beside a triangle of its own
+    /// level. The surface cracks along them: files that follow NVIDIA's micro-maps have none.
+    pub fn open_seams(&self) -> usize {
+        if self.uniform_level().is_some() {
+            return 0;
+        }
+        let mut levels: std::collections::HashMap<(u32, u32), (u32, u32)> = std::collections::HashMap::new();
+        for (t, c) in self.triangles.iter().enumerate() {
+            for e in 0..3 {
+                let (a, b) = (c[e], c[(e + 1) % 3]);
+                let level = self.rendered_edge_level(t, e);
+                let range = levels.entry((a.min(b), a.max(b))).or_insert((level, level));
+                *range = (range.0.min(level), range.1.max(level));
+            }
+        }
+        levels.values().filter(|(lowest, highest)| lowest != highest).count()
+    }
+
     /// The same surface with its values as NVIDIA's compressed blocks decode them, to be
     /// written so (see [`crate::bary::compressed_blocks`]), and the blocks' bytes.
     ///
@@ -249,6 +276,14 @@ impl DisplacedMesh {
             .iter()
             .all(|t| t.level == first)
             .then_some(first)
+    }
+
+    /// Micro-triangles at depth `depth`: each triangle's own level's, or `depth`'s where that is
+    /// shallower.
+    pub fn micro_triangles_at(&self, depth: u32) -> u64 {
+        (self.micromap.triangles.iter())
+            .map(|t| 1u64 << (2 * t.level.min(depth)))
+            .sum()
     }
 
     /// The deepest level of any triangle: the lattice displaced grids of mixed levels share

@@ -370,6 +370,26 @@ mod tests {
         assert!(!mixed.mesh.decimated_edges.is_empty());
         let (welded, _) = WorldMesh::from(mixed.mesh.decoded()).validate("mixed").unwrap();
         assert_eq!(border_edges(&welded.triangles), 0);
+        assert_eq!(mixed.mesh.open_seams(), 0);
+    }
+
+    /// Seams whose sides render different levels are counted: none in a bake, one for each
+    /// edge whose flag is cleared, and the flagged edges of a triangle raised a level above
+    /// its coarser neighbours.
+    #[test]
+    fn open_seams_are_counted() {
+        let [(_, mixed), _] = mixed_domes();
+        assert_eq!(mixed.open_seams(), 0);
+        let flags = |t: usize| mixed.decimated(t).count_ones() as usize;
+        let flagged: usize = (0..mixed.triangles.len()).map(flags).sum();
+        assert!(flagged > 0);
+        let mut unflagged = mixed.clone();
+        unflagged.decimated_edges.iter_mut().for_each(|f| *f = 0);
+        assert_eq!(unflagged.open_seams(), flagged);
+        let t = (0..mixed.triangles.len()).find(|&t| flags(t) > 0).unwrap();
+        let mut raised = mixed.clone();
+        raised.micromap.triangles[t].level += 1;
+        assert!(raised.open_seams() >= flags(t), "{}", raised.open_seams());
     }
 
     /// The dome baked up to level 3 within the bytes of level 2 (triangles of levels 0 to 3,

@@ -804,6 +804,14 @@ pub fn load_all(paths: &[&Path]) -> Result<Input> {
             input.name, cleaning.welded
         );
     }
+    if let Some(seams) = (input.micromesh.as_ref().map(|m| m.open_seams())).filter(|&n| n > 0) {
+        eprintln!(
+            "warning: {}: {seams} base edges are rendered at different levels by the triangles on either side \
+             (levels more than one apart, or primitiveFlags that do not decimate the finer side): \
+             the surface has cracks along them",
+            input.name
+        );
+    }
     if cleaning.dropped > 0 {
         eprintln!(
             "warning: {}: dropped {} degenerate triangles ({})",
@@ -937,10 +945,15 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
         })?,
         (Mode::Triangles, _) => stages.run("build", || Scene::build(&mesh, &options))?,
     };
-    let micro = limits::micro_triangles(base_triangles, lod);
+    // A displaced micro-mesh's triangles each have their own level.
+    let micro_at = |depth: u32| match &displaced_grids {
+        Some(m) => m.micro_triangles_at(depth),
+        None => limits::micro_triangles(base_triangles, depth),
+    };
+    let micro = micro_at(lod);
     // Grids hold every level built, whatever depth renders.
     let stored = match scene {
-        Scene::Grids(_) => limits::micro_triangles(base_triangles, args.build.levels),
+        Scene::Grids(_) => micro_at(args.build.levels),
         Scene::Triangles(_) => micro,
     };
     let up_to = if args.lod == Some(LodArg::Auto) { "up to " } else { "" };

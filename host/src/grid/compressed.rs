@@ -27,7 +27,7 @@ use gridrt_shared::grid_index::{corner_point, grid_size, parents, Lattice};
 
 use rayon::prelude::*;
 
-use super::displaced::{expanded_mesh, rendered_edge_level};
+use super::displaced::expanded_mesh;
 use super::{stored_edge_point, BaseEdges};
 use crate::bary::MicromapTriangle;
 use crate::displaced::DisplacedMesh;
@@ -412,7 +412,7 @@ impl Rendered {
         for (g, ids) in edges.of_grid.iter().enumerate() {
             for (e, &id) in ids.iter().enumerate() {
                 let level = &mut edge_levels[id as usize];
-                *level = (*level).max(rendered_edge_level(mesh, g, e));
+                *level = (*level).max(mesh.rendered_edge_level(g, e));
             }
         }
         Rendered {

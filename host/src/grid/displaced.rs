@@ -209,13 +209,6 @@ pub(crate) fn expanded_mesh(mesh: &DisplacedMesh) -> DisplacedMesh {
     }
 }
 
-/// The level triangle `g` renders its edge `e` at: its own, one less where the edge is
-/// decimated.
-pub(super) fn rendered_edge_level(mesh: &DisplacedMesh, g: usize, e: usize) -> u32 {
-    let level = mesh.micromap.triangles[g].level;
-    level - (level > 0 && mesh.decimated(g) >> e & 1 != 0) as u32
-}
-
 /// Triangle `g`'s values on the scene's level-`levels` lattice, in u-major order: its own
 /// level's at the points of that level, and each point between them the mean of the two
 /// coarser points it halves (rounded up), finer after coarser, as compressed values predict
@@ -265,7 +258,7 @@ fn edge_sources(edges: &BaseEdges, mesh: &DisplacedMesh) -> Vec<(usize, usize)> 
     if mesh.uniform_level().is_some() {
         return sources;
     }
-    let rendered = |g: usize, e: usize| rendered_edge_level(mesh, g, e);
+    let rendered = |g: usize, e: usize| mesh.rendered_edge_level(g, e);
     for (g, ids) in edges.of_grid.iter().enumerate() {
         for (e, &id) in ids.iter().enumerate() {
             let (sg, se) = sources[id as usize];
