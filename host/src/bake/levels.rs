@@ -509,20 +509,8 @@ mod tests {
                 let m = 1i32 << (own - leaf_level);
                 for leaf in 0..triangle_count(leaf_level) {
                     let lattice = sub_triangle(n, leaf_level, leaf).map(|p| [p[0] as i32, p[1] as i32]);
-                    let c = lattice.map(|p| at([p[0] as u32, p[1] as u32]));
                     let d = view.thickness(&open, leaf, view.radius(&open, level_start(leaf_level) + leaf));
-                    let mut moved = 0f32;
-                    for lb in 0..=m {
-                        for la in 0..=m - lb {
-                            let p = [0, 1].map(|x| {
-                                lattice[0][x]
-                                    + (la * (lattice[1][x] - lattice[0][x]) + lb * (lattice[2][x] - lattice[0][x])) / m
-                            });
-                            let (u, w) = (la as f32 / m as f32, lb as f32 / m as f32);
-                            let flat = c[0] + (c[1] - c[0]) * u + (c[2] - c[0]) * w;
-                            moved = moved.max(at([p[0] as u32, p[1] as u32]).distance(flat));
-                        }
-                    }
+                    let moved = crate::grid::tests::farthest_from_flat(lattice, m, at);
                     assert!(moved <= d, "grid {slot}: moved {moved}, thickness {d}");
                     thick += (moved > 0.0) as usize;
                 }

@@ -32,7 +32,7 @@ pub mod displaced;
 mod lean;
 mod spheres;
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;
 pub mod wide_top;
 use crate::mesh::Mesh;
 use crate::subdiv::Subdivided;

@@ -121,19 +121,7 @@ fn leaf_thickness_is_conservative() {
                 let view = scene.view();
                 let open = view.open(slot as u32);
                 let d = view.thickness(&open, leaf, view.radius(&open, level_start(leaf_level) + leaf));
-                let mut moved = 0f32;
-                for lb in 0..=m {
-                    for la in 0..=m - lb {
-                        let p = [0, 1].map(|x| {
-                            lattice[0][x]
-                                + (la * (lattice[1][x] - lattice[0][x]) + lb * (lattice[2][x] - lattice[0][x])) / m
-                        });
-                        let v = lattice_vertex(&scene, slot, [p[0] as u32, p[1] as u32]);
-                        let (u, w) = (la as f32 / m as f32, lb as f32 / m as f32);
-                        let flat = c[0] + (c[1] - c[0]) * u + (c[2] - c[0]) * w;
-                        moved = moved.max(v.distance(flat));
-                    }
-                }
+                let moved = farthest_from_flat(lattice, m, |p| lattice_vertex(&scene, slot, p));
                 assert!(moved <= d, "a vertex moved {moved} from its flat place, thickness {d}");
                 let size = (c[1] - c[0]).length().max((c[2] - c[0]).length());
                 // Codes step in 2 / 255ths of the leaf's radius; leaf pairs' in 32nds of it
@@ -435,4 +423,23 @@ fn records_reorder_in_place() {
     let mut data: Vec<u32> = (0..12).collect();
     reorder_records(&mut data, 2, &order);
     assert_eq!(data, [6, 7, 0, 1, 8, 9, 2, 3, 4, 5, 10, 11]);
+}
+
+/// How far a leaf's lattice points lie from their flat places at most: the leaf's corners are
+/// lattice points `lattice`, `m` steps a side, and `at` gives a lattice point's position; a
+/// point's flat place is the same point of the flat triangle of the corners' positions.
+pub(crate) fn farthest_from_flat(lattice: [[i32; 2]; 3], m: i32, at: impl Fn([u32; 2]) -> Vec3) -> f32 {
+    let c = lattice.map(|p| at([p[0] as u32, p[1] as u32]));
+    let mut moved = 0f32;
+    for lb in 0..=m {
+        for la in 0..=m - lb {
+            let p = [0, 1].map(|x| {
+                lattice[0][x] + (la * (lattice[1][x] - lattice[0][x]) + lb * (lattice[2][x] - lattice[0][x])) / m
+            });
+            let (u, w) = (la as f32 / m as f32, lb as f32 / m as f32);
+            let flat = c[0] + (c[1] - c[0]) * u + (c[2] - c[0]) * w;
+            moved = moved.max(at([p[0] as u32, p[1] as u32]).distance(flat));
+        }
+    }
+    moved
 }
