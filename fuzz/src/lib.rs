@@ -168,6 +168,7 @@ fn decode(data: &[u8]) -> (Plan, Mesh, Bytes<'_>) {
             },
             // Displaced grids' storage: relative radii and tight headers together.
             tight_headers: flags & 16 != 0,
+            own_rooms: true,
         },
     };
     let vertices = 3 + b.u8() as usize % 13;

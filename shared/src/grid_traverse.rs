@@ -490,7 +490,8 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         let g = &self.params;
         if self.own_rooms() {
             let room = g.own_room(own);
-            let first_radius = self.radii.load(grid);
+            let offsets = self.radii.load(g.own_rooms + (grid >> 1));
+            let first_radius = self.radii.load(grid >> 4) + ((offsets >> (16 * (grid & 1))) & 0xffff);
             return SphereRoom {
                 first_radius,
                 first_leaf_word: first_radius + room.radius_words,

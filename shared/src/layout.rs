@@ -266,11 +266,14 @@ pub struct GridParams {
     /// edge is decimated (element 0 is always a header).
     pub level_element: u32,
     /// Nonzero when each grid of mixed levels holds the spheres and leaf bytes of its own
-    /// level rather than the scene's (relative radii only, see [`GridParams::own_room`]): the
-    /// radius buffer then begins with a word per grid, the word where the grid's record
-    /// begins, and each record is the grid's relative radii (as [`RADII_RELATIVE`] lays out a
-    /// grid's) followed by its leaves' bytes (as [`GridParams::thickness_word`] lays out a
-    /// grid's), both at its own leaf level. `thickness_word` is then unused.
+    /// level rather than the scene's (relative radii only, see [`GridParams::own_room`]); then
+    /// the word of the radius buffer where the grids' record offsets begin. The buffer opens
+    /// with a word per sixteen grids, the word where the first of their records begins, then
+    /// holds a 16-bit offset per grid from that word to its own record, two to a word, low half
+    /// first, then the records, grids in order. A record is the grid's relative radii (as
+    /// [`RADII_RELATIVE`] lays out a grid's) followed by its leaves' bytes (as
+    /// [`GridParams::thickness_word`] lays out a grid's), both at its own leaf level.
+    /// `thickness_word` is then unused.
     pub own_rooms: u32,
 }
 

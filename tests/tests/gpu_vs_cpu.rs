@@ -84,6 +84,7 @@ fn stacked_options() -> gridrt::grid::GridOptions {
         leaf_footprint: true,
         top: gridrt::grid::TopFormat::Wide,
         tight_headers: true,
+        own_rooms: true,
     }
 }
 

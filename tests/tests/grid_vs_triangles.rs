@@ -161,6 +161,7 @@ fn default_scene_grid_variants() {
             leaf_footprint,
             top,
             tight_headers: top != Full,
+            own_rooms: true,
         };
         let a = compare_with(
             &default_scene(),

@@ -73,6 +73,7 @@ fn build() -> impl Strategy<Value = Build> {
                     leaf_footprint,
                     top: [TopFormat::Full, TopFormat::Compact, TopFormat::Wide][top_and_headers as usize % 3],
                     tight_headers: top_and_headers >= 3,
+                    own_rooms: true,
                 },
             },
         )

@@ -442,33 +442,40 @@ mod tests {
         }
     }
 
-    /// Grids of mixed levels from level 4 on each hold the sphere hierarchy of their own level
-    /// (`GridParams::own_rooms`), and those up to level 3 the scene's: either way, every sphere
-    /// down to the grid's leaves holds the points the grid renders below it, each leaf's
-    /// thickness bounds how far those points lie from the leaf's flat triangle, and own rooms
-    /// take fewer words than the scene's room for every grid.
+    /// Grids of mixed levels in rooms of their own levels (`GridParams::own_rooms`), and in the
+    /// scene's room when asked: either way, every sphere down to the grid's leaves holds the
+    /// points the grid renders below it, and each leaf's thickness bounds how far those points
+    /// lie from the leaf's flat triangle. Own rooms are taken where they take fewer words than
+    /// the scene's room: at level 4 they do.
     #[test]
     fn grids_of_mixed_levels_keep_conservative_spheres() {
+        use crate::grid::GridOptions;
         use gridrt_shared::grid_index::{grid_size, level_start, sub_triangle, triangle_count};
         use gridrt_shared::grid_traverse::sphere_center;
-        use gridrt_shared::sphere::relative_radius_words;
         for deepest in [3, 4] {
             for (variant, mixed) in mixed_domes_up_to(deepest) {
                 let levels: Vec<u32> = mixed.micromap.triangles.iter().map(|t| t.level).collect();
                 let coarse_level = levels.iter().any(|&l| l + 1 < deepest);
                 assert!(levels.contains(&deepest) && coarse_level, "{variant}: {levels:?}");
-                let grids = crate::grid::displaced::build(&mixed, &crate::grid::GridOptions::for_displaced()).unwrap();
-                let params = grids.params;
-                assert_eq!(params.own_rooms != 0, deepest >= 4, "{variant}");
-                let thick = check_spheres(&grids);
-                assert!(thick > 0, "{variant}: every leaf was flat");
-                let scene_room = relative_radius_words(params.spheres_in_radius_area(params.leaf_pairs()))
-                    + triangle_count(params.leaf_level).div_ceil(4);
-                let words = grids.grid_count() * scene_room as usize;
+                let build = |own_rooms| {
+                    let options = GridOptions {
+                        own_rooms,
+                        ..GridOptions::for_displaced()
+                    };
+                    crate::grid::displaced::build(&mixed, &options).unwrap()
+                };
+                let (own, shared) = (build(true), build(false));
+                assert_eq!(shared.params.own_rooms, 0, "{variant}");
+                assert!(own.params.own_rooms != 0 || deepest < 4, "{variant}");
+                for grids in [&own, &shared] {
+                    let thick = check_spheres(grids);
+                    assert!(thick > 0, "{variant}: every leaf was flat");
+                }
                 assert!(
-                    grids.radii.len() < words || params.own_rooms == 0,
-                    "{variant}: {} words, {words} in the scene's room",
-                    grids.radii.len()
+                    own.radii.len() < shared.radii.len() || own.params.own_rooms == 0,
+                    "{variant}: {} words, {} in the scene's room",
+                    own.radii.len(),
+                    shared.radii.len()
                 );
             }
         }

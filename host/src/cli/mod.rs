@@ -343,6 +343,7 @@ impl BuildArgs {
                 _ => grid::TopFormat::Full,
             },
             tight_headers: self.tight_headers,
+            own_rooms: true,
         }
     }
 

@@ -75,6 +75,9 @@ pub struct GridOptions {
     /// Store each grid's ids in as many bits as the mesh's counts need (see
     /// `GridParams::header_bits`) rather than in a 16-byte header.
     pub tight_headers: bool,
+    /// Give grids of mixed levels rooms of their own levels for their spheres where that
+    /// takes fewer bytes than the scene's room for every grid (see `GridParams::own_rooms`).
+    pub own_rooms: bool,
 }
 
 impl Default for GridOptions {
@@ -85,6 +88,7 @@ impl Default for GridOptions {
             leaf_footprint: true,
             top: TopFormat::Full,
             tight_headers: false,
+            own_rooms: true,
         }
     }
 }
@@ -310,6 +314,7 @@ pub struct GridShape {
     pub radii: RadiusFormat,
     pub top: TopFormat,
     pub leaf_footprint: bool,
+    pub own_rooms: bool,
     pub edge_offset: u32,
     pub corner_offset: u32,
     /// Inner vertices as 16-bit codes (`gridrt_shared::quantize`) rather than `f32` triples.
@@ -350,6 +355,7 @@ impl GridShape {
             radii: options.radii,
             top: options.top,
             leaf_footprint: options.leaf_footprint,
+            own_rooms: options.own_rooms,
             edge_offset,
             corner_offset: edge_offset + edges as u32 * edge_vertex_count(levels),
             quantized_inner: quantized,
@@ -987,22 +993,28 @@ impl GridSpheres<'_> {
 /// (see `GridParams::own_rooms`). Only relative radii have such rooms. With the scene's leaves
 /// the root's children or the root (`L <= 3`) the records save less than their table costs.
 fn own_rooms_save_words(shape: &GridShape, own_levels: &[u8]) -> bool {
-    if own_levels.is_empty() || shape.radii != RadiusFormat::Relative {
+    if !shape.own_rooms || own_levels.is_empty() || shape.radii != RadiusFormat::Relative {
         return false;
     }
     let params = shape.radius_params();
     let scene_room =
         relative_radius_words(shape.stored_spheres()) as usize + leaves_with_bytes(shape, shape.leaf_level).div_ceil(4);
-    let own: usize = (own_levels.iter())
+    let records: usize = (own_levels.iter())
         .map(|&own| params.own_room(own as u32 >> 3))
-        .map(|room| 1 + (room.radius_words + room.leaf_words) as usize)
+        .map(|room| (room.radius_words + room.leaf_words) as usize)
         .sum();
-    own < own_levels.len() * scene_room
+    own_room_table_words(own_levels.len()) + records < own_levels.len() * scene_room
+}
+
+/// Words of the table of `grids` grids' records (see `GridParams::own_rooms`): a word per
+/// sixteen grids, and half a word per grid.
+fn own_room_table_words(grids: usize) -> usize {
+    grids.div_ceil(16) + grids.div_ceil(2)
 }
 
 /// Lays the radius buffer out anew for grids of mixed levels, each grid's spheres and leaf
-/// bytes at its own level (see `GridParams::own_rooms`): a word per grid where its record
-/// begins, then the records, grids in leaf order. A grid coarser than the scene then takes
+/// bytes at its own level (see `GridParams::own_rooms`): the table that says where each
+/// grid's record begins, then the records, grids in leaf order. A grid coarser than the scene then takes
 /// its own level's bytes, and its walk stops at its own leaves, with their thicknesses.
 fn lay_out_own_rooms(scene: &mut GridScene, shape: &GridShape, per_grid: &PerGrid, own_levels: &[u8]) {
     let params = shape.radius_params();
@@ -1011,14 +1023,21 @@ fn lay_out_own_rooms(scene: &mut GridScene, shape: &GridShape, per_grid: &PerGri
         .iter()
         .map(|&g| params.own_room(own_levels[g as usize] as u32 >> 3))
         .collect();
-    let mut radii = Vec::with_capacity(rooms.len());
-    let mut next = rooms.len() as u32;
-    for room in &rooms {
-        radii.push(next);
+    let offsets_word = rooms.len().div_ceil(16);
+    let table = own_room_table_words(rooms.len());
+    let mut radii = vec![0u32; table];
+    let mut next = table as u32;
+    for (g, room) in rooms.iter().enumerate() {
+        if g % 16 == 0 {
+            radii[g / 16] = next;
+        }
+        // Sixteen records of the deepest level decoded take far fewer than 2^16 words.
+        let offset = u16::try_from(next - radii[g / 16]).expect("a record offset of 16 bits");
+        radii[offsets_word + g / 2] |= (offset as u32) << (16 * (g % 2));
         next += room.radius_words + room.leaf_words;
     }
     radii.resize(next as usize, 0);
-    let mut records = &mut radii[rooms.len()..];
+    let mut records = &mut radii[table..];
     for (&g, room) in scene.base_triangle.iter().zip(&rooms) {
         let g = g as usize;
         let (record, rest) = records.split_at_mut((room.radius_words + room.leaf_words) as usize);
@@ -1033,7 +1052,7 @@ fn lay_out_own_rooms(scene: &mut GridScene, shape: &GridShape, per_grid: &PerGri
         spheres.encode(shape.radii, params.leaf_pairs_at(room.leaf_level), into, leaf_words);
     }
     scene.radii = radii;
-    scene.params.own_rooms = 1;
+    scene.params.own_rooms = offsets_word as u32;
 }
 
 /// Appends to the header buffer a byte per grid of its own level and decimated edges, in leaf

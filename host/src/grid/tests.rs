@@ -237,6 +237,7 @@ fn buffer_sizes_are_known_before_the_build() {
         excluded_levels: 1,
         top: TopFormat::Compact,
         tight_headers: true,
+        own_rooms: true,
     };
     for mesh in [default_scene(), fins(), cube()] {
         for (levels, options, quantized) in [
@@ -380,6 +381,7 @@ fn the_lean_build_equals_the_whole_mesh_build() {
             leaf_footprint: false,
             top: TopFormat::Wide,
             tight_headers: true,
+            own_rooms: true,
         },
         GridOptions::for_displaced(),
     ];
