@@ -282,7 +282,7 @@ impl DisplacedMesh {
     /// shallower.
     pub fn micro_triangles_at(&self, depth: u32) -> u64 {
         (self.micromap.triangles.iter())
-            .map(|t| 1u64 << (2 * t.level.min(depth)))
+            .map(|t| triangle_count(t.level.min(depth)) as u64)
             .sum()
     }
 

@@ -725,14 +725,10 @@ pub fn build_from_layout(layout: &mut GridLayout) -> GridScene {
     let shape = &layout.shape;
     // Grids of mixed levels each get a hierarchy of their own level, where the radii's
     // layout allows records of different lengths.
-    let own_rooms = own_rooms_save_words(shape, &layout.own_levels);
-    let params = shape.radius_params();
-    let leaf_level_of = |g: usize| match own_rooms {
-        true => params.own_room(layout.own_levels[g] as u32 >> 3).leaf_level,
-        false => shape.leaf_level,
-    };
+    let own_rooms = own_rooms(shape, &layout.own_levels);
+    let leaf_level_of = |g: usize| own_rooms.as_ref().map_or(shape.leaf_level, |rooms| rooms[g].leaf_level);
     let tables: Vec<Option<SphereTable>> = (0..=shape.leaf_level)
-        .map(|l| (own_rooms || l == shape.leaf_level).then(|| SphereTable::new(shape.levels, l)))
+        .map(|l| (own_rooms.is_some() || l == shape.leaf_level).then(|| SphereTable::new(shape.levels, l)))
         .collect();
     // One pass over each grid's vertices gives its box, its radii and its leaves' thicknesses.
     let mut per_grid = PerGrid::new(grids, shape);
@@ -754,8 +750,8 @@ pub fn build_from_layout(layout: &mut GridLayout) -> GridScene {
     vertices[..layout.inner_by_grid.len()].copy_from_slice(&layout.inner_by_grid);
     let mut scene = assemble(shape, &layout.ids, &per_grid, vertices);
     append_own_levels(&mut scene, &layout.own_levels);
-    if own_rooms {
-        lay_out_own_rooms(&mut scene, shape, &per_grid, &layout.own_levels);
+    if let Some(rooms) = &own_rooms {
+        lay_out_own_rooms(&mut scene, shape, &per_grid, rooms);
     }
     if let Some(blocks) = &layout.value_blocks {
         blocks.write(&scene.base_triangle, &mut scene.vertices);
@@ -988,22 +984,22 @@ impl GridSpheres<'_> {
     }
 }
 
-/// Whether grids of mixed levels (`own_levels`, see `GridParams::level_element`) take fewer
-/// radius words in rooms of their own levels, with their table, than in the scene's room each
-/// (see `GridParams::own_rooms`). Only relative radii have such rooms. With the scene's leaves
-/// the root's children or the root (`L <= 3`) the records save less than their table costs.
-fn own_rooms_save_words(shape: &GridShape, own_levels: &[u8]) -> bool {
+/// Each grid's room of its own level (see `GridParams::own_rooms`), in base-triangle order,
+/// for grids of mixed levels (`own_levels`, see `GridParams::level_element`) whose rooms and
+/// their table take fewer radius words than the scene's room for every grid; `None` where
+/// they do not (as when most grids are at the deepest level, 3) or cannot (only relative radii
+/// have such rooms).
+fn own_rooms(shape: &GridShape, own_levels: &[u8]) -> Option<Vec<OwnRoom>> {
     if !shape.own_rooms || own_levels.is_empty() || shape.radii != RadiusFormat::Relative {
-        return false;
+        return None;
     }
     let params = shape.radius_params();
-    let scene_room =
-        relative_radius_words(shape.stored_spheres()) as usize + leaves_with_bytes(shape, shape.leaf_level).div_ceil(4);
-    let records: usize = (own_levels.iter())
-        .map(|&own| params.own_room(own as u32 >> 3))
-        .map(|room| (room.radius_words + room.leaf_words) as usize)
-        .sum();
-    own_room_table_words(own_levels.len()) + records < own_levels.len() * scene_room
+    let words = |room: &OwnRoom| (room.radius_words + room.leaf_words) as usize;
+    // The scene's room is a room of the deepest level.
+    let scene_room = words(&params.own_room(shape.levels));
+    let rooms: Vec<OwnRoom> = own_levels.iter().map(|&own| params.own_room(own as u32 >> 3)).collect();
+    let records: usize = rooms.iter().map(words).sum();
+    (own_room_table_words(rooms.len()) + records < rooms.len() * scene_room).then_some(rooms)
 }
 
 /// Words of the table of `grids` grids' records (see `GridParams::own_rooms`): a word per
@@ -1013,16 +1009,13 @@ fn own_room_table_words(grids: usize) -> usize {
 }
 
 /// Lays the radius buffer out anew for grids of mixed levels, each grid's spheres and leaf
-/// bytes at its own level (see `GridParams::own_rooms`): the table that says where each
-/// grid's record begins, then the records, grids in leaf order. A grid coarser than the scene then takes
-/// its own level's bytes, and its walk stops at its own leaves, with their thicknesses.
-fn lay_out_own_rooms(scene: &mut GridScene, shape: &GridShape, per_grid: &PerGrid, own_levels: &[u8]) {
+/// bytes at its own level (see `GridParams::own_rooms`; `rooms` in base-triangle order): the
+/// table that says where each grid's record begins, then the records, grids in leaf order. A
+/// grid coarser than the scene then takes its own level's bytes, and its walk stops at its
+/// own leaves, with their thicknesses.
+fn lay_out_own_rooms(scene: &mut GridScene, shape: &GridShape, per_grid: &PerGrid, rooms: &[OwnRoom]) {
     let params = shape.radius_params();
-    let rooms: Vec<OwnRoom> = scene
-        .base_triangle
-        .iter()
-        .map(|&g| params.own_room(own_levels[g as usize] as u32 >> 3))
-        .collect();
+    let rooms: Vec<OwnRoom> = scene.base_triangle.iter().map(|&g| rooms[g as usize]).collect();
     let offsets_word = rooms.len().div_ceil(16);
     let table = own_room_table_words(rooms.len());
     let mut radii = vec![0u32; table];
