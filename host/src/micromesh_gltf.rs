@@ -115,10 +115,11 @@ fn document(mesh: &DisplacedMesh, frame: &LocalFrame, bin: &str, bary: &str) -> 
 /// Writes `mesh` 1e7 from the origin, in a scratch folder named for `test`: the file and
 /// the frame it was written in.
 #[cfg(test)]
-pub(crate) fn write_far_from_origin(mesh: &DisplacedMesh, test: &str) -> (PathBuf, LocalFrame) {
-    let dir = std::env::temp_dir().join(format!("gridrt-{test}-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join("baked.gltf");
+pub(crate) fn write_far_from_origin(
+    mesh: &DisplacedMesh,
+    test: &str,
+) -> (crate::mesh::test_util::ScratchFile, LocalFrame) {
+    let path = crate::mesh::test_util::ScratchFile::new(test, "baked.gltf");
     let frame = LocalFrame {
         centre: gridrt_shared::glam::DVec3::new(1.0e7 + 0.125, -3.0, 2.5e6),
         scale: 0.25,

@@ -1,6 +1,6 @@
 //! Helpers shared by the integration tests.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use gridrt::bvh::Aabb;
@@ -173,11 +173,26 @@ impl Rng {
     }
 }
 
-/// A scratch folder of this test process's own, named for `test`.
-pub fn scratch(test: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("gridrt-cli-{}-{test}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// A scratch folder of a test's own, removed when dropped.
+pub struct Scratch(tempfile::TempDir);
+
+impl std::ops::Deref for Scratch {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        self.0.path()
+    }
+}
+
+impl AsRef<Path> for Scratch {
+    fn as_ref(&self) -> &Path {
+        self.0.path()
+    }
+}
+
+/// A fresh scratch folder whose name starts `gridrt-{test}-`; it goes with the value.
+pub fn scratch(test: &str) -> Scratch {
+    let folder = tempfile::Builder::new().prefix(&format!("gridrt-{test}-")).tempdir();
+    Scratch(folder.expect("make a scratch folder"))
 }
 
 /// Runs the `gridrt` binary with `args`.

@@ -561,7 +561,8 @@ fn uploads_beyond_host_memory_are_refused_before_any_work() {
         fails_with(&bench, &[("GRIDRT_MEMORY_LIMIT", "300M")], &needles);
     }
     // The same render on the CPU backend fits.
-    let out = scratch("upload_memory").join("cpu.png");
+    let dir = scratch("upload_memory");
+    let out = dir.join("cpu.png");
     let cpu = Command::new(gridrt_exe())
         .args([
             "render",

@@ -393,8 +393,7 @@ fn mixed_levels_with_decimated_edges_render_watertight() {
         v
     };
     let map = Micromap::from_triangles(0.0, 0.3, &(0..4).map(|f| (levels[f], values(f))).collect::<Vec<_>>());
-    let dir = std::env::temp_dir().join(format!("gridrt-mixed-levels-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = gridrt_tests::scratch("mixed-levels");
     std::fs::write(dir.join("tetra.bary"), write(&map)).unwrap();
     let write_gltf = |flags: [u8; 4]| {
         let floats = |v: &[[f32; 3]]| v.iter().flatten().flat_map(|f| f.to_le_bytes()).collect::<Vec<u8>>();

@@ -177,11 +177,12 @@ fn arguments_out_of_range_are_named() {
         &["times the scene's size from the target"],
     );
     let narrowest = format!("{}", gridrt::camera::narrowest_fov_degrees(24) * 1.01);
+    let dir = scratch("fov");
     let o = gridrt(&render_args(&[
         "--fov",
         &narrowest,
         "-o",
-        scratch("fov").join("n.png").to_str().unwrap(),
+        dir.join("n.png").to_str().unwrap(),
     ]));
     assert!(o.status.success(), "{}", stderr(&o));
 }
@@ -345,7 +346,8 @@ fn gltf_seeds_render_or_name_their_problem() {
         GLTF_SEEDS.len(),
         "a seed without a test, or a test without a seed"
     );
-    let out = scratch("gltf_seeds").join("seed.png");
+    let dir = scratch("gltf_seeds");
+    let out = dir.join("seed.png");
     for (name, problem) in GLTF_SEEDS {
         let path = seeds.join(name);
         let args = render_args(&[path.to_str().unwrap(), "-o", out.to_str().unwrap()]);
@@ -365,7 +367,8 @@ fn gltf_seeds_render_or_name_their_problem() {
 fn gltf_seams_are_welded_and_said() {
     let seeds = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../fuzz/corpus/gltf"));
     let strip = seeds.join("unindexed_strip.glb");
-    let out = scratch("welded").join("strip.png");
+    let dir = scratch("welded");
+    let out = dir.join("strip.png");
     let o = gridrt(&render_args(&[strip.to_str().unwrap(), "-o", out.to_str().unwrap()]));
     let err = stderr(&o);
     assert!(o.status.success(), "{err}");

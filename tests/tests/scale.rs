@@ -9,7 +9,7 @@
 //! what may differ is the rounding of the scaled coordinates themselves (a power of ten
 //! is not a power of two), a few silhouette pixels and shading steps.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 use gridrt::mesh::scene::default_scene;
@@ -18,12 +18,6 @@ use gridrt_tests::{gpu_or_skip, gridrt_exe};
 
 const WIDTH: u32 = 160;
 const HEIGHT: u32 = 120;
-
-fn scratch() -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("gridrt-scale-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
 
 /// The mesh as an OBJ file with every vertex `p * scale + offset * size`, computed and written
 /// in `f64` (every digit), `size` being the mesh's largest extent.
@@ -62,7 +56,7 @@ fn render(obj: &Path, backend: &str, png: &Path) -> Vec<u32> {
 }
 
 fn check_backend(backend: &str) {
-    let dir = scratch();
+    let dir = gridrt_tests::scratch("scale");
     let mesh = default_scene();
     let unit_obj = dir.join(format!("unit-{backend}.obj"));
     write_obj(&mesh, 1.0, 0.0, &unit_obj);

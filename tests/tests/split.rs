@@ -188,8 +188,7 @@ fn binding_limit_from_the_environment() {
     if gpu_or_skip("binding_limit_from_the_environment").is_none() {
         return;
     }
-    let dir = std::env::temp_dir().join(format!("gridrt-split-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = gridrt_tests::scratch("split");
     // The baseline renders (its split kernel compiles far faster than the grids'), and the
     // grids are refused before their build.
     let run = |limit: &str, out: &str, mode: &str| {

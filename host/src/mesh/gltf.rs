@@ -1005,7 +1005,8 @@ mod tests {
         #[cfg(unix)]
         {
             let link = folder.join("link.bin");
-            std::os::unix::fs::symlink(write_temp("outside.bin", &buffer()), &link).unwrap();
+            let outside = write_temp("outside.bin", &buffer());
+            std::os::unix::fs::symlink(&outside, &link).unwrap();
             let linked = folder.join("link.gltf");
             std::fs::write(&linked, document(Some("link.bin"))).unwrap();
             let e = load_mesh_quiet(&linked).unwrap_err().to_string();

@@ -477,23 +477,49 @@ pub(crate) fn quote(token: &str) -> String {
     }
 }
 
-/// Shared helpers for the loader tests: unique scratch files and error checks.
+/// Shared helpers for the loader tests: scratch files and error checks.
 #[cfg(test)]
 pub(crate) mod test_util {
-    use std::path::PathBuf;
-    use std::sync::atomic::{AtomicUsize, Ordering};
+    use std::path::{Path, PathBuf};
 
     use super::*;
 
-    /// Writes `bytes` to a fresh file named `name` in a per-process, per-call temp folder.
-    pub fn write_temp(name: &str, bytes: &[u8]) -> PathBuf {
-        static COUNTER: AtomicUsize = AtomicUsize::new(0);
-        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-        let dir = std::env::temp_dir().join(format!("gridrt-mesh-test-{}-{n}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let path = dir.join(name);
-        std::fs::write(&path, bytes).unwrap();
-        path
+    /// A file in a scratch folder of its own; the folder goes when this is dropped.
+    pub struct ScratchFile {
+        path: PathBuf,
+        _folder: tempfile::TempDir,
+    }
+
+    impl ScratchFile {
+        /// A path for a file named `name` in a fresh folder whose name starts `gridrt-{test}-`.
+        pub fn new(test: &str, name: &str) -> Self {
+            let folder = tempfile::Builder::new()
+                .prefix(&format!("gridrt-{test}-"))
+                .tempdir()
+                .unwrap();
+            let path = folder.path().join(name);
+            ScratchFile { path, _folder: folder }
+        }
+    }
+
+    impl std::ops::Deref for ScratchFile {
+        type Target = Path;
+        fn deref(&self) -> &Path {
+            &self.path
+        }
+    }
+
+    impl AsRef<Path> for ScratchFile {
+        fn as_ref(&self) -> &Path {
+            &self.path
+        }
+    }
+
+    /// Writes `bytes` to a file named `name` in a scratch folder of its own.
+    pub fn write_temp(name: &str, bytes: &[u8]) -> ScratchFile {
+        let file = ScratchFile::new("mesh-test", name);
+        std::fs::write(&file, bytes).unwrap();
+        file
     }
 
     /// Loads `bytes` as file `name` and asserts a one-line error naming the path and containing every `needles`.
