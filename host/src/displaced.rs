@@ -278,12 +278,22 @@ impl DisplacedMesh {
             .then_some(first)
     }
 
-    /// Micro-triangles at depth `depth`: each triangle's own level's, or `depth`'s where that is
-    /// shallower.
+    /// Micro-triangles rendered at depth `depth`: each triangle's own level's, or `depth`'s
+    /// where that is shallower, less those its decimated edges collapse (at its own level),
+    /// so as many as [`Self::decoded_welded`] keeps.
     pub fn micro_triangles_at(&self, depth: u32) -> u64 {
-        (self.micromap.triangles.iter())
-            .map(|t| triangle_count(t.level.min(depth)) as u64)
+        (0..self.triangles.len())
+            .map(|t| self.rendered_micro_triangles(t, depth))
             .sum()
+    }
+
+    /// [`Self::micro_triangles_at`] of triangle `t` alone.
+    pub fn rendered_micro_triangles(&self, t: usize, depth: u32) -> u64 {
+        let level = self.micromap.triangles[t].level;
+        match self.decimated(t) {
+            decimated if decimated != 0 && depth >= level => kept_triangles(level, decimated),
+            _ => triangle_count(level.min(depth)) as u64,
+        }
     }
 
     /// The deepest level of any triangle: the lattice displaced grids of mixed levels share
@@ -343,6 +353,18 @@ impl DisplacedMesh {
         }
         mesh
     }
+}
+
+/// Micro-triangles of a level-`level` triangle that its `decimated` edges leave with three
+/// distinct corners.
+fn kept_triangles(level: u32, decimated: u32) -> u64 {
+    let n = grid_size(level);
+    (0..triangle_count(level))
+        .filter(|&k| {
+            let [a, b, c] = sub_triangle(n, level, k).map(|p| decimated_point(p, n, decimated));
+            a != b && b != c && c != a
+        })
+        .count() as u64
 }
 
 #[cfg(test)]
@@ -501,6 +523,12 @@ mod tests {
         // Welded, the micro-triangles the flag collapsed are gone: along the seam, four of
         // the fine side's eight.
         assert_eq!(mesh.decoded_welded().triangles.len(), 64 + 16 - 4);
+        assert_eq!(mesh.micro_triangles_at(MAX_LEVEL), 64 + 16 - 4);
+        assert_eq!(
+            mesh.micro_triangles_at(2),
+            16 + 16,
+            "a shallower depth decimates nothing"
+        );
         mesh.decimated_edges = vec![0b010];
         assert!(mesh
             .check()

@@ -265,11 +265,13 @@ fn fitted_together(
     }
 }
 
-/// Micro-triangles of each level `0 ..= 6` in `mesh`.
+/// Micro-triangles of each level `0 ..= 6` in `mesh`, as rendered (less those that decimated
+/// edges collapse).
 pub fn level_counts(mesh: &DisplacedMesh) -> Vec<u64> {
-    let mut counts = vec![0u64; crate::displaced::MAX_LEVEL as usize + 1];
-    for t in &mesh.micromap.triangles {
-        counts[t.level as usize] += triangle_count(t.level) as u64;
+    let deepest = crate::displaced::MAX_LEVEL;
+    let mut counts = vec![0u64; deepest as usize + 1];
+    for (t, triangle) in mesh.micromap.triangles.iter().enumerate() {
+        counts[triangle.level as usize] += mesh.rendered_micro_triangles(t, deepest);
     }
     counts
 }
@@ -426,6 +428,12 @@ mod tests {
             assert_ne!(grids.params.level_element, 0);
             assert_eq!(grids.params.displaced == 2, variant == "compressed");
             let folded = mixed.with_ranges_folded();
+            let rendered = mixed.decoded_welded().triangles.len() as u64;
+            assert_eq!(
+                mixed.micro_triangles_at(3),
+                rendered,
+                "{variant}: the count less the collapsed"
+            );
             // Their headers widened too, which keeps their level bytes.
             for grids in [grids.clone(), grids.with_wide_headers()] {
                 let view = grids.view();
