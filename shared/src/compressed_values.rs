@@ -20,6 +20,12 @@
 //!   vertex id, and are predicted from points of that edge alone: both grids that share the
 //!   edge decode the same values, so the surface stays watertight. Corners are plain 11-bit
 //!   values, one per base vertex.
+//! - In grids of mixed levels every block holds the levels it renders and no more: a grid's
+//!   block its own level's widths, shifts and corrections, a base edge's block those of the
+//!   level the edge is rendered at (the finest of its grids' levels there). A point of a
+//!   finer level than its block holds is its parents' mean. The base edges are numbered
+//!   coarse to fine, and a table before their blocks gives, for each level, its first edge
+//!   and the bit where its blocks begin (see [`CodedScene::edge_block`]).
 //!
 //! Inside a grid, the new points of level `l` are taken row by row (`i`, then `j`, on the
 //! level-`l` lattice), so a point's place among them is a closed form of its coordinates.
@@ -41,6 +47,13 @@ pub const WIDTH_BITS: u32 = 4;
 pub const MAX_LEVELS: u32 = 6;
 /// Where [`CodedGrid::edge_code`] keeps the levels, above the widths of [`MAX_LEVELS`] levels.
 const LEVELS_SHIFT: u32 = WIDTH_BITS * MAX_LEVELS;
+/// Words of the table of levels before the base edges' blocks in grids of mixed levels: per
+/// level `1 ..= MAX_LEVELS`, its first edge id, then the bit where its blocks begin, from
+/// the table's first bit.
+pub const EDGE_LEVEL_WORDS: u32 = 2 * MAX_LEVELS;
+/// Where [`CodedGrid::block_levels`] keeps the grid's own level, and then its edges' (four bits
+/// each), above the edges' directions.
+const OWN_LEVEL_SHIFT: u32 = 4;
 /// Bits of a plain value (a corner).
 pub const VALUE_BITS: u32 = 11;
 /// The largest value.
@@ -147,6 +160,20 @@ impl ValueCode {
     pub fn edge_block_bits(&self) -> u32 {
         self.edge_level_bit(self.levels + 1)
     }
+
+    /// This code's widths for a block of `levels` levels: those of levels `1 ..= levels`.
+    #[inline]
+    pub fn at_levels(&self, levels: u32) -> ValueCode {
+        let bits = WIDTH_BITS * levels;
+        ValueCode {
+            levels,
+            widths: if bits >= 32 {
+                self.widths
+            } else {
+                self.widths & ((1 << bits) - 1)
+            },
+        }
+    }
 }
 
 /// `width` bits of `buffer` from bit `bit`, for any `width` up to 32: two reads of at most
@@ -200,11 +227,12 @@ pub struct CodedGrid {
     /// Bit where the grid's own block begins after its widths, and its shifts.
     pub inner_bit: u32,
     pub inner_shifts: u32,
-    /// Bit where each base edge's block begins, their shifts, and which run against the
-    /// stored direction (bit `e`).
+    /// Bit where each base edge's block begins, their shifts, and in `block_levels` which run
+    /// against the stored direction (bit `e`), and above them (from [`OWN_LEVEL_SHIFT`], four
+    /// bits each) the levels the grid's own block holds and then each edge's block.
     pub edge_bit: [u32; 3],
     pub edge_shifts: [u32; 3],
-    pub edge_reversed: u32,
+    pub block_levels: u32,
     pub corner_values: [u32; 3],
 }
 
@@ -219,6 +247,9 @@ pub struct CodedScene {
     pub corner_bit: u32,
     /// Bits of each entry of the block table (see [`Self::block_bit`]).
     pub offset_bits: u32,
+    /// Whether the grids are of mixed levels, each block holding its own (see the module
+    /// docs): the base edges' blocks then follow a table of levels at `edge_bit`.
+    pub mixed: bool,
 }
 
 impl CodedScene {
@@ -229,30 +260,55 @@ impl CodedScene {
         read_long_bits(buffer, grid * self.offset_bits, self.offset_bits)
     }
 
-    /// Grid `grid` with ids `ids`, resolved.
+    /// Where base edge `id`'s block begins, and the levels it holds.
     #[inline]
-    pub fn open<B: Buffer<u32>>(&self, buffer: B, ids: &GridIds, grid: u32) -> CodedGrid {
-        let shift_bits = self.code.shift_bits();
+    pub fn edge_block<B: Buffer<u32>>(&self, buffer: B, id: u32) -> (u32, u32) {
+        if !self.mixed {
+            return (self.edge_bit + id * self.edge_block_bits, self.code.levels);
+        }
+        // The edge's level: how many levels' first ids it has reached (they never decrease;
+        // a level past the scene's begins past the last edge). Unrolled, as in `level_bit`.
+        let table = self.edge_bit >> 5;
+        let reached = |k: u32| (id >= buffer.load(table + 2 * (k - 1))) as u32;
+        let level = reached(1) + reached(2) + reached(3) + reached(4) + reached(5) + reached(6);
+        if level == 0 {
+            return (self.edge_bit, 0);
+        }
+        let first = buffer.load(table + 2 * (level - 1));
+        let start = buffer.load(table + 2 * (level - 1) + 1);
+        let bits = self.code.at_levels(level).edge_block_bits();
+        (self.edge_bit + start + (id - first) * bits, level)
+    }
+
+    /// Grid `grid` with ids `ids`, of level `own` (the scene's where levels are one),
+    /// resolved.
+    #[inline]
+    pub fn open<B: Buffer<u32>>(&self, buffer: B, ids: &GridIds, grid: u32, own: u32) -> CodedGrid {
         let block_bit = self.block_bit(buffer, grid);
-        let width_bits = self.code.width_bits();
+        let width_bits = WIDTH_BITS * own;
         let inner_bit = block_bit + width_bits;
-        let edge = |e: u32| self.edge_bit + ids.edge(e) * self.edge_block_bits;
-        let edge_bit = [edge(0), edge(1), edge(2)];
+        let (bit0, level0) = self.edge_block(buffer, ids.edge(0));
+        let (bit1, level1) = self.edge_block(buffer, ids.edge(1));
+        let (bit2, level2) = self.edge_block(buffer, ids.edge(2));
         let corner = |c: u32| read_bits(buffer, self.corner_bit + ids.corner(c) * VALUE_BITS, VALUE_BITS);
         CodedGrid {
             edge_code: (self.code.levels << LEVELS_SHIFT) | self.code.widths,
             inner_widths: read_bits(buffer, block_bit, width_bits),
             inner_bit,
-            inner_shifts: read_bits(buffer, inner_bit, shift_bits),
-            edge_bit,
+            inner_shifts: read_bits(buffer, inner_bit, SHIFT_BITS * own),
+            edge_bit: [bit0, bit1, bit2],
             edge_shifts: [
-                read_bits(buffer, edge_bit[0], shift_bits),
-                read_bits(buffer, edge_bit[1], shift_bits),
-                read_bits(buffer, edge_bit[2], shift_bits),
+                read_bits(buffer, bit0, SHIFT_BITS * level0),
+                read_bits(buffer, bit1, SHIFT_BITS * level1),
+                read_bits(buffer, bit2, SHIFT_BITS * level2),
             ],
-            edge_reversed: ids.edge_reversed(0) as u32
+            block_levels: ids.edge_reversed(0) as u32
                 | (ids.edge_reversed(1) as u32) << 1
-                | (ids.edge_reversed(2) as u32) << 2,
+                | (ids.edge_reversed(2) as u32) << 2
+                | own << OWN_LEVEL_SHIFT
+                | level0 << (OWN_LEVEL_SHIFT + 4)
+                | level1 << (OWN_LEVEL_SHIFT + 8)
+                | level2 << (OWN_LEVEL_SHIFT + 12),
             corner_values: [corner(0), corner(1), corner(2)],
         }
     }
@@ -273,12 +329,18 @@ impl CodedGrid {
         }
     }
 
-    /// The grid's own code, for its inner points.
+    /// The grid's own code, for its inner points: its own levels.
     fn inner_code(&self) -> ValueCode {
         ValueCode {
-            levels: self.levels(),
+            levels: (self.block_levels >> OWN_LEVEL_SHIFT) & 15,
             widths: self.inner_widths,
         }
+    }
+
+    /// The levels base edge `e`'s block holds.
+    #[inline]
+    fn edge_levels(&self, e: u32) -> u32 {
+        (self.block_levels >> (OWN_LEVEL_SHIFT + 4 + 4 * e)) & 15
     }
 
     /// The value of point `p`, a point of the grid's lattice that is not a corner, whose
@@ -301,20 +363,25 @@ impl CodedGrid {
             (3, 0)
         };
         let (bit, shifts, level, place, width) = if edge < 3 {
-            let t = if (self.edge_reversed >> edge) & 1 != 0 {
-                n - s
-            } else {
-                s
-            };
+            let t = if (self.block_levels >> edge) & 1 != 0 { n - s } else { s };
             let tz = t.trailing_zeros();
             let level = code.levels - tz;
-            let place = code.edge_level_bit(level) + (t >> (tz + 1)) * code.width(level);
+            // A point finer than the edge's block holds is its parents' mean.
+            let held = code.at_levels(self.edge_levels(edge));
+            let (place, width) = if level > held.levels {
+                (0, 0)
+            } else {
+                (
+                    held.edge_level_bit(level) + (t >> (tz + 1)) * code.width(level),
+                    code.width(level),
+                )
+            };
             (
                 self.edge_bit[edge as usize],
                 self.edge_shifts[edge as usize],
                 level,
                 place,
-                code.width(level),
+                width,
             )
         } else {
             let inner = self.inner_code();

@@ -272,6 +272,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         let inner_bit = 32 * grid * g.inner_words;
         let slots = GridSlots::addressed(&ids, n, inner_bit, edge_bit, corner_bit, DISPLACEMENT_BITS);
         let corner_ids = [ids.corner(0), ids.corner(1), ids.corner(2)];
+        let own = self.level_byte(grid);
         let coded = if self.compressed() {
             let scene = CodedScene {
                 code: ValueCode {
@@ -282,8 +283,9 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                 edge_block_bits: g.edge_block_bits,
                 corner_bit: g.corner_bit,
                 offset_bits: g.block_offset_bits,
+                mixed: g.level_element != 0,
             };
-            scene.open(self.vertices, &ids, grid)
+            scene.open(self.vertices, &ids, grid, own >> 3)
         } else {
             CodedGrid::default()
         };
@@ -293,7 +295,6 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             directions: [at(0, 3), at(1, 3), at(2, 3)],
             ids: corner_ids,
         };
-        let own = self.level_byte(grid);
         let mut open = OpenGrid {
             slots,
             corners: [Vec3::ZERO; 3],

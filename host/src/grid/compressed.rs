@@ -17,10 +17,12 @@
 //!   the whole within the same bound. Smooth grids so give their bits to detailed ones.
 //! - A base edge's values are encoded once, from its lower base vertex id, and both grids that
 //!   share the edge read that one block: the surface stays watertight.
+//! - In grids of mixed levels each block holds the levels it renders, and no bits for finer
+//!   ones (see [`level_sorted_edges`] for the base edges' order).
 
 use crate::bit_writer::BitWriter;
 use gridrt_shared::compressed_values::{
-    inner_new_count, ValueCode, MAX_LEVELS, SHIFT_BITS, VALUE_BITS, VALUE_MAX, WIDTH_BITS,
+    inner_new_count, ValueCode, EDGE_LEVEL_WORDS, MAX_LEVELS, SHIFT_BITS, VALUE_BITS, VALUE_MAX, WIDTH_BITS,
 };
 use gridrt_shared::displacement::{interpolated, u_major_index};
 use gridrt_shared::grid_index::{corner_point, grid_size, parents, Lattice};
@@ -133,8 +135,7 @@ impl Compressor {
             fail!(Input, "it has no base triangles");
         };
         let folded = mesh.with_ranges_folded();
-        let edges = BaseEdges::new(&folded.base_mesh());
-        let rendered = Rendered::new(&folded, &edges);
+        let (edges, rendered) = level_sorted_edges(&folded);
         let folded = match rendered.own.is_empty() {
             true => folded,
             false => expanded_mesh(&folded),
@@ -264,11 +265,12 @@ impl Allocation {
         let choices = (0..mesh.triangles.len())
             .into_par_iter()
             .map(|g| {
+                let own = rendered.own_level(g, scene.levels);
                 let trial = |c: ValueCode| {
                     let (block, _) = encode_grid(mesh, g, c, &shared, edges, rendered);
                     Choice {
                         code: c,
-                        bits: c.inner_block_bits() as u64,
+                        bits: c.at_levels(own).inner_block_bits() as u64,
                         squared_error: block.squared_error,
                     }
                 };
@@ -281,7 +283,7 @@ impl Allocation {
                 let mut path = vec![trial(scene), trial(code(scene.levels, &widths))];
                 loop {
                     let now = path[path.len() - 1];
-                    let narrower = (0..scene.levels as usize)
+                    let narrower = (0..own as usize)
                         .filter(|&l| widths[l] > 0)
                         .map(|l| {
                             let mut w = widths;
@@ -366,8 +368,11 @@ impl Choice {
 pub struct Encoded {
     /// Each grid's block (its widths, shifts and corrections) and its length in bits.
     pub grid_blocks: Vec<(Vec<u32>, u32)>,
-    /// The base edges' blocks end to end, by edge id, then every base vertex's value.
+    /// The base edges' blocks end to end, by edge id (after their table of levels, in grids
+    /// of mixed levels), then every base vertex's value.
     pub shared: Vec<u32>,
+    /// Bits of `shared` before the corners' values.
+    pub edge_area_bits: u64,
     /// Each grid's decoded values, u-major.
     pub values: Vec<Vec<u16>>,
     /// Sum of the squared distances the decoded points moved, each stored point once.
@@ -437,6 +442,12 @@ impl Rendered {
         let Some(&own) = self.own.get(g) else { return true };
         let mask = (1u32 << (self.levels - (own as u32 >> 3))) - 1;
         (p[0] | p[1]) & mask == 0
+    }
+
+    /// The levels base edge `id`'s block holds, in a scene of `levels`: the finest it is
+    /// rendered at.
+    fn edge_level(&self, id: usize, levels: u32) -> u32 {
+        self.edge_levels.get(id).map_or(levels, |&l| l)
     }
 
     /// Whether base edge `id`'s point `s` steps from its first corner is rendered.
@@ -529,6 +540,7 @@ pub(super) fn encode(
         points: shared.points,
         bits: shared.bits,
         shared: shared.words,
+        edge_area_bits: shared.edge_area_bits,
         ..Encoded::default()
     };
     for (block, values) in grid_blocks {
@@ -546,21 +558,27 @@ pub(super) fn encode(
 /// Encodes `mesh` (ranges folded, one level) with no loss, for values a compressed code made:
 /// the base edges with `scene`, each grid with the narrowest widths that decode its values
 /// exactly. `None` when some value is off every such code.
-pub(super) fn encode_exact(mesh: &DisplacedMesh, edges: &BaseEdges, scene: ValueCode) -> Option<Encoded> {
+pub(super) fn encode_exact(
+    mesh: &DisplacedMesh,
+    (edges, rendered): (&BaseEdges, &Rendered),
+    scene: ValueCode,
+) -> Option<Encoded> {
     let codes: Option<Vec<ValueCode>> = (0..mesh.triangles.len())
         .into_par_iter()
-        .map(|g| exact_code(mesh, g, scene.levels))
+        .map(|g| exact_code(mesh, g, rendered.own_level(g, scene.levels)))
         .collect();
     let codes = codes?;
-    let encoded = encode(mesh, edges, &Rendered::default(), scene, |g| codes[g]);
+    let encoded = encode(mesh, edges, rendered, scene, |g| codes[g]);
     let exact = (0..mesh.triangles.len()).all(|g| encoded.values[g] == mesh.micromap.triangle_values(g));
     exact.then_some(encoded)
 }
 
-/// The narrowest widths, level by level, at which grid `g`'s inner values decode exactly
-/// from its own corners and edges; `None` where no width does.
-fn exact_code(mesh: &DisplacedMesh, g: usize, levels: u32) -> Option<ValueCode> {
-    let n = grid_size(levels);
+/// The narrowest widths, level by level up to `own`, at which grid `g`'s inner values decode
+/// exactly from its own corners and edges (finer points are their parents' means); `None`
+/// where no width does.
+fn exact_code(mesh: &DisplacedMesh, g: usize, own: u32) -> Option<ValueCode> {
+    let n = grid_size(mesh.micromap.triangles[g].level);
+    let levels = own;
     let truth = mesh.micromap.triangle_values(g);
     let at = |p: Lattice| u_major_index(p, n) as usize;
     let mut widths = [0; MAX_LEVELS as usize];
@@ -595,8 +613,11 @@ struct SharedValues {
     corner_values: Vec<u16>,
     /// Each base edge's values, along its stored direction, corners included.
     edge_values: Vec<Vec<u16>>,
-    /// The base edges' blocks end to end, by edge id, then the corners' values.
+    /// The base edges' blocks end to end, by edge id (after their table of levels, in grids
+    /// of mixed levels), then the corners' values.
     words: Vec<u32>,
+    /// Bits of `words` before the corners' values.
+    edge_area_bits: u64,
     bits: u64,
     squared_error: f64,
     points: u64,
@@ -628,7 +649,8 @@ impl SharedValues {
                 values[0] = corner_values[from.min(to) as usize];
                 values[n as usize] = corner_values[from.max(to) as usize];
                 let truth = values.clone();
-                let mut block = BlockEncoder::new(code);
+                let held = code.at_levels(rendered.edge_level(id, code.levels));
+                let mut block = BlockEncoder::new(held);
                 for l in 1..=code.levels {
                     let step = n >> l;
                     let targets: Vec<Target> = (1..=(1 << l >> 1))
@@ -642,7 +664,11 @@ impl SharedValues {
                             }
                         })
                         .collect();
-                    for (k, q) in block.level(l, &targets).into_iter().enumerate() {
+                    let decoded = match l <= held.levels {
+                        true => block.level(l, &targets),
+                        false => targets.iter().map(Target::mean).collect(),
+                    };
+                    for (k, q) in decoded.into_iter().enumerate() {
                         values[((2 * k + 1) as u32 * step) as usize] = q;
                     }
                 }
@@ -650,6 +676,12 @@ impl SharedValues {
             })
             .collect();
         let mut out = BitWriter::default();
+        if !rendered.own.is_empty() {
+            let levels: Vec<u32> = (0..edges.owner.len())
+                .map(|id| rendered.edge_level(id, code.levels))
+                .collect();
+            write_edge_levels(&levels, code, &mut out);
+        }
         let (mut squared_error, mut points) = (0.0, corner_values.len() as u64);
         let mut edge_values = Vec::with_capacity(edges.owner.len());
         for (block, values) in edge_blocks {
@@ -658,6 +690,7 @@ impl SharedValues {
             block.write(&mut out);
             edge_values.push(values);
         }
+        let edge_area_bits = out.bits as u64;
         for &q in &corner_values {
             out.push(q as u32, VALUE_BITS);
         }
@@ -667,11 +700,55 @@ impl SharedValues {
             corner_values,
             edge_values,
             words: out.words,
+            edge_area_bits,
             bits,
             squared_error,
             points,
         }
     }
+}
+
+/// The table of levels before the base edges' blocks in grids of mixed levels (see
+/// `gridrt_shared::compressed_values::CodedScene::edge_block`): per level, its first edge
+/// id and the bit its blocks begin at, from the table's first bit. `levels`, each edge's by
+/// id, never decrease (see [`level_sorted_edges`]).
+fn write_edge_levels(levels: &[u32], code: ValueCode, out: &mut BitWriter) {
+    debug_assert!(levels.is_sorted(), "edges are numbered coarse to fine");
+    let mut bit = 32 * EDGE_LEVEL_WORDS as u64;
+    let mut id = 0;
+    for level in 1..=MAX_LEVELS {
+        // Edges of coarser levels come first; past the scene's levels, past the last edge.
+        while id < levels.len() && levels[id] < level {
+            bit += code.at_levels(levels[id]).edge_block_bits() as u64;
+            id += 1;
+        }
+        out.push(id as u32, 32);
+        out.push(bit as u32, 32);
+    }
+}
+
+/// The base edges of `mesh` (ranges folded, of its own levels) numbered coarse to fine by
+/// the levels they are rendered at (in the order the triangles first use them within a
+/// level), as compressed grids of mixed levels store them, and which points are rendered.
+/// Where levels are one, the edges as [`BaseEdges::new`] numbers them.
+pub(super) fn level_sorted_edges(mesh: &DisplacedMesh) -> (BaseEdges, Rendered) {
+    let mut edges = BaseEdges::new(&mesh.base_mesh());
+    let mut rendered = Rendered::new(mesh, &edges);
+    if rendered.own.is_empty() {
+        return (edges, rendered);
+    }
+    let mut order: Vec<u32> = (0..edges.owner.len() as u32).collect();
+    order.sort_by_key(|&id| rendered.edge_levels[id as usize]);
+    let mut new_id = vec![0u32; order.len()];
+    for (new, &old) in order.iter().enumerate() {
+        new_id[old as usize] = new as u32;
+    }
+    edges.owner = order.iter().map(|&old| edges.owner[old as usize]).collect();
+    rendered.edge_levels = order.iter().map(|&old| rendered.edge_levels[old as usize]).collect();
+    for ids in &mut edges.of_grid {
+        *ids = ids.map(|id| new_id[id as usize]);
+    }
+    (edges, rendered)
 }
 
 /// Grid `g`'s block at `code` (its widths first), from its corners and edges as decoded, and
@@ -684,7 +761,8 @@ fn encode_grid(
     edges: &BaseEdges,
     rendered: &Rendered,
 ) -> (BlockEncoder, Vec<u16>) {
-    let n = grid_size(code.levels);
+    let levels = mesh.micromap.triangles[g].level;
+    let n = grid_size(levels);
     let t = mesh.triangles[g];
     let truth = mesh.micromap.triangle_values(g);
     let mut values = truth.to_vec();
@@ -698,8 +776,9 @@ fn encode_grid(
         }
     }
     let at = |p: Lattice| u_major_index(p, n) as usize;
-    let mut block = BlockEncoder::with_widths(code);
-    for l in 1..=code.levels {
+    let held = code.at_levels(rendered.own_level(g, levels));
+    let mut block = BlockEncoder::with_widths(held);
+    for l in 1..=levels {
         let step = n >> l;
         let points = new_inner_points(l, n);
         let targets: Vec<Target> = points
@@ -714,7 +793,11 @@ fn encode_grid(
                 }
             })
             .collect();
-        for (&p, q) in points.iter().zip(block.level(l, &targets)) {
+        let decoded = match l <= held.levels {
+            true => block.level(l, &targets),
+            false => targets.iter().map(Target::mean).collect(),
+        };
+        for (&p, q) in points.iter().zip(decoded) {
             values[at(p)] = q;
         }
     }
@@ -818,6 +901,11 @@ impl BlockEncoder {
 }
 
 impl Target {
+    /// Its parents' mean, the value of a point finer than its block holds.
+    fn mean(&self) -> u16 {
+        ((self.parents.0 as u32 + self.parents.1 as u32 + 1) >> 1) as u16
+    }
+
     /// The `width`-bit field closest to the truth at `shift`, and the value it decodes to.
     fn encode(&self, width: u32, shift: u32) -> (u32, u32) {
         let (a, b) = (self.parents.0 as u32, self.parents.1 as u32);
@@ -926,11 +1014,12 @@ mod tests {
                     edge_block_bits: params.edge_block_bits,
                     corner_bit: params.corner_bit,
                     offset_bits: params.block_offset_bits,
+                    mixed: false,
                 };
                 let (n, view, buffer) = (grid_size(levels), grids.view(), &grids.vertices[..]);
                 for slot in 0..4 {
                     let g = grids.base_triangle[slot] as usize;
-                    let grid = scene.open(buffer, &view.ids(slot as u32), slot as u32);
+                    let grid = scene.open(buffer, &view.ids(slot as u32), slot as u32, levels);
                     let values = compressed.mesh.micromap.triangle_values(g);
                     for p in lattice_points(n) {
                         let q = grid.value(buffer, p);
@@ -945,6 +1034,65 @@ mod tests {
         }
     }
 
+    /// In grids of mixed levels every block holds its own levels only: the tetrahedron's
+    /// first triangle at level 3 and the rest at level 2 render every base edge at level 2,
+    /// so each edge's block holds two levels, after the table of levels, and each level-2
+    /// grid's block two levels' widths and shifts; every point reads back as compressed.
+    #[test]
+    fn blocks_of_mixed_levels_hold_their_own_levels() {
+        let fine = tetrahedron(3, 40);
+        let n = grid_size(3);
+        let own: Vec<(u32, Vec<u16>)> = (0..4)
+            .map(|t| {
+                let values = fine.micromap.triangle_values(t);
+                match t {
+                    0 => (3, values.to_vec()),
+                    _ => {
+                        let coarse =
+                            lattice_points(n / 2).map(|[i, j]| values[u_major_index([2 * i, 2 * j], n) as usize]);
+                        (2, coarse.collect())
+                    }
+                }
+            })
+            .collect();
+        let mixed = DisplacedMesh {
+            micromap: Micromap::from_triangles(0.0, 1.0, &own),
+            decimated_edges: vec![0b111, 0, 0, 0],
+            ..fine
+        };
+        let compressed = compress(&mixed, &ValueCompression::bounded(1e-3)).unwrap();
+        let grids = build(&compressed.mesh, &GridOptions::for_displaced()).unwrap();
+        let params = grids.params;
+        let edge_bits = compressed.code.at_levels(2).edge_block_bits();
+        assert_eq!(
+            params.corner_bit - 32 * params.edge_word,
+            32 * EDGE_LEVEL_WORDS + 6 * edge_bits
+        );
+        let (folded, levels) = (compressed.mesh.with_ranges_folded(), [3, 2, 2, 2]);
+        let (edges, rendered) = level_sorted_edges(&folded);
+        let exact = encode_exact(&expanded_mesh(&folded), (&edges, &rendered), compressed.code).unwrap();
+        for (g, &(_, bits)) in exact.grid_blocks.iter().enumerate() {
+            let held = 2 * (WIDTH_BITS + SHIFT_BITS);
+            assert!(
+                levels[g] == 3 || bits >= held && bits < held + 3 * 11,
+                "grid {g}: {bits} bits"
+            );
+        }
+        let view = grids.view();
+        for (slot, &t) in grids.base_triangle.iter().enumerate() {
+            let open = view.open(slot as u32);
+            let (level, t) = (levels[t as usize], t as usize);
+            let shift = 3 - level;
+            for (q, want) in lattice_points(grid_size(level)).zip(folded.micro_vertices(t)) {
+                assert_eq!(
+                    view.vertex(&open, [q[0] << shift, q[1] << shift]),
+                    want,
+                    "triangle {t} at {q:?}"
+                );
+            }
+        }
+    }
+
     /// Each grid takes its own widths: the noisiest more bits than the others, and
     /// laying the result out again finds widths that decode every value as compressed.
     #[test]
@@ -952,8 +1100,8 @@ mod tests {
         let mesh = tetrahedron(4, 200);
         let compressed = compress(&mesh, &ValueCompression::bounded(2e-3)).unwrap();
         let folded = &compressed.mesh;
-        let edges = BaseEdges::new(&folded.base_mesh());
-        let exact = encode_exact(folded, &edges, compressed.code).unwrap();
+        let (edges, rendered) = level_sorted_edges(folded);
+        let exact = encode_exact(folded, (&edges, &rendered), compressed.code).unwrap();
         assert!(exact.bits <= compressed.bits, "{} > {}", exact.bits, compressed.bits);
         let bits: Vec<u32> = exact.grid_blocks.iter().map(|b| b.1).collect();
         assert!(bits[3] > bits[0].max(bits[1]).max(bits[2]), "{bits:?}");

@@ -59,6 +59,7 @@ pub fn layout(mesh: &DisplacedMesh, options: &GridOptions) -> Result<GridLayout>
     };
     let mesh = mesh.with_ranges_folded();
     let own_levels = mesh.own_levels();
+    let (edges, rendered) = compressed::level_sorted_edges(&mesh);
     let mesh = match own_levels.is_empty() {
         true => mesh,
         false => expanded_mesh(&mesh),
@@ -68,7 +69,6 @@ pub fn layout(mesh: &DisplacedMesh, options: &GridOptions) -> Result<GridLayout>
         triangles: mesh.triangles.clone(),
     };
     let n = grid_size(levels);
-    let edges = BaseEdges::new(&base);
     check_counts(&base, edges.owner.len() as u64, levels, options, false)?;
     let mut shape = GridShape::new(&base, edges.owner.len(), levels, options, false);
     let inner_count = inner_vertex_count(levels) as usize;
@@ -124,7 +124,7 @@ pub fn layout(mesh: &DisplacedMesh, options: &GridOptions) -> Result<GridLayout>
             (inner_by_grid, pack(&values[inner..]), None)
         }
         Some(code) => {
-            let Some(encoded) = compressed::encode_exact(&mesh, &edges, code) else {
+            let Some(encoded) = compressed::encode_exact(&mesh, (&edges, &rendered), code) else {
                 fail!(
                     Input,
                     "its values are not those of their compressed code: compress the micro-mesh again"
@@ -135,7 +135,7 @@ pub fn layout(mesh: &DisplacedMesh, options: &GridOptions) -> Result<GridLayout>
             shape.value_code = Some(code);
             shape.block_offset_bits = blocks.offset_bits;
             let edge_word = blocks.words;
-            let corner_bit = 32 * edge_word + edges.owner.len() as u64 * code.edge_block_bits() as u64;
+            let corner_bit = 32 * edge_word + encoded.edge_area_bits;
             let base_word = edge_word + encoded.shared.len() as u64;
             check_addressable(
                 base_word,
