@@ -218,18 +218,26 @@ fn bake_refuses_bad_outputs_before_any_work() {
 /// A byte budget tighter than the error bound needs is kept, the bound given up and the
 /// report saying so, and one out of reach is said to be; a level per base triangle writes a
 /// file of mixed levels that `render` reads, its values plain when asked, compressed within a
-/// bound given or by default, and its displaced grids' bytes reported.
+/// bound given or by default, and its displaced grids' bytes reported; levels per base
+/// triangle for a budget of bytes keep within it.
 #[test]
 fn bake_keeps_to_a_byte_budget_and_mixes_levels() {
     let dir = scratch("bake-budget");
     let reference = dir.join("ball.obj");
     write_obj(&reference, &bumpy_ball(4), 0.0);
     let r = o_str(&reference);
+    let args = |out: &Path, extra: &[&str]| {
+        let out = o_str(out).to_string();
+        let mut args: Vec<String> = ["bake", r, "-L", "3", "-o", &out, "--samples", "5000"]
+            .map(String::from)
+            .to_vec();
+        args.extend(extra.iter().map(|a| a.to_string()));
+        args
+    };
     let bake = |name: &str, extra: &[&str]| {
         let out = dir.join(name);
-        let mut args = vec!["bake", r, "-L", "3", "-o", o_str(&out), "--samples", "5000", "--json"];
-        args.extend(extra);
-        (json(&args), out)
+        let args = args(&out, &[extra, &["--json"]].concat());
+        (json(&args.iter().map(String::as_str).collect::<Vec<_>>()), out)
     };
     let (free, _) = bake("free.gltf", &["--max-bytes", "100"]);
     let micro = free["micro_triangles"].as_u64().unwrap() as f64;
@@ -313,4 +321,18 @@ fn bake_keeps_to_a_byte_budget_and_mixes_levels() {
         default["micro_triangles"].as_u64() > mixed["micro_triangles"].as_u64(),
         "{default}\n{mixed}"
     );
+    // Levels per triangle for a budget of everything the GPU gets: within it and near it,
+    // of mixed levels; one out of reach is said to be.
+    let budget = (0.9 * free_bytes) as u64;
+    let (within, _) = bake("within.gltf", &["--within-bytes", &budget.to_string()]);
+    let bytes = within["grid_bytes"].as_u64().unwrap();
+    assert!(bytes <= budget && 10 * bytes >= 8 * budget, "{budget}: {within}");
+    let levels = within["level_micro_triangles"].as_array().unwrap();
+    assert!(levels.iter().filter(|c| c.as_u64() > Some(0)).count() >= 2, "{within}");
+    assert_eq!(within["compression"]["budget_met"], true, "{within}");
+    let args = args(&dir.join("unreachable.gltf"), &["--within-bytes", "100"]);
+    let o = gridrt(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("over the budget of 100 B (--within-bytes)"), "{text}");
 }

@@ -53,14 +53,40 @@ pub enum LevelTarget {
 /// Bakes `reference` as `options` say, then gives each base triangle a level up to
 /// `options.levels` for `target` (see the module docs).
 pub fn bake_levels(reference: &Mesh, options: &BakeOptions, target: LevelTarget) -> Result<Baked> {
-    let crossed = super::cross(reference, options)?;
-    let fits = fit_levels(reference, &crossed, options);
-    let levels = choose_levels(&crossed.triangles, &fits, target);
-    let mesh = fitted_together(reference, &crossed, &fits, &levels, options);
-    mesh.check()?;
-    let mut report = crossed.report;
-    report.micro_triangles = mesh.micro_triangles_at(crate::displaced::MAX_LEVEL);
-    Ok(Baked { mesh, report })
+    LevelFitting::new(reference, options)?.bake(target)
+}
+
+/// A reference crossed and fitted at every level once, for levels chosen for as many
+/// targets as a caller tries (as a byte budget of everything the GPU gets needs, whose bytes
+/// are known only once the values are compressed).
+pub struct LevelFitting<'a> {
+    reference: &'a Mesh,
+    options: &'a BakeOptions,
+    crossed: Crossed,
+    fits: LevelFits,
+}
+
+impl<'a> LevelFitting<'a> {
+    pub fn new(reference: &'a Mesh, options: &'a BakeOptions) -> Result<Self> {
+        let crossed = super::cross(reference, options)?;
+        let fits = fit_levels(reference, &crossed, options);
+        Ok(LevelFitting {
+            reference,
+            options,
+            crossed,
+            fits,
+        })
+    }
+
+    /// Each base triangle at its level for `target`, fitted as a whole.
+    pub fn bake(&self, target: LevelTarget) -> Result<Baked> {
+        let levels = choose_levels(&self.crossed.triangles, &self.fits, target);
+        let mesh = fitted_together(self.reference, &self.crossed, &self.fits, &levels, self.options);
+        mesh.check()?;
+        let mut report = self.crossed.report;
+        report.micro_triangles = mesh.micro_triangles_at(crate::displaced::MAX_LEVEL);
+        Ok(Baked { mesh, report })
+    }
 }
 
 /// The fits of every level, level 0 first, and how many samples (of both surfaces) measured

@@ -33,6 +33,8 @@ struct Report {
     /// values, base mesh, headers, radii, leaf thicknesses, top-level BVH.
     /// `None` where the micro-mesh is too large for displaced grids (rendered as triangles).
     grid_bytes: Option<u64>,
+    /// The budget for `grid_bytes` the levels were chosen for (`--within-bytes`).
+    within_bytes: Option<u64>,
     /// Micro-triangles at each level `0 ..= 6`, where base triangles have their own levels
     /// (`--max-error`).
     level_micro_triangles: Option<Vec<u64>>,
@@ -110,9 +112,10 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
         ..defaults
     };
     let started = std::time::Instant::now();
-    let baked = match args.max_error {
-        None => stages.run("bake", || bake::bake(&reference_mesh, &options))?,
-        Some(max_error) => {
+    let baked = match (args.max_error, args.within_bytes) {
+        (None, Some(bytes)) => stages.run("bake", || bake_within_bytes(&reference_mesh, &options, bytes, args))?,
+        (None, None) => stages.run("bake", || bake::bake(&reference_mesh, &options))?,
+        (Some(max_error), _) => {
             let (lo, hi) = reference_mesh.bounds();
             let share = if compression_follows(args) {
                 bake::levels_error_share()
@@ -148,10 +151,11 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
         }
         None => (baked.mesh, None, plain),
         Some(options) => {
-            let budget = byte_budget(args).map(|per_micro| ByteBudget {
+            let micro_triangles = baked.report.micro_triangles;
+            let budget = byte_budget(args, micro_triangles).map(|per_micro| ByteBudget {
                 per_micro,
-                micro_triangles: baked.report.micro_triangles,
-                asked: args.max_bytes.is_some(),
+                micro_triangles,
+                asked: args.max_bytes.is_some() || args.within_bytes.is_some(),
             });
             let (compressed, budget) = stages.run("compress", || compress_within(&baked.mesh, options, budget))?;
             let d = measure(stages, &compressed.mesh);
@@ -180,7 +184,9 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
         file_bytes: outputs.iter().map(|p| bytes(p)).sum(),
         micromap_bytes: bytes(&outputs[2]),
         grid_bytes,
-        level_micro_triangles: args.max_error.map(|_| bake::levels::level_counts(&mesh)),
+        within_bytes: args.within_bytes,
+        level_micro_triangles: (args.max_error.is_some() || args.within_bytes.is_some())
+            .then(|| bake::levels::level_counts(&mesh)),
         bake_seconds,
         compression,
         nv_blocks,
@@ -210,9 +216,98 @@ fn grid_memory(mesh: &DisplacedMesh) -> Option<Vec<(&'static str, u64)>> {
     )
 }
 
-/// The byte budget per micro-triangle: the one asked for, or with the default error bound
-/// and one level the default for the level.
-fn byte_budget(args: &BakeArgs) -> Option<f64> {
+/// The parts of what the GPU gets (see [`grid_memory`]) that hold the values.
+const VALUE_PARTS: [&str; 3] = ["inner_values", "value_block_table", "edge_and_corner_values"];
+
+/// Rounds of choosing levels for `--within-bytes`.
+const BUDGET_ROUNDS: usize = 6;
+
+/// Levels per base triangle for a budget of `bytes` of everything the GPU gets
+/// (`--within-bytes`). The levels' choice knows their plain values' bytes alone, so it aims
+/// at a share of the budget: each round chooses the levels for a share, compresses their
+/// values as the bake will (the bound from the same measure of their distance) and measures
+/// the whole. With tries on one side of the budget only, the next share is scaled by the
+/// room the budget leaves the values over what they took (the rest, base mesh, headers and
+/// top level, changes little with the levels); with tries on both sides, it is where the
+/// line through the nearest two meets the budget. The finest levels that fitted are kept,
+/// or the last, coarsest, try; the values are then compressed within the budget itself.
+fn bake_within_bytes(
+    reference: &gridrt::mesh::Mesh,
+    options: &BakeOptions,
+    bytes: u64,
+    args: &BakeArgs,
+) -> gridrt::error::Result<bake::Baked> {
+    use bake::levels::{LevelFitting, LevelTarget};
+    let fitting = LevelFitting::new(reference, options)?;
+    // Measured as the bake will measure the levels kept, so their compression lands where
+    // it landed here.
+    let sampling = Sampling {
+        samples: args.samples,
+        ..Sampling::default()
+    };
+    // The tries either side of the budget: (share, bytes landed, bake).
+    let mut below: Option<(u64, u64, bake::Baked)> = None;
+    let mut above: Option<(u64, u64)> = None;
+    let mut last = None;
+    let mut share = bytes;
+    for _ in 0..BUDGET_ROUNDS {
+        let baked = fitting.bake(LevelTarget::MaxBytes(share))?;
+        let mesh = match compresses(args) {
+            true => {
+                let distance = surface_distance::measure(reference, &baked.mesh.decoded(), &sampling);
+                let bound = bake::COMPRESSION_ERROR_SHARE * distance.symmetric.rms as f32;
+                compress(&baked.mesh, &ValueCompression::within(&baked.mesh, bound))?.mesh
+            }
+            false => baked.mesh.clone(),
+        };
+        let Some(parts) = grid_memory(&mesh) else {
+            return Ok(baked);
+        };
+        let landed: u64 = parts.iter().map(|&(_, b)| b).sum();
+        let values: u64 = (parts.iter().filter(|(part, _)| VALUE_PARTS.contains(part)))
+            .map(|&(_, b)| b)
+            .sum();
+        // What the values may take: the budget less the rest, which the levels change little.
+        let room = bytes.saturating_sub(landed - values);
+        if landed <= bytes {
+            // Close enough: within a fiftieth below the budget.
+            let close = 50 * (bytes - landed) <= bytes;
+            below = Some((share, landed, baked));
+            if close {
+                break;
+            }
+        } else {
+            above = Some((share, landed));
+            last = Some(baked);
+        }
+        let next = match (&below, above) {
+            (Some((s0, b0, _)), Some((s1, b1))) => {
+                let at = *s0 as f64 + (bytes - b0) as f64 * (s1 - s0) as f64 / (b1 - b0).max(1) as f64;
+                let next = at as u64;
+                if next > *s0 && next < s1 {
+                    next
+                } else {
+                    (s0 + s1) / 2
+                }
+            }
+            // One side only: the share scaled by the room for the values over what they took,
+            // at most doubled.
+            _ => (share as f64 * (room as f64 / values.max(1) as f64).min(2.0)) as u64,
+        };
+        if next == share || next == 0 {
+            break;
+        }
+        share = next;
+    }
+    Ok(below.map(|(_, _, b)| b).or(last).expect("at least one round"))
+}
+
+/// The byte budget per micro-triangle, of `micro_triangles`: the one asked for, or with the
+/// default error bound and one level the default for the level.
+fn byte_budget(args: &BakeArgs, micro_triangles: u64) -> Option<f64> {
+    if let Some(bytes) = args.within_bytes {
+        return Some(bytes as f64 / micro_triangles.max(1) as f64);
+    }
     match (args.max_bytes, args.compress_values) {
         (Some(bytes), _) => Some(bytes),
         (None, Some(_)) => None,
@@ -272,13 +367,23 @@ fn compress_within(
     // What the values may take: the budget less the rest (base mesh, headers, radii, top
     // level), whose sizes the values do not change, less the block table with entries wide
     // enough to address every bit the values may take.
-    let values = ["inner_values", "value_block_table", "edge_and_corner_values"];
-    let rest: u64 = (plain.iter().filter(|(part, _)| !values.contains(part)))
+    let rest: u64 = (plain.iter().filter(|(part, _)| !VALUE_PARTS.contains(part)))
         .map(|&(_, bytes)| bytes)
         .sum();
     let table_bits = (64 - (8 * allowed).leading_zeros() as u64) * mesh.triangles.len() as u64 + 32;
     let mut max_bits = (8 * allowed.saturating_sub(rest)).saturating_sub(table_bits);
     let compressor = Compressor::new(mesh, options.max_added_error)?;
+    // Within the bound the whole may fit already, whatever the estimate says.
+    let bounded = compressor.within(None);
+    if grid_memory(&bounded.mesh).is_some_and(|parts| total(&parts) <= allowed) {
+        let outcome = BudgetOutcome {
+            max_bytes: Some(per_micro),
+            default: !asked,
+            binds: false,
+            met: true,
+        };
+        return Ok((bounded, outcome));
+    }
     let mut compressed = compressor.within(Some(max_bits));
     // The table, the blocks' word padding and the top level come out a little off the
     // estimate: twice at most, the bits move by what the whole missed the budget by, while
@@ -396,9 +501,14 @@ fn summary(r: &Report) -> String {
         r.file_bytes,
         per_micro(r.file_bytes),
         per_micro(r.micromap_bytes),
-        match r.grid_bytes {
-            Some(bytes) => format!("{bytes} bytes, {:.2} B per micro-triangle", per_micro(bytes)),
-            None => "too large to trace as displaced grids (rendered as triangles)".into(),
+        match (r.grid_bytes, r.within_bytes) {
+            (Some(bytes), Some(budget)) if bytes > budget => format!(
+                "{bytes} bytes, {:.2} B per micro-triangle, over the budget of {budget} B (--within-bytes): even the \
+                 coarsest levels take more",
+                per_micro(bytes)
+            ),
+            (Some(bytes), _) => format!("{bytes} bytes, {:.2} B per micro-triangle", per_micro(bytes)),
+            (None, _) => "too large to trace as displaced grids (rendered as triangles)".into(),
         },
         r.bake_seconds,
         b.misses,
@@ -415,6 +525,13 @@ fn summary(r: &Report) -> String {
                 c.added_error,
                 c.max_added_error,
                 match (c.max_bytes, c.budget_default, c.budget_met, c.budget_binds) {
+                    _ if r.within_bytes.is_some() => match (c.budget_met, c.budget_binds) {
+                        (false, _) => "; the budget (--within-bytes) is out of reach, and the values take their \
+                                       fewest bits"
+                            .to_string(),
+                        (true, true) => ", exceeded to fit the budget (--within-bytes)".to_string(),
+                        (true, false) => "; within the budget (--within-bytes)".to_string(),
+                    },
                     (Some(b), false, false, _) => format!(
                         "; the budget of {b} B per micro-triangle (--max-bytes) is out of reach: the rest of the \
                          bytes take too many, and the values their fewest bits"

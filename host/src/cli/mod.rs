@@ -669,6 +669,19 @@ pub struct BakeArgs {
     /// levels keep all of it.
     #[arg(long, value_name = "MAX_ERROR", value_parser = parse_value_error, conflicts_with = "max_bytes")]
     pub max_error: Option<f32>,
+    /// Give each base triangle its own level, up to --levels, as --max-error does, but as
+    /// close to the reference as BYTES bytes of everything the GPU gets allow (values
+    /// compressed as by default, or --plain-values): the levels are chosen for a share of the
+    /// budget, their values compressed and the whole measured, and the share corrected, a
+    /// few rounds, then the values take what is left of the budget. Where even the coarsest
+    /// levels do not fit, the summary says so.
+    #[arg(
+        long,
+        value_name = "BYTES",
+        value_parser = clap::value_parser!(u64).range(1..),
+        conflicts_with_all = ["max_error", "max_bytes", "compress_values", "nv_blocks"]
+    )]
+    pub within_bytes: Option<u64>,
     /// Store the values in NVIDIA's compressed displacement blocks (eDispC1_r11_unorm_block),
     /// as other micro-mesh tools and the fixed-function hardware take them: exact up to level
     /// 3, 256 micro-triangles in 128 bytes at level 4, 1024 in 128 from level 5 (with
