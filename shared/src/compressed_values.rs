@@ -366,13 +366,15 @@ impl CodedGrid {
             let t = if (self.block_levels >> edge) & 1 != 0 { n - s } else { s };
             let tz = t.trailing_zeros();
             let level = code.levels - tz;
-            // A point finer than the edge's block holds is its parents' mean.
-            let held = code.at_levels(self.edge_levels(edge));
-            let (place, width) = if level > held.levels {
+            // A point finer than the edge's block holds is its parents' mean. The block's
+            // shifts are of its own levels, fewer than the scene's shifts by `missing`.
+            let held = self.edge_levels(edge);
+            let missing = SHIFT_BITS * (code.levels - held);
+            let (place, width) = if level > held {
                 (0, 0)
             } else {
                 (
-                    held.edge_level_bit(level) + (t >> (tz + 1)) * code.width(level),
+                    code.edge_level_bit(level) - missing + (t >> (tz + 1)) * code.width(level),
                     code.width(level),
                 )
             };
