@@ -112,8 +112,14 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
         ..defaults
     };
     let started = std::time::Instant::now();
+    // The distance of the bake from the reference, where choosing its levels measured it.
+    let mut measured = None;
     let baked = match (args.max_error, args.within_bytes) {
-        (None, Some(bytes)) => stages.run("bake", || bake_within_bytes(&reference_mesh, &options, bytes, args))?,
+        (None, Some(bytes)) => {
+            let (baked, distance) = stages.run("bake", || bake_within_bytes(&reference_mesh, &options, bytes, args))?;
+            measured = distance;
+            baked
+        }
         (None, None) => stages.run("bake", || bake::bake(&reference_mesh, &options))?,
         (Some(max_error), _) => {
             let (lo, hi) = reference_mesh.bounds();
@@ -137,7 +143,10 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
             surface_distance::measure(&reference_mesh, &decoded, &sampling)
         })
     };
-    let plain = measure(stages, &baked.mesh);
+    let plain = match measured {
+        Some(distance) => distance,
+        None => measure(stages, &baked.mesh),
+    };
     let mut nv_blocks = None;
     let (mesh, compression, d) = match compression_bound(args, &baked.mesh, &plain) {
         None if args.nv_blocks => {
@@ -174,7 +183,6 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
         }
     };
     stages.run("write", || micromesh_gltf::write(&args.output, &mesh, &frame))?;
-    let grid_bytes = grid_memory(&mesh).map(|parts| parts.iter().map(|&(_, bytes)| bytes).sum());
     let bytes = |p: &Path| std::fs::metadata(p).map_or(0, |m| m.len());
     let report = Report {
         reference: args.reference.display().to_string(),
@@ -183,7 +191,7 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
         bake: baked.report,
         file_bytes: outputs.iter().map(|p| bytes(p)).sum(),
         micromap_bytes: bytes(&outputs[2]),
-        grid_bytes,
+        grid_bytes: grid_memory(&mesh).map(|parts| total(&parts)),
         within_bytes: args.within_bytes,
         level_micro_triangles: (args.max_error.is_some() || args.within_bytes.is_some())
             .then(|| bake::levels::level_counts(&mesh)),
@@ -216,6 +224,11 @@ fn grid_memory(mesh: &DisplacedMesh) -> Option<Vec<(&'static str, u64)>> {
     )
 }
 
+/// Bytes of all `parts` (see [`grid_memory`]).
+fn total(parts: &[(&str, u64)]) -> u64 {
+    parts.iter().map(|&(_, bytes)| bytes).sum()
+}
+
 /// The parts of what the GPU gets (see [`grid_memory`]) that hold the values.
 const VALUE_PARTS: [&str; 3] = ["inner_values", "value_block_table", "edge_and_corner_values"];
 
@@ -230,13 +243,14 @@ const BUDGET_ROUNDS: usize = 6;
 /// room the budget leaves the values over what they took (the rest, base mesh, headers and
 /// top level, changes little with the levels); with tries on both sides, it is where the
 /// line through the nearest two meets the budget. The finest levels that fitted are kept,
-/// or the last, coarsest, try; the values are then compressed within the budget itself.
+/// or the last, coarsest, try, with their distance from the reference where it was
+/// measured; the values are then compressed within the budget itself.
 fn bake_within_bytes(
     reference: &gridrt::mesh::Mesh,
     options: &BakeOptions,
     bytes: u64,
     args: &BakeArgs,
-) -> gridrt::error::Result<bake::Baked> {
+) -> gridrt::error::Result<(bake::Baked, Option<SurfaceDistance>)> {
     use bake::levels::{LevelFitting, LevelTarget};
     let fitting = LevelFitting::new(reference, options)?;
     // Measured as the bake will measure the levels kept, so their compression lands where
@@ -245,25 +259,23 @@ fn bake_within_bytes(
         samples: args.samples,
         ..Sampling::default()
     };
-    // The tries either side of the budget: (share, bytes landed, bake).
-    let mut below: Option<(u64, u64, bake::Baked)> = None;
+    // The tries either side of the budget: (share, bytes landed, bake and its distance).
+    let mut below: Option<(u64, u64, (bake::Baked, Option<SurfaceDistance>))> = None;
     let mut above: Option<(u64, u64)> = None;
     let mut last = None;
     let mut share = bytes;
     for _ in 0..BUDGET_ROUNDS {
         let baked = fitting.bake(LevelTarget::MaxBytes(share))?;
-        let mesh = match compresses(args) {
-            true => {
-                let distance = surface_distance::measure(reference, &baked.mesh.decoded(), &sampling);
-                let bound = bake::COMPRESSION_ERROR_SHARE * distance.symmetric.rms as f32;
-                compress(&baked.mesh, &ValueCompression::within(&baked.mesh, bound))?.mesh
-            }
-            false => baked.mesh.clone(),
+        let distance =
+            (compresses(args)).then(|| surface_distance::measure(reference, &baked.mesh.decoded(), &sampling));
+        let mesh = match distance.and_then(|d| compression_bound(args, &baked.mesh, &d)) {
+            Some(compression) => compress(&baked.mesh, &compression)?.mesh,
+            None => baked.mesh.clone(),
         };
         let Some(parts) = grid_memory(&mesh) else {
-            return Ok(baked);
+            return Ok((baked, distance));
         };
-        let landed: u64 = parts.iter().map(|&(_, b)| b).sum();
+        let landed = total(&parts);
         let values: u64 = (parts.iter().filter(|(part, _)| VALUE_PARTS.contains(part)))
             .map(|&(_, b)| b)
             .sum();
@@ -272,13 +284,13 @@ fn bake_within_bytes(
         if landed <= bytes {
             // Close enough: within a fiftieth below the budget.
             let close = 50 * (bytes - landed) <= bytes;
-            below = Some((share, landed, baked));
+            below = Some((share, landed, (baked, distance)));
             if close {
                 break;
             }
         } else {
             above = Some((share, landed));
-            last = Some(baked);
+            last = Some((baked, distance));
         }
         let next = match (&below, above) {
             (Some((s0, b0, _)), Some((s1, b1))) => {
@@ -360,7 +372,6 @@ fn compress_within(
         return Ok((compress(mesh, &options)?, unbudgeted()));
     };
     let allowed = (per_micro * micro_triangles as f64).floor() as u64;
-    let total = |parts: &[(&str, u64)]| parts.iter().map(|&(_, bytes)| bytes).sum::<u64>();
     let Some(plain) = grid_memory(mesh) else {
         return Ok((compress(mesh, &options)?, unbudgeted()));
     };
@@ -409,7 +420,7 @@ fn compress_within(
         (compressed, miss) = (fits, 0);
     }
     if miss < 0 && !asked {
-        compressed = compressor.within(None);
+        compressed = bounded;
     }
     let outcome = BudgetOutcome {
         max_bytes: Some(per_micro),

@@ -452,10 +452,7 @@ impl Rendered {
 
     /// Whether base edge `id`'s point `s` steps from its first corner is rendered.
     fn edge_point(&self, id: usize, s: u32) -> bool {
-        let Some(&level) = self.edge_levels.get(id) else {
-            return true;
-        };
-        s & ((1u32 << (self.levels - level)) - 1) == 0
+        s & ((1u32 << (self.levels - self.edge_level(id, self.levels))) - 1) == 0
     }
 }
 
@@ -578,11 +575,10 @@ pub(super) fn encode_exact(
 /// where no width does.
 fn exact_code(mesh: &DisplacedMesh, g: usize, own: u32) -> Option<ValueCode> {
     let n = grid_size(mesh.micromap.triangles[g].level);
-    let levels = own;
     let truth = mesh.micromap.triangle_values(g);
     let at = |p: Lattice| u_major_index(p, n) as usize;
     let mut widths = [0; MAX_LEVELS as usize];
-    for l in 1..=levels {
+    for l in 1..=own {
         let targets: Vec<Target> = new_inner_points(l, n)
             .into_iter()
             .map(|p| {
@@ -599,7 +595,7 @@ fn exact_code(mesh: &DisplacedMesh, g: usize, own: u32) -> Option<ValueCode> {
         widths[l as usize - 1] =
             (0..=MAX_WIDTH).find(|&w| (0..=if w == 0 { 0 } else { VALUE_BITS }).any(|s| exact(w, s)))?;
     }
-    Some(code(levels, &widths))
+    Some(code(own, &widths))
 }
 
 /// Distance one value step moves lattice point `p` of grid `g` (of size `n`).
@@ -677,10 +673,7 @@ impl SharedValues {
             .collect();
         let mut out = BitWriter::default();
         if !rendered.own.is_empty() {
-            let levels: Vec<u32> = (0..edges.owner.len())
-                .map(|id| rendered.edge_level(id, code.levels))
-                .collect();
-            write_edge_levels(&levels, code, &mut out);
+            write_edge_levels(&rendered.edge_levels, code, &mut out);
         }
         let (mut squared_error, mut points) = (0.0, corner_values.len() as u64);
         let mut edge_values = Vec::with_capacity(edges.owner.len());
