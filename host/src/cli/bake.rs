@@ -71,6 +71,9 @@ struct CompressionReport {
     budget_met: bool,
     /// The symmetric distance before compression, as `symmetric` is given.
     uncompressed_symmetric: DistanceSummary,
+    /// Whether the values stay plain, exact, because compressed they took more of the GPU's
+    /// bytes (see [`plain_is_smaller`]); the fields above then describe the compression tried.
+    kept_plain: bool,
 }
 
 #[derive(Serialize)]
@@ -166,8 +169,19 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
                 micro_triangles,
                 asked: args.max_bytes.is_some() || args.within_bytes.is_some(),
             });
-            let (compressed, budget) = stages.run("compress", || compress_within(&baked.mesh, options, budget))?;
-            let d = measure(stages, &compressed.mesh);
+            let (compressed, mut budget) = stages.run("compress", || compress_within(&baked.mesh, options, budget))?;
+            let kept_plain = plain_is_smaller(&baked.mesh, &compressed.mesh);
+            if kept_plain {
+                budget.binds = false;
+                budget.met |= budget.max_bytes.is_none_or(|per_micro| {
+                    let plain = grid_memory(&baked.mesh).map_or(0, |parts| total(&parts));
+                    plain as f64 <= (per_micro * micro_triangles as f64).floor()
+                });
+            }
+            let d = match kept_plain {
+                true => plain,
+                false => measure(stages, &compressed.mesh),
+            };
             let report = CompressionReport {
                 widths: grid::compressed::level_widths(&compressed.code),
                 bits_per_value: compressed.bits_per_value(),
@@ -178,8 +192,10 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
                 budget_binds: budget.binds,
                 budget_met: budget.met,
                 uncompressed_symmetric: plain.symmetric.relative_to(plain.a_diagonal),
+                kept_plain,
             };
-            (compressed.mesh, Some(report), d)
+            let mesh = if kept_plain { baked.mesh } else { compressed.mesh };
+            (mesh, Some(report), d)
         }
     };
     stages.run("write", || micromesh_gltf::write(&args.output, &mesh, &frame))?;
@@ -232,6 +248,17 @@ fn total(parts: &[(&str, u64)]) -> u64 {
 /// The parts of what the GPU gets (see [`grid_memory`]) that hold the values.
 const VALUE_PARTS: [&str; 3] = ["inner_values", "value_block_table", "edge_and_corner_values"];
 
+/// Whether `plain`'s values take no more of everything the GPU gets than `compressed`, the
+/// same micro-mesh with its values compressed: a tight bound on coarse levels can take more
+/// bits than plain values do (each block spends its widths and shifts on few points), and
+/// plain values are then both smaller and exact.
+fn plain_is_smaller(plain: &DisplacedMesh, compressed: &DisplacedMesh) -> bool {
+    match (grid_memory(plain), grid_memory(compressed)) {
+        (Some(plain), Some(compressed)) => total(&plain) <= total(&compressed),
+        _ => false,
+    }
+}
+
 /// Rounds of choosing levels for `--within-bytes`.
 const BUDGET_ROUNDS: usize = 6;
 
@@ -269,7 +296,13 @@ fn bake_within_bytes(
         let distance =
             (compresses(args)).then(|| surface_distance::measure(reference, &baked.mesh.decoded(), &sampling));
         let mesh = match distance.and_then(|d| compression_bound(args, &baked.mesh, &d)) {
-            Some(compression) => compress(&baked.mesh, &compression)?.mesh,
+            Some(compression) => {
+                let compressed = compress(&baked.mesh, &compression)?.mesh;
+                match plain_is_smaller(&baked.mesh, &compressed) {
+                    true => baked.mesh.clone(),
+                    false => compressed,
+                }
+            }
             None => baked.mesh.clone(),
         };
         let Some(parts) = grid_memory(&mesh) else {
@@ -528,6 +561,11 @@ fn summary(r: &Report) -> String {
         b.clamped,
         share(b.clamped),
         match &r.compression {
+            Some(c) if c.kept_plain => format!(
+                "values: plain, 11 bits each: compressed within the bound (to {:.2} bits each) they took more bytes of \
+                 what the GPU gets\n",
+                c.bits_per_value
+            ),
             Some(c) => format!(
                 "values: compressed to {:.2} bits each (base edges at widths {:?} bits per level, each grid at \
                  its own), adding {:.3e} of the base's diagonal (RMS, bound {:.3e}{})\n",
@@ -572,7 +610,8 @@ fn summary(r: &Report) -> String {
         row("baked to reference", &r.baked_to_reference),
         row("both (symmetric)", &r.symmetric),
         match (&r.compression, &r.nv_blocks) {
-            (Some(c), _) => row("both, before compression", &c.uncompressed_symmetric),
+            (Some(c), _) if !c.kept_plain => row("both, before compression", &c.uncompressed_symmetric),
+            (Some(_), _) => String::new(),
             (None, Some(b)) => row("both, before the blocks", &b.before_symmetric),
             (None, None) => String::new(),
         },
