@@ -1,6 +1,6 @@
 //! Fields of any width up to 32 bits written end to end into 32-bit words, from bit 0 of
 //! word 0, each field's lowest bit first: the order in which
-//! `gridrt_shared::compressed_values::read_bits` reads them back, and the order of the
+//! `gridrt_shared::bit_fields::read_bits` reads them back, and the order of the
 //! `.bary` format's packed 11-bit values.
 
 /// A growing run of packed fields.
@@ -41,7 +41,7 @@ impl BitWriter {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use gridrt_shared::compressed_values::read_bits;
+    use gridrt_shared::bit_fields::read_bits;
 
     /// Fields of every width read back as the traversal reads them, across word boundaries.
     #[test]

@@ -35,9 +35,16 @@
 //! traversal walks to a sub-triangle's corners once ([`CodedGrid::sub_triangle_values`]) and
 //! decodes a leaf's whole lattice from them ([`CodedGrid::decode_lattice`]).
 
+use crate::bit_fields::read_bits;
 use crate::buffer::Buffer;
 use crate::grid_index::{lattice_index, parents, Lattice};
 use crate::layout::GridIds;
+use crate::value_tables::{block_bit, leveled_edge, EDGE_TABLE_LEVELS};
+
+const _: () = assert!(
+    MAX_LEVELS == EDGE_TABLE_LEVELS,
+    "the table of edge levels covers every level"
+);
 
 /// Bits of one block's shift for one level.
 pub const SHIFT_BITS: u32 = 4;
@@ -47,10 +54,6 @@ pub const WIDTH_BITS: u32 = 4;
 pub const MAX_LEVELS: u32 = 6;
 /// Where [`CodedGrid::edge_code`] keeps the levels, above the widths of [`MAX_LEVELS`] levels.
 const LEVELS_SHIFT: u32 = WIDTH_BITS * MAX_LEVELS;
-/// Words of the table of levels before the base edges' blocks in grids of mixed levels: per
-/// level `1 ..= MAX_LEVELS`, its first edge id, then the bit where its blocks begin, from
-/// the table's first bit.
-pub const EDGE_LEVEL_WORDS: u32 = 2 * MAX_LEVELS;
 /// Where [`CodedGrid::block_levels`] keeps the grid's own level, and then its edges' (four bits
 /// each), above the edges' directions.
 const OWN_LEVEL_SHIFT: u32 = 4;
@@ -176,29 +179,6 @@ impl ValueCode {
     }
 }
 
-/// `width` bits of `buffer` from bit `bit`, for any `width` up to 32: two reads of at most
-/// 16 bits where one of up to 25 may not do.
-#[inline]
-pub fn read_long_bits<B: Buffer<u32>>(buffer: B, bit: u32, width: u32) -> u32 {
-    if width <= 16 {
-        read_bits(buffer, bit, width)
-    } else {
-        read_bits(buffer, bit, 16) | read_bits(buffer, bit + 16, width - 16) << 16
-    }
-}
-
-/// `width` bits of `buffer` from bit `bit` (`width <= 25`: they span at most two words; the
-/// word after them must exist).
-#[inline]
-pub fn read_bits<B: Buffer<u32>>(buffer: B, bit: u32, width: u32) -> u32 {
-    let (word, shift) = (bit >> 5, bit & 31);
-    // Shifted in two steps, so a field that starts a word shifts the next one out entirely
-    // rather than by 32, which shifts by nothing on some targets.
-    let low = buffer.load(word) >> shift;
-    let high = (buffer.load(word + 1) << 1) << (31 - shift);
-    (low | high) & ((1 << width) - 1)
-}
-
 /// The value predicted from parents `a` and `b`, moved by a `width`-bit two's-complement
 /// `field` shifted left by `shift`, and clamped to the values' range.
 #[inline]
@@ -253,11 +233,10 @@ pub struct CodedScene {
 }
 
 impl CodedScene {
-    /// The first bit of grid `grid`'s block: entry `grid` of the table at the start of the
-    /// buffer, `offset_bits` bits each, end to end.
+    /// The first bit of grid `grid`'s block (see `crate::value_tables`).
     #[inline]
     pub fn block_bit<B: Buffer<u32>>(&self, buffer: B, grid: u32) -> u32 {
-        read_long_bits(buffer, grid * self.offset_bits, self.offset_bits)
+        block_bit(buffer, grid, self.offset_bits)
     }
 
     /// Where base edge `id`'s block begins, and the levels it holds.
@@ -266,18 +245,9 @@ impl CodedScene {
         if !self.mixed {
             return (self.edge_bit + id * self.edge_block_bits, self.code.levels);
         }
-        // The edge's level: how many levels' first ids it has reached (they never decrease;
-        // a level past the scene's begins past the last edge). Unrolled, as in `level_bit`.
-        let table = self.edge_bit >> 5;
-        let reached = |k: u32| (id >= buffer.load(table + 2 * (k - 1))) as u32;
-        let level = reached(1) + reached(2) + reached(3) + reached(4) + reached(5) + reached(6);
-        if level == 0 {
-            return (self.edge_bit, 0);
-        }
-        let first = buffer.load(table + 2 * (level - 1));
-        let start = buffer.load(table + 2 * (level - 1) + 1);
-        let bits = self.code.at_levels(level).edge_block_bits();
-        (self.edge_bit + start + (id - first) * bits, level)
+        let edge = leveled_edge(buffer, self.edge_bit, id);
+        let bits = self.code.at_levels(edge.level).edge_block_bits();
+        (edge.bit(self.edge_bit, bits), edge.level)
     }
 
     /// Grid `grid` with ids `ids`, of level `own` (the scene's where levels are one),
@@ -575,16 +545,5 @@ mod tests {
         assert_eq!(corrected(0, 1, 0b100, 3, 4), 0);
         assert_eq!(corrected(2047, 2047, 0b011, 3, 4), 2047);
         assert_eq!(corrected(3, 4, 0, 0, 7), 4);
-    }
-
-    #[test]
-    fn bits_read_across_words() {
-        let words = [0xdead_beefu32, 0x1234_5678, 0];
-        assert_eq!(read_bits(&words[..], 0, 8), 0xef);
-        assert_eq!(read_bits(&words[..], 28, 8), 0x8d);
-        assert_eq!(read_bits(&words[..], 32, 24), 0x34_5678);
-        assert_eq!(read_long_bits(&words[..], 4, 32), 0x8dea_dbee);
-        assert_eq!(read_long_bits(&words[..], 36, 20), 0x3_4567);
-        assert_eq!(read_long_bits(&words[..], 0, 12), 0xeef);
     }
 }

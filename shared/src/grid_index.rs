@@ -264,11 +264,31 @@ pub struct GridSlots {
     n: u32,
     inner_first: u32,
     stride: u32,
+    /// How many levels coarser than the lattice of size `n` the inner area (bits 0 to 3) and
+    /// each edge's area (four bits each from bit 4) hold their points: they hold the
+    /// multiples of `2^shift`. Zero but in displaced grids of mixed levels.
+    shifts: u32,
     corners: [u32; 3],
     /// Address of step 0 along each edge, and the step between addresses (`+stride` or
     /// `-stride` as a wrapping `u32`), so a reversed edge needs no branch.
     edge_start: [u32; 3],
     edge_step: [u32; 3],
+}
+
+/// Where a grid's areas begin, each of its own level (see [`GridSlots::leveled`]).
+#[derive(Copy, Clone)]
+pub struct LeveledAreas {
+    /// The grid's first inner point, and how many levels coarser than the grid's lattice its
+    /// inner area is.
+    pub inner_first: u32,
+    pub inner_shift: u32,
+    /// Each edge's first point (from its lower corner id), and how many levels coarser.
+    pub edge_first: [u32; 3],
+    pub edge_shifts: [u32; 3],
+    /// The first point of the corner area.
+    pub corner_first: u32,
+    /// Units per point.
+    pub stride: u32,
 }
 
 impl GridSlots {
@@ -284,24 +304,47 @@ impl GridSlots {
     /// corner area at `corner_first`.
     #[inline]
     pub fn addressed(ids: &GridIds, n: u32, inner_first: u32, edge_first: u32, corner_first: u32, stride: u32) -> Self {
+        let edge = |e: u32| edge_first + ids.edge(e) * (n - 1) * stride;
+        Self::leveled(
+            ids,
+            n,
+            LeveledAreas {
+                inner_first,
+                inner_shift: 0,
+                edge_first: [edge(0), edge(1), edge(2)],
+                edge_shifts: [0; 3],
+                corner_first,
+                stride,
+            },
+        )
+    }
+
+    /// Addresses of a grid on a lattice of size `n` whose areas each hold the points of a
+    /// coarser level of it (a displaced grid of mixed levels): `areas` says where and which.
+    #[inline]
+    pub fn leveled(ids: &GridIds, n: u32, areas: LeveledAreas) -> Self {
+        let stride = areas.stride;
         let edge = |e: u32| {
-            let base = edge_first + ids.edge(e) * (n - 1) * stride;
+            let base = areas.edge_first[e as usize];
+            let points = (n >> areas.edge_shifts[e as usize]) - 1;
             if ids.edge_reversed(e) {
-                // Step s is stored at n - s - 1.
-                (base + (n - 1) * stride, stride.wrapping_neg())
+                // Step s is stored at points - s.
+                (base + points * stride, stride.wrapping_neg())
             } else {
                 (base.wrapping_sub(stride), stride)
             }
         };
         let (e0, e1, e2) = (edge(0), edge(1), edge(2));
+        let [s0, s1, s2] = areas.edge_shifts;
         GridSlots {
             n,
-            inner_first,
+            inner_first: areas.inner_first,
             stride,
+            shifts: areas.inner_shift | s0 << 4 | s1 << 8 | s2 << 12,
             corners: [
-                corner_first + ids.corner(0) * stride,
-                corner_first + ids.corner(1) * stride,
-                corner_first + ids.corner(2) * stride,
+                areas.corner_first + ids.corner(0) * stride,
+                areas.corner_first + ids.corner(1) * stride,
+                areas.corner_first + ids.corner(2) * stride,
             ],
             edge_start: [e0.0, e1.0, e2.0],
             edge_step: [e0.1, e1.1, e2.1],
@@ -309,16 +352,21 @@ impl GridSlots {
     }
 
     /// Where the vertex at lattice point `(i, j)` lives in the vertex buffer: the grid's own
-    /// inner area, the shared area of one of its base edges, or the shared corner area.
+    /// inner area, the shared area of one of its base edges, or the shared corner area. A
+    /// point of an area that holds a coarser level must be one of that level's.
     #[inline]
     pub fn slot(&self, p: Lattice) -> u32 {
         let [i, j] = p;
         let n = self.n;
         let k = n - i - j;
-        let along = |e: usize, s: u32| self.edge_start[e].wrapping_add(s.wrapping_mul(self.edge_step[e]));
+        let along = |e: usize, s: u32| {
+            let shift = (self.shifts >> (4 * e + 4)) & 15;
+            self.edge_start[e].wrapping_add((s >> shift).wrapping_mul(self.edge_step[e]))
+        };
         // The inside first (most of a leaf's vertices), then the corners and the three edges.
         if i != 0 && j != 0 && k != 0 {
-            self.inner_first + inner_index(i, j, n) * self.stride
+            let shift = self.shifts & 15;
+            self.inner_first + inner_index(i >> shift, j >> shift, n >> shift) * self.stride
         } else if i == 0 && j == 0 {
             self.corners[0]
         } else if i == n {

@@ -2,15 +2,16 @@
 //! sphere first, down to leaves whose micro-triangles the static index list names; under the
 //! top-level BVH of [`crate::traverse`].
 
+use crate::bit_fields::read_bits;
 use crate::buffer::{element, Buffer, Chunks, Split};
-use crate::compressed_values::{read_bits, CodedGrid, CodedScene, ValueCode};
+use crate::compressed_values::{CodedGrid, CodedScene, ValueCode};
 use crate::cost::Tally;
 use crate::displacement::{decimated_grid_point, displaced_point, unorm11_displacement, DisplacedTriangle};
 use crate::footprint::FootprintFrame;
 use crate::glam::Vec3;
 use crate::grid_index::{
     lattice_index, level_start, micro_cell_offset, sub_triangle, triangle_count, vertex_count, GridSlots, Lattice,
-    MAX_LEAF_DEPTH,
+    LeveledAreas, MAX_LEAF_DEPTH,
 };
 use crate::layout::{
     GridHeader, GridIds, GridParams, Hit, SplitParams, DISPLACED_COMPRESSED, GRID_HEADERS, GRID_RADII, GRID_VERTICES,
@@ -25,6 +26,7 @@ use crate::sphere::{
 };
 use crate::traverse::{load_vec3_bits, record_hit, trace, Hierarchy, LeafPrimitives};
 use crate::triangle::{intersect_sheared, shear};
+use crate::value_tables::{block_bit, leveled_edge, LeveledEdge};
 
 /// Most spheres a grid hierarchy may be deep: levels `0 ..= MAX_SPHERE_LEVEL`.
 pub const MAX_SPHERE_LEVEL: u32 = 6;
@@ -270,9 +272,13 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         let edge_bit = 32 * g.edge_word;
         let corner_bit = edge_bit + DISPLACEMENT_BITS * (g.corner_offset - g.edge_offset);
         let inner_bit = 32 * grid * g.inner_words;
-        let slots = GridSlots::addressed(&ids, n, inner_bit, edge_bit, corner_bit, DISPLACEMENT_BITS);
-        let corner_ids = [ids.corner(0), ids.corner(1), ids.corner(2)];
         let own = self.level_byte(grid);
+        let slots = if g.level_element != 0 && !self.compressed() {
+            self.leveled_slots(grid, &ids, own >> 3)
+        } else {
+            GridSlots::addressed(&ids, n, inner_bit, edge_bit, corner_bit, DISPLACEMENT_BITS)
+        };
+        let corner_ids = [ids.corner(0), ids.corner(1), ids.corner(2)];
         let coded = if self.compressed() {
             let scene = CodedScene {
                 code: ValueCode {
@@ -324,6 +330,26 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         };
         open.origin = sphere_center(open.corners[0], open.corners[1], open.corners[2]);
         open
+    }
+
+    /// Where a displaced grid of plain values and mixed levels, grid `grid` with ids `ids` of
+    /// level `own`, finds them (see `crate::value_tables`): its own level's inner points in
+    /// its block, each base edge's points at the level the edge holds.
+    fn leveled_slots(&self, grid: u32, ids: &GridIds, own: u32) -> GridSlots {
+        let g = &self.params;
+        let table_bit = 32 * g.edge_word;
+        let edge = |e: u32| leveled_edge(self.vertices, table_bit, ids.edge(e));
+        let first = |edge: LeveledEdge| edge.bit(table_bit, ((1 << edge.level) - 1) * DISPLACEMENT_BITS);
+        let (e0, e1, e2) = (edge(0), edge(1), edge(2));
+        let areas = LeveledAreas {
+            inner_first: block_bit(self.vertices, grid, g.block_offset_bits),
+            inner_shift: g.levels - own,
+            edge_first: [first(e0), first(e1), first(e2)],
+            edge_shifts: [g.levels - e0.level, g.levels - e1.level, g.levels - e2.level],
+            corner_first: g.corner_bit,
+            stride: DISPLACEMENT_BITS,
+        };
+        GridSlots::leveled(ids, 1 << g.levels, areas)
     }
 
     /// Displaced grid `grid`'s byte of its own level and decimated edges (see

@@ -8,6 +8,7 @@
 pub use spirv_std::glam;
 
 pub mod aabb;
+pub mod bit_fields;
 pub mod buffer;
 pub mod camera;
 pub mod compressed_values;
@@ -27,4 +28,5 @@ pub mod sphere;
 pub mod top_nodes;
 pub mod traverse;
 pub mod triangle;
+pub mod value_tables;
 pub mod wide_nodes;

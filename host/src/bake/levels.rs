@@ -476,6 +476,46 @@ mod tests {
         }
     }
 
+    /// Plain values of mixed levels take their own levels' bits: each grid's block its own
+    /// level's inner points, each base edge's block the points of the finest level it is
+    /// rendered at, after their tables; the sizes checked before a build bound them below.
+    #[test]
+    fn plain_grids_of_mixed_levels_store_their_own_levels() {
+        use gridrt_shared::grid_index::inner_vertex_count;
+        use gridrt_shared::grid_traverse::DISPLACEMENT_BITS;
+        use gridrt_shared::value_tables::EDGE_LEVEL_WORDS;
+        let [(_, plain), _] = mixed_domes();
+        let options = crate::grid::GridOptions::for_displaced();
+        let grids = crate::grid::displaced::build(&plain, &options).unwrap();
+        let p = grids.params;
+        let bits = DISPLACEMENT_BITS as u64;
+        let inner: u64 = (plain.micromap.triangles.iter())
+            .map(|t| inner_vertex_count(t.level) as u64 * bits)
+            .sum();
+        let table = (plain.triangles.len() as u64 * p.block_offset_bits as u64).div_ceil(32);
+        assert_eq!(p.edge_word as u64, table + inner.div_ceil(32));
+        let mut edges = std::collections::HashMap::new();
+        for (t, corners) in plain.triangles.iter().enumerate() {
+            for e in 0..3 {
+                let (a, b) = (corners[e], corners[(e + 1) % 3]);
+                let level = edges.entry((a.min(b), a.max(b))).or_insert(0);
+                *level = plain.rendered_edge_level(t, e).max(*level);
+            }
+        }
+        let edge_bits: u64 = edges.values().map(|&l| ((1u64 << l) - 1) * bits).sum();
+        assert_eq!(
+            (p.corner_bit - 32 * p.edge_word) as u64,
+            32 * EDGE_LEVEL_WORDS as u64 + edge_bits
+        );
+        let sizes = crate::grid::displaced::least_buffer_sizes(&plain, &options).unwrap();
+        let vertex = sizes.iter().find(|s| s.name == "grid vertex").unwrap();
+        assert!(
+            vertex.bytes <= 4 * grids.vertices.len() as u64,
+            "{} bytes",
+            vertex.bytes
+        );
+    }
+
     /// Grids of mixed levels in rooms of their own levels (`GridParams::own_rooms`), and in the
     /// scene's room when asked: either way, every sphere down to the grid's leaves holds the
     /// points the grid renders below it, and each leaf's thickness bounds how far those points

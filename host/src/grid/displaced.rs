@@ -26,9 +26,11 @@
 //! sit in a byte per grid after the headers (`GridParams::level_element`). The traversal
 //! renders such a grid at most `l` deep and snaps the odd points of its decimated edges as
 //! the decoded triangles do; its spheres and leaf thicknesses are found over the points it
-//! renders (`spheres::rendered_points`). Each grid keeps the level-`L` room for its inner
-//! values and spheres: compressed values spend next to no bits on the levels a grid does
-//! not have, plain ones their 11 bits.
+//! renders (`spheres::rendered_points`). The buffer holds only the points some grid renders
+//! (see `gridrt_shared::value_tables`): each grid's block its own level's inner points,
+//! plain ([`LeveledValues`]) or compressed, after a table of where each block begins, and
+//! each base edge's block the points of the level it is rendered at, the edges numbered
+//! coarse to fine after a table of where each level's begin.
 
 use crate::bit_writer::BitWriter;
 use gridrt_shared::displacement::{
@@ -36,13 +38,14 @@ use gridrt_shared::displacement::{
 };
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::grid_index::{
-    corner_point, edge_point, edge_vertex_count, grid_size, inner_points, inner_vertex_count, lattice_points, parents,
-    Lattice,
+    corner_point, edge_point, edge_vertex_count, grid_size, inner_index, inner_points, inner_vertex_count,
+    lattice_points, parents, Lattice,
 };
 use gridrt_shared::grid_traverse::DISPLACEMENT_BITS;
 
 use super::{
-    check_counts, compressed, edge_points, BaseEdges, GridBuild, GridLayout, GridOptions, GridScene, GridShape,
+    check_counts, compressed, edge_points, value_tables, BaseEdges, GridBuild, GridLayout, GridOptions, GridScene,
+    GridShape,
 };
 use crate::displaced::DisplacedMesh;
 use crate::error::{fail, Result};
@@ -59,7 +62,7 @@ pub fn layout(mesh: &DisplacedMesh, options: &GridOptions) -> Result<GridLayout>
     };
     let mesh = mesh.with_ranges_folded();
     let own_levels = mesh.own_levels();
-    let (edges, rendered) = compressed::level_sorted_edges(&mesh);
+    let (edges, rendered) = value_tables::level_sorted_edges(&mesh);
     let mesh = match own_levels.is_empty() {
         true => mesh,
         false => expanded_mesh(&mesh),
@@ -116,6 +119,18 @@ pub fn layout(mesh: &DisplacedMesh, options: &GridOptions) -> Result<GridLayout>
     }
 
     let (inner_by_grid, shared, value_blocks) = match mesh.micromap.value_code {
+        None if !own_levels.is_empty() => {
+            let leveled = LeveledValues::new(&mesh, (&edges, &rendered), &own_levels, &values);
+            shape.inner_words = 0;
+            shape.block_offset_bits = leveled.blocks.offset_bits;
+            let edge_word = leveled.blocks.words;
+            let base_word = edge_word + leveled.shared.len() as u64;
+            check_addressable(base_word, &format!("{grids} grids of levels up to {levels}"))?;
+            shape.edge_word = edge_word as u32;
+            shape.corner_bit = (32 * edge_word + leveled.edge_area_bits) as u32;
+            shape.base_word = base_word as u32;
+            (Vec::new(), leveled.shared, Some(leveled.blocks))
+        }
         None => {
             let inner = grids * inner_count;
             let inner_by_grid = (0..grids)
@@ -130,7 +145,7 @@ pub fn layout(mesh: &DisplacedMesh, options: &GridOptions) -> Result<GridLayout>
                     "its values are not those of their compressed code: compress the micro-mesh again"
                 );
             };
-            let blocks = compressed::GridBlocks::new(encoded.grid_blocks);
+            let blocks = value_tables::GridBlocks::new(encoded.grid_blocks);
             shape.inner_words = 0;
             shape.value_code = Some(code);
             shape.block_offset_bits = blocks.offset_bits;
@@ -166,6 +181,71 @@ pub fn layout(mesh: &DisplacedMesh, options: &GridOptions) -> Result<GridLayout>
         buffer,
         own_levels,
     })
+}
+
+/// Plain values of grids of mixed levels, each block at its own level (see
+/// `gridrt_shared::value_tables`): each grid's inner points of its own level, and each base
+/// edge's points of the level it is rendered at, edges numbered coarse to fine after their
+/// table of levels, then the corners.
+struct LeveledValues {
+    blocks: value_tables::GridBlocks,
+    /// The edges' table and values, then the corners' values.
+    shared: Vec<u32>,
+    /// Bits of `shared` before the corners' values.
+    edge_area_bits: u64,
+}
+
+impl LeveledValues {
+    /// From `mesh` (expanded to the deepest level, see [`expanded_mesh`]) and its values
+    /// `values` as the scene-level layout holds them: inner areas, edge areas (by the ids
+    /// of `edges`), corners.
+    fn new(
+        mesh: &DisplacedMesh,
+        (edges, rendered): (&BaseEdges, &value_tables::Rendered),
+        own_levels: &[u8],
+        values: &[u16],
+    ) -> LeveledValues {
+        let levels = mesh.deepest_level().unwrap_or(0);
+        let n = grid_size(levels);
+        let inner_count = inner_vertex_count(levels) as usize;
+        let blocks = own_levels
+            .iter()
+            .enumerate()
+            .map(|(g, &own)| {
+                let shift = levels - (own as u32 >> 3);
+                let grid_values = &values[g * inner_count..(g + 1) * inner_count];
+                let own_values: Vec<u16> = inner_points(n >> shift)
+                    .map(|[i, j]| grid_values[inner_index(i << shift, j << shift, n) as usize])
+                    .collect();
+                (pack(&own_values), own_values.len() as u32 * DISPLACEMENT_BITS)
+            })
+            .collect();
+        let mut out = BitWriter::default();
+        let edge_bits = |level: u32| ((1 << level) - 1) * DISPLACEMENT_BITS;
+        value_tables::write_edge_levels(&rendered.edge_levels, edge_bits, &mut out);
+        let edge_area = own_levels.len() * inner_count;
+        for (id, edge_values) in values[edge_area..]
+            .chunks(n as usize - 1)
+            .take(edges.owner.len())
+            .enumerate()
+        {
+            let step = 1 << (levels - rendered.edge_levels[id]);
+            for &q in edge_values.iter().skip(step - 1).step_by(step) {
+                out.push(q as u32, DISPLACEMENT_BITS);
+            }
+        }
+        let edge_area_bits = out.bits as u64;
+        let corners = &values[edge_area + edges.owner.len() * (n as usize - 1)..];
+        for &q in corners {
+            out.push(q as u32, DISPLACEMENT_BITS);
+        }
+        out.words.push(0);
+        LeveledValues {
+            blocks: value_tables::GridBlocks::new(blocks),
+            shared: out.words,
+            edge_area_bits,
+        }
+    }
 }
 
 /// `mesh` (ranges folded, of mixed levels) with every triangle at the deepest level, as
@@ -315,10 +395,16 @@ pub fn least_buffer_sizes(mesh: &DisplacedMesh, options: &GridOptions) -> Result
     };
     let mut sizes = super::least_buffer_sizes(&base, edges as u64, &build);
     let grids = base.triangles.len() as u64;
-    let inner_words = packed_words(inner_vertex_count(levels) as u64);
-    let shared = edges as u64 * edge_vertex_count(levels) as u64 + base.positions.len() as u64;
-    let words = grids * inner_words + packed_words(shared) + 6 * base.positions.len() as u64;
     let mixed = mesh.uniform_level().is_none();
+    let value_words = match mixed {
+        true => leveled_value_words(mesh, &base),
+        false => {
+            let inner_words = packed_words(inner_vertex_count(levels) as u64);
+            let shared = edges as u64 * edge_vertex_count(levels) as u64 + base.positions.len() as u64;
+            grids * inner_words + packed_words(shared)
+        }
+    };
+    let words = value_words + 6 * base.positions.len() as u64;
     for size in &mut sizes {
         match size.name {
             "grid vertex" => size.bytes = 4 * words,
@@ -328,6 +414,20 @@ pub fn least_buffer_sizes(mesh: &DisplacedMesh, options: &GridOptions) -> Result
         }
     }
     Ok(sizes)
+}
+
+/// Words of plain values of grids of mixed levels, each at its own level (see
+/// [`LeveledValues`]), their tables at their narrowest.
+fn leveled_value_words(mesh: &DisplacedMesh, base: &Mesh) -> u64 {
+    let edges = BaseEdges::new(base);
+    let rendered = value_tables::Rendered::new(mesh, &edges);
+    let own = (0..base.triangles.len()).map(|g| rendered.own_level(g, 0));
+    let inner_bits: u64 = own
+        .map(|l| 1 + inner_vertex_count(l) as u64 * DISPLACEMENT_BITS as u64)
+        .sum();
+    let edge_points: u64 = rendered.edge_levels.iter().map(|&l| (1u64 << l) - 1).sum();
+    let shared_bits = (edge_points + base.positions.len() as u64) * DISPLACEMENT_BITS as u64;
+    inner_bits.div_ceil(32) + gridrt_shared::value_tables::EDGE_LEVEL_WORDS as u64 + shared_bits.div_ceil(32)
 }
 
 /// Lays out and builds displaced grids in one go.

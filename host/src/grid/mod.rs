@@ -33,6 +33,7 @@ mod lean;
 mod spheres;
 #[cfg(test)]
 pub(crate) mod tests;
+pub mod value_tables;
 pub mod wide_top;
 use crate::mesh::Mesh;
 use crate::subdiv::Subdivided;
@@ -428,7 +429,7 @@ pub struct GridLayout {
     /// Each grid's inner area as stored, grid after grid in base-triangle order.
     pub inner_by_grid: Vec<u32>,
     /// For compressed values, the grids' blocks instead (`inner_by_grid` is then empty).
-    pub value_blocks: Option<compressed::GridBlocks>,
+    pub value_blocks: Option<value_tables::GridBlocks>,
     /// The vertex buffer as uploaded: room for the inner areas (filled in leaf order by the
     /// build), then the edge and corner areas, which never move.
     pub buffer: Vec<u32>,
