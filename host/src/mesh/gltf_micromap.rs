@@ -461,6 +461,7 @@ fn widen<const M: usize>(values: Result<Vec<[f64; M]>>) -> Result<Vec<[f64; 4]>>
 mod tests {
     use super::*;
     use crate::bary::values_per_triangle;
+    use gridrt_shared::displacement::u_major_index;
     use gridrt_shared::glam::Vec3;
 
     fn sample() -> DisplacedMesh {
@@ -707,6 +708,115 @@ mod tests {
             "accessors": all_accessors,
         });
         crate::mesh::gltf::glb_container(&serde_json::to_vec(&json).unwrap(), &bin)
+    }
+
+    /// A micro-mesh laid out as NVlabs' micromesh-tools writes one: a `.gltf` beside its
+    /// `.bin` and `.bary`; 11-bit values packed per triangle into whole words, with counts and
+    /// offsets in bytes and five bytes of slack after them; a property of per-triangle
+    /// minima and maxima no reader needs; no histograms; `u8` primitive flags and a buffer
+    /// view of levels no accessor uses; the odd points of a decimated edge holding 0. A
+    /// level-2 triangle decimates its edge towards a level-1 one: the values read as written,
+    /// and the seam is closed.
+    #[test]
+    fn a_file_laid_out_as_micromesh_tools_writes_one_reads() {
+        let (levels, flags) = ([2u32, 1], [0b010u8, 0]);
+        let value = |t: usize, k: usize| (300 + 7 * k + 500 * t) as u16;
+        let mut values: Vec<Vec<u16>> = (0..2)
+            .map(|t| (0..values_per_triangle(levels[t])).map(|k| value(t, k)).collect())
+            .collect();
+        // Triangle 0's edge 1 (`u + v = 4`, from base vertex 1 to 2) is triangle 1's edge 0
+        // (`v = 0`, from base vertex 2 to 1): the finer side's odd points are unused (0), the
+        // rest hold the coarser side's values.
+        let coarse = |u: u32| values[1][u_major_index([u, 0], 2) as usize];
+        let seam = [
+            ([4, 0], coarse(2)),
+            ([3, 1], 0),
+            ([2, 2], coarse(1)),
+            ([1, 3], 0),
+            ([0, 4], coarse(0)),
+        ];
+        for (p, q) in seam {
+            values[0][u_major_index(p, 4) as usize] = q;
+        }
+        let (mut packed, mut triangles) = (Vec::new(), Vec::new());
+        for (t, v) in values.iter().enumerate() {
+            triangles.extend(words(&[packed.len() as u32 * 4]));
+            triangles.extend((levels[t] as u16).to_le_bytes());
+            triangles.extend(0u16.to_le_bytes());
+            let mut bits = crate::bit_writer::BitWriter::default();
+            v.iter().for_each(|&q| bits.push(q as u32, 11));
+            packed.extend(bits.words.iter().take((v.len() * 11).div_ceil(32)));
+        }
+        let bytes = packed.len() as u32 * 4;
+        let mut values_property = words(&[1_000_397_002, 1, 1, bytes, 1, 4]);
+        values_property.extend(words(&packed));
+        values_property.extend([0u8; 5]);
+        let mut group = words(&[0, 2, 0, bytes, 1, 2]);
+        group.extend(
+            [0.0f32, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0]
+                .iter()
+                .flat_map(|f| f.to_le_bytes()),
+        );
+        let mut minima_maxima = words(&[1_000_397_001, 4, 2, 4]);
+        minima_maxima.extend([0u16, 2047, 0, 2047].iter().flat_map(|q| q.to_le_bytes()));
+        let bary = hand_bary(&[
+            ([0xb44d_aa04, 0xc9e0_44d5, 0x9a94_4de0, 0xcfd8_fe35], values_property),
+            ([0x39ee_40d0, 0x9dc4_4517, 0x8e5a_b15d, 0xb09c_74bc], group),
+            ([0x0045_8e68, 0xee59_426c, 0xb3bf_1b7f, 0x749d_eb8e], triangles),
+            ([0x1111_2222, 0x3333_4444, 0x5555_6666, 0x7777_8888], minima_maxima),
+        ]);
+        let floats = |v: &[f32]| v.iter().flat_map(|f| f.to_le_bytes()).collect::<Vec<u8>>();
+        let mut bin = words(&[0, 1, 2, 2, 1, 3]); // 24: indices
+        bin.extend(floats(&[0., 0., 0., 1., 0., 0., 0., 1., 0., 1., 1., 0.])); // 48: positions
+        bin.extend(floats(&[0., 0., 0.5].repeat(4))); // 48: directions
+        bin.extend(levels.map(|l| l as u8)); // 2: levels, unused
+        bin.extend(flags); // 2: primitive flags
+        let json = serde_json::json!({
+            "asset": {"version": "2.0"},
+            "extensionsUsed": ["NV_micromaps", "NV_displacement_micromap"],
+            "extensions": {"NV_micromaps": {"micromaps": [{"uri": "base_mesh.bary"}]}},
+            "buffers": [{"byteLength": bin.len(), "uri": "base_mesh.bin"}],
+            "bufferViews": [
+                {"name": "indices", "buffer": 0, "byteOffset": 0, "byteLength": 24, "target": 34963},
+                {"name": "positions", "buffer": 0, "byteOffset": 24, "byteLength": 48, "target": 34962},
+                {"name": "directions", "buffer": 0, "byteOffset": 72, "byteLength": 48, "target": 34962},
+                {"name": "subdivision_levels", "buffer": 0, "byteOffset": 120, "byteLength": 2, "target": 34962},
+                {"name": "topology_flags", "buffer": 0, "byteOffset": 122, "byteLength": 2, "target": 34962},
+            ],
+            "accessors": [
+                {"bufferView": 0, "componentType": 5125, "count": 6, "type": "SCALAR"},
+                {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+                {"bufferView": 2, "componentType": 5126, "count": 4, "type": "VEC3"},
+                {"bufferView": 4, "componentType": 5121, "count": 2, "type": "SCALAR"},
+            ],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 1}, "indices": 0, "extensions": {
+                "NV_displacement_micromap": {"micromap": 0, "groupIndex": 0, "directions": 2,
+                    "primitiveFlags": 3}}}]}],
+            "nodes": [{"mesh": 0}], "scenes": [{"nodes": [0]}], "scene": 0,
+        });
+        let gltf = crate::mesh::test_util::write_temp("base_mesh.gltf", &serde_json::to_vec(&json).unwrap());
+        let dir = gltf.parent().unwrap();
+        std::fs::write(dir.join("base_mesh.bin"), &bin).unwrap();
+        std::fs::write(dir.join("base_mesh.bary"), &bary).unwrap();
+        let read = parse_displaced(&std::fs::read(&gltf).unwrap(), Some(dir))
+            .unwrap()
+            .unwrap();
+        for (t, v) in values.iter().enumerate() {
+            assert_eq!(read.micromap.triangles[t].level, levels[t]);
+            assert_eq!(read.micromap.triangle_values(t), &v[..], "triangle {t}");
+        }
+        assert_eq!(read.decimated_edges, flags);
+        assert_eq!(read.directions[3], DVec3::new(0.0, 0.0, 0.5));
+        let (local, _) = read.into_local();
+        local.check().unwrap();
+        assert_eq!(local.open_seams(), 0);
+        // Welded, the seam closes: 16 + 4 micro-triangles less the two the flag collapses, on
+        // 13 points of the finer side (two unused) and 6 of the coarser, 3 of them shared.
+        let welded = local.decoded_welded();
+        assert_eq!(
+            (welded.triangles.len(), welded.positions.len()),
+            (16 + 4 - 2, 13 + 6 - 3)
+        );
     }
 
     fn halves(v: &[f32]) -> Vec<u8> {
