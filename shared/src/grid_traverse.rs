@@ -10,8 +10,8 @@ use crate::displacement::{decimated_grid_point, displaced_point, unorm11_displac
 use crate::footprint::FootprintFrame;
 use crate::glam::Vec3;
 use crate::grid_index::{
-    lattice_index, level_start, micro_cell_offset, sub_triangle, triangle_count, vertex_count, GridSlots, Lattice,
-    LeveledAreas, MAX_LEAF_DEPTH,
+    edge_vertex_count, lattice_index, level_start, micro_cell_offset, sub_triangle, triangle_count, vertex_count,
+    GridSlots, Lattice, LeveledAreas, MAX_LEAF_DEPTH,
 };
 use crate::layout::{
     GridHeader, GridIds, GridParams, Hit, SplitParams, DISPLACED_COMPRESSED, GRID_HEADERS, GRID_RADII, GRID_VERTICES,
@@ -339,7 +339,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         let g = &self.params;
         let table_bit = 32 * g.edge_word;
         let edge = |e: u32| leveled_edge(self.vertices, table_bit, ids.edge(e));
-        let first = |edge: LeveledEdge| edge.bit(table_bit, ((1 << edge.level) - 1) * DISPLACEMENT_BITS);
+        let first = |edge: LeveledEdge| edge.bit(table_bit, edge_vertex_count(edge.level) * DISPLACEMENT_BITS);
         let (e0, e1, e2) = (edge(0), edge(1), edge(2));
         let areas = LeveledAreas {
             inner_first: block_bit(self.vertices, grid, g.block_offset_bits),

@@ -72,7 +72,7 @@ struct CompressionReport {
     /// The symmetric distance before compression, as `symmetric` is given.
     uncompressed_symmetric: DistanceSummary,
     /// Whether the values stay plain, exact, because compressed they took more of the GPU's
-    /// bytes (see [`plain_is_smaller`]); the fields above then describe the compression tried.
+    /// bytes (see [`fewer_bytes`]); the fields above then describe the compression tried.
     kept_plain: bool,
 }
 
@@ -170,14 +170,16 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
                 asked: args.max_bytes.is_some() || args.within_bytes.is_some(),
             });
             let (compressed, mut budget) = stages.run("compress", || compress_within(&baked.mesh, options, budget))?;
-            let kept_plain = plain_is_smaller(&baked.mesh, &compressed.mesh);
-            if kept_plain {
-                budget.binds = false;
-                budget.met |= budget.max_bytes.is_none_or(|per_micro| {
-                    let plain = grid_memory(&baked.mesh).map_or(0, |parts| total(&parts));
-                    plain as f64 <= (per_micro * micro_triangles as f64).floor()
-                });
-            }
+            let kept_plain = match fewer_bytes(&baked.mesh, &compressed.mesh) {
+                Some((plain_parts, true)) => {
+                    budget.binds = false;
+                    budget.met |= budget.max_bytes.is_none_or(|per_micro| {
+                        total(&plain_parts) as f64 <= (per_micro * micro_triangles as f64).floor()
+                    });
+                    true
+                }
+                _ => false,
+            };
             let d = match kept_plain {
                 true => plain,
                 false => measure(stages, &compressed.mesh),
@@ -248,14 +250,15 @@ fn total(parts: &[(&str, u64)]) -> u64 {
 /// The parts of what the GPU gets (see [`grid_memory`]) that hold the values.
 const VALUE_PARTS: [&str; 3] = ["inner_values", "value_block_table", "edge_and_corner_values"];
 
-/// Whether `plain`'s values take no more of everything the GPU gets than `compressed`, the
-/// same micro-mesh with its values compressed: a tight bound on coarse levels can take more
-/// bits than plain values do (each block spends its widths and shifts on few points), and
-/// plain values are then both smaller and exact.
-fn plain_is_smaller(plain: &DisplacedMesh, compressed: &DisplacedMesh) -> bool {
+/// What the GPU gets (see [`grid_memory`]) of `plain` or of `compressed`, the same
+/// micro-mesh with its values compressed, and whether it is `plain`'s: `plain`'s where its
+/// values take no more bytes (a tight bound on coarse levels can take more bits than plain
+/// values do, each block spending its widths and shifts on few points, and plain values are
+/// then both smaller and exact), else `compressed`'s, `None` where that cannot be laid out.
+fn fewer_bytes(plain: &DisplacedMesh, compressed: &DisplacedMesh) -> Option<(Vec<(&'static str, u64)>, bool)> {
     match (grid_memory(plain), grid_memory(compressed)) {
-        (Some(plain), Some(compressed)) => total(&plain) <= total(&compressed),
-        _ => false,
+        (Some(plain), Some(compressed)) if total(&plain) <= total(&compressed) => Some((plain, true)),
+        (_, compressed) => compressed.map(|parts| (parts, false)),
     }
 }
 
@@ -295,17 +298,14 @@ fn bake_within_bytes(
         let baked = fitting.bake(LevelTarget::MaxBytes(share))?;
         let distance =
             (compresses(args)).then(|| surface_distance::measure(reference, &baked.mesh.decoded(), &sampling));
-        let mesh = match distance.and_then(|d| compression_bound(args, &baked.mesh, &d)) {
+        let laid_out = match distance.and_then(|d| compression_bound(args, &baked.mesh, &d)) {
             Some(compression) => {
                 let compressed = compress(&baked.mesh, &compression)?.mesh;
-                match plain_is_smaller(&baked.mesh, &compressed) {
-                    true => baked.mesh.clone(),
-                    false => compressed,
-                }
+                fewer_bytes(&baked.mesh, &compressed).map(|(parts, _)| parts)
             }
-            None => baked.mesh.clone(),
+            None => grid_memory(&baked.mesh),
         };
-        let Some(parts) = grid_memory(&mesh) else {
+        let Some(parts) = laid_out else {
             return Ok((baked, distance));
         };
         let landed = total(&parts);

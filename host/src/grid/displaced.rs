@@ -221,7 +221,7 @@ impl LeveledValues {
             })
             .collect();
         let mut out = BitWriter::default();
-        let edge_bits = |level: u32| ((1 << level) - 1) * DISPLACEMENT_BITS;
+        let edge_bits = |level: u32| edge_vertex_count(level) * DISPLACEMENT_BITS;
         value_tables::write_edge_levels(&rendered.edge_levels, edge_bits, &mut out);
         let edge_area = own_levels.len() * inner_count;
         for (id, edge_values) in values[edge_area..]
@@ -421,11 +421,10 @@ pub fn least_buffer_sizes(mesh: &DisplacedMesh, options: &GridOptions) -> Result
 fn leveled_value_words(mesh: &DisplacedMesh, base: &Mesh) -> u64 {
     let edges = BaseEdges::new(base);
     let rendered = value_tables::Rendered::new(mesh, &edges);
-    let own = (0..base.triangles.len()).map(|g| rendered.own_level(g, 0));
-    let inner_bits: u64 = own
-        .map(|l| 1 + inner_vertex_count(l) as u64 * DISPLACEMENT_BITS as u64)
+    let inner_bits: u64 = (rendered.own.iter())
+        .map(|&own| 1 + inner_vertex_count(own as u32 >> 3) as u64 * DISPLACEMENT_BITS as u64)
         .sum();
-    let edge_points: u64 = rendered.edge_levels.iter().map(|&l| (1u64 << l) - 1).sum();
+    let edge_points: u64 = rendered.edge_levels.iter().map(|&l| edge_vertex_count(l) as u64).sum();
     let shared_bits = (edge_points + base.positions.len() as u64) * DISPLACEMENT_BITS as u64;
     inner_bits.div_ceil(32) + gridrt_shared::value_tables::EDGE_LEVEL_WORDS as u64 + shared_bits.div_ceil(32)
 }

@@ -4,18 +4,17 @@
 //! rendered at ([`level_sorted_edges`]), after a table of where each level's blocks begin
 //! ([`write_edge_levels`]).
 
-use gridrt_shared::compressed_values::MAX_LEVELS;
 use gridrt_shared::grid_index::Lattice;
-use gridrt_shared::value_tables::EDGE_LEVEL_WORDS;
+use gridrt_shared::value_tables::{EDGE_LEVEL_WORDS, EDGE_TABLE_LEVELS};
 
 use super::BaseEdges;
 use crate::bit_writer::BitWriter;
 use crate::displaced::DisplacedMesh;
 
-/// Which stored points some grid renders, where triangles of mixed levels are compressed at
-/// the deepest level (see [`expanded_mesh`]): a grid renders its own level's points, but not
-/// those its decimated edges move, and a base edge is rendered at the finest level any of its
-/// grids renders it at. Every point is rendered where levels are one.
+/// Which points some grid renders, where triangles of mixed levels are laid out at the
+/// deepest level (see [`super::displaced::expanded_mesh`]): a grid renders its own level's
+/// points, but not those its decimated edges move, and a base edge is rendered at the finest
+/// level any of its grids renders it at. Every point is rendered where levels are one.
 #[derive(Clone, Debug, Default)]
 pub(super) struct Rendered {
     /// Each grid's own level and decimated edges (see [`DisplacedMesh::own_levels`]); empty
@@ -131,14 +130,14 @@ impl GridBlocks {
 }
 
 /// The table of levels before the base edges' blocks in grids of mixed levels (see
-/// `gridrt_shared::compressed_values::CodedScene::edge_block`): per level, its first edge
+/// `gridrt_shared::value_tables::leveled_edge`): per level, its first edge
 /// id and the bit its blocks begin at, from the table's first bit. `levels`, each edge's by
 /// id, never decrease (see [`level_sorted_edges`]).
 pub(super) fn write_edge_levels(levels: &[u32], block_bits: impl Fn(u32) -> u32, out: &mut BitWriter) {
     debug_assert!(levels.is_sorted(), "edges are numbered coarse to fine");
     let mut bit = 32 * EDGE_LEVEL_WORDS as u64;
     let mut id = 0;
-    for level in 1..=MAX_LEVELS {
+    for level in 1..=EDGE_TABLE_LEVELS {
         // Edges of coarser levels come first; past the scene's levels, past the last edge.
         while id < levels.len() && levels[id] < level {
             bit += block_bits(levels[id]) as u64;
@@ -151,7 +150,8 @@ pub(super) fn write_edge_levels(levels: &[u32], block_bits: impl Fn(u32) -> u32,
 
 /// The base edges of `mesh` (ranges folded, of its own levels) numbered coarse to fine by
 /// the levels they are rendered at (in the order the triangles first use them within a
-/// level), as compressed grids of mixed levels store them, and which points are rendered.
+/// level), as grids of mixed levels store them, plain or compressed, and which points are
+/// rendered.
 /// Where levels are one, the edges as [`BaseEdges::new`] numbers them.
 pub(super) fn level_sorted_edges(mesh: &DisplacedMesh) -> (BaseEdges, Rendered) {
     let mut edges = BaseEdges::new(&mesh.base_mesh());
