@@ -51,10 +51,11 @@ pub enum BackendChoice {
 #[derive(Copy, Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Schedule {
-    /// Two-phase wherever the backend and the scene take it (the GPU; grid scenes walked by
-    /// their root's visit alone, bound whole) and the list holds at least
-    /// [`TWO_PHASE_MIN_RAYS`] rays, one pass elsewhere (docs/RESULTS.md, "Schedules, in one
-    /// table").
+    /// Two-phase wherever the device runs its SIMD groups' branches in lockstep, taken or
+    /// not (a GPU adapter that is the CPU: lavapipe), the scene takes it (grid scenes walked
+    /// by their root's visit alone, bound whole) and the list holds at least
+    /// [`TWO_PHASE_MIN_RAYS`] rays; one pass elsewhere, a real GPU's included (docs/RESULTS.md,
+    /// "Schedules, in one table" and "Table 1, a real GPU").
     #[default]
     Auto,
     OnePass,
@@ -369,7 +370,9 @@ impl Backend {
                     .collect::<Result<Vec<_>>>()?;
                 let schedules: Vec<Schedule> = (scenes.iter().zip(&uploaded))
                     .map(|((_, schedule), up)| match schedule {
-                        Schedule::Auto if up.takes_two_phase() && rays.len() >= TWO_PHASE_MIN_RAYS => {
+                        Schedule::Auto
+                            if gpu.prefers_two_phase() && up.takes_two_phase() && rays.len() >= TWO_PHASE_MIN_RAYS =>
+                        {
                             Schedule::TwoPhase
                         }
                         Schedule::Auto => Schedule::OnePass,

@@ -432,7 +432,7 @@ fn the_two_phase_schedule_is_refused_on_the_cpu() {
     );
 }
 
-/// `bench` on the GPU picks the two-phase schedule for long grid lists at --levels 3 and says
+/// `bench` on lavapipe (a CPU device) picks the two-phase schedule for long grid lists at --levels 3 and says
 /// so, one pass for short lists and deeper hierarchies, and takes the one asked for.
 #[test]
 fn bench_reports_the_schedule_it_ran() {

@@ -110,8 +110,8 @@ impl RayOrderArg {
 /// How the GPU traces the grids' ray lists (see `gridrt::backend::Schedule`).
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ScheduleArg {
-    /// Two-phase for lists of 16384 rays or more where the GPU takes the grids (as at
-    /// --levels 3), otherwise one pass.
+    /// Two-phase for lists of 16384 rays or more where the GPU is the CPU (lavapipe) and
+    /// takes the grids (as at --levels 3), otherwise one pass (a real GPU: one pass is faster).
     Auto,
     /// One kernel: each ray's top-level walk with its grid visits.
     OnePass,

@@ -94,6 +94,14 @@ impl Batch {
 }
 
 impl Gpu {
+    /// Whether `Schedule::Auto` takes the two-phase schedule here: on a device that is the CPU
+    /// (lavapipe), where a SIMD group runs the code of every branch any lane takes, the
+    /// rounds keep the lanes on the same work; a real GPU jumps over what no lane takes, and
+    /// there one pass is faster (docs/RESULTS.md, "Table 1, a real GPU").
+    pub fn prefers_two_phase(&self) -> bool {
+        self.adapter.device_type == wgpu::DeviceType::Cpu
+    }
+
     /// Traces a list of rays by the two-phase schedule `repeats` times: the hits, and the
     /// seconds of each repetition (from the first round's start to the last's end, by GPU
     /// timestamps where the adapter has them).
