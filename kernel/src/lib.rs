@@ -6,7 +6,8 @@
 //! than one binding may be. Both run the same traversal. Grids in the formats made for
 //! displaced grids have whole-buffer kernels of their own, the only ones that carry those
 //! formats, and grids of compressed values others again, the only ones that carry their
-//! decoder (see `Buffer::DISPLACED_FORMATS`); neither is ever split.
+//! decoder (see `Buffer::DISPLACED_FORMATS`); neither is ever split. The two-phase schedule's
+//! grid kernels come in the same three kinds.
 #![cfg_attr(target_arch = "spirv", no_std)]
 
 use gridrt_shared::buffer::{Buffer, Chunks, CompressedWords, DisplacedWords, Split};
@@ -15,8 +16,8 @@ use gridrt_shared::glam::{UVec3, Vec3};
 use gridrt_shared::grid_traverse::{leaf_test_class, GridScene, OneVisitGrids};
 use gridrt_shared::layout::{
     BvhNode, FrameParams, GridHeader, Hit, HitRecord, LeafEntry, QueueEntry, RayRecord, TraceParams, WalkState,
-    FINISH_RAYS_PER_THREAD, GRID_NODES, LEAF_TEST_CLASSES, NO_HIT, TRACE_WORKGROUP_SIZE, TRIANGLE_NODES,
-    WORKGROUP_SIZE,
+    FINISH_RAYS_PER_THREAD, FINISH_RAYS_PER_THREAD_COMPRESSED, GRID_NODES, LEAF_TEST_CLASSES, NO_HIT,
+    TRACE_WORKGROUP_SIZE, TRIANGLE_NODES, WORKGROUP_SIZE,
 };
 use gridrt_shared::ray::Ray;
 use gridrt_shared::shade::{cost_pixel, render_pixel};
@@ -583,7 +584,7 @@ pub fn sort_queued_leaves(
 /// Declares the two-phase schedule's grid kernels, their scene's words read as `$words` wraps
 /// them (see [`whole`]); `$wide` as for [`two_phase_walk_kernels`].
 macro_rules! two_phase_grid_kernels {
-    ($words:path, $wide:literal: $visit:ident, $test:ident, $finish:ident) => {
+    ($words:path, $wide:literal, $rays_per_thread:expr, $visit:ident, $test:ident, $finish:ident) => {
         /// The two-phase schedule's second phase, first half: one queued grid per thread, its spheres
         /// and footprints; the visits that need a leaf test are queued again, counted by size class
         /// (`leaf_test_class`), the others answer a miss.
@@ -667,7 +668,8 @@ macro_rules! two_phase_grid_kernels {
         /// visited in place, once too few are left to fill the queue's dispatches. A thread takes the
         /// next ray of the list (`take_next`) as soon as its ray is done, one leaf a pass: in a SIMD
         /// group no lane waits idle for the group's longest walk while rays are left. It takes at most
-        /// `FINISH_RAYS_PER_THREAD` rays, so that its SIMD group's loops stay within a driver's limit.
+        /// `FINISH_RAYS_PER_THREAD` rays (`FINISH_RAYS_PER_THREAD_COMPRESSED` for compressed values),
+        /// so that its SIMD group's loops stay within a driver's limit.
         #[allow(clippy::too_many_arguments)] // one per binding
         #[spirv(compute(threads(64, 1, 1)))]
         pub fn $finish(
@@ -711,7 +713,7 @@ macro_rules! two_phase_grid_kernels {
                         t: state.t,
                         prim: state.prim,
                     };
-                    if taken == FINISH_RAYS_PER_THREAD {
+                    if taken == $rays_per_thread {
                         break;
                     }
                     taken += 1;
@@ -744,5 +746,28 @@ macro_rules! two_phase_grid_kernels {
     };
 }
 
-two_phase_grid_kernels!(whole, false: visit_queued, test_queued_leaves, finish_walks);
-two_phase_grid_kernels!(DisplacedWords, true: visit_queued_displaced, test_queued_leaves_displaced, finish_walks_displaced);
+two_phase_grid_kernels!(
+    whole,
+    false,
+    FINISH_RAYS_PER_THREAD,
+    visit_queued,
+    test_queued_leaves,
+    finish_walks
+);
+two_phase_grid_kernels!(
+    DisplacedWords,
+    true,
+    FINISH_RAYS_PER_THREAD,
+    visit_queued_displaced,
+    test_queued_leaves_displaced,
+    finish_walks_displaced
+);
+// Compressed values walk their top level with the displaced grids' walk kernels.
+two_phase_grid_kernels!(
+    CompressedWords,
+    true,
+    FINISH_RAYS_PER_THREAD_COMPRESSED,
+    visit_queued_compressed,
+    test_queued_leaves_compressed,
+    finish_walks_compressed
+);

@@ -540,6 +540,11 @@ pub const TRACE_WORKGROUP_SIZE: u32 = 64;
 /// cut off mid-walk. The host launches enough threads for the list.
 pub const FINISH_RAYS_PER_THREAD: u32 = 8;
 
+/// [`FINISH_RAYS_PER_THREAD`] for grids of compressed values, whose decoder runs loops of its
+/// own: as many rays as one render pass of such grids casts in one invocation (a primary ray
+/// and two for ambient occlusion).
+pub const FINISH_RAYS_PER_THREAD_COMPRESSED: u32 = 3;
+
 /// A ray's top-level walk between two rounds of the two-phase schedule (see
 /// [`crate::traverse::walk_round`]): its closest hit so far, its stack's height (the stack
 /// itself lives in a buffer of its own), and the queue entries of the leaf it reached last.

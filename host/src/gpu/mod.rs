@@ -59,9 +59,9 @@ pub struct Gpu {
     /// and the heat map's, each made the first time it runs: the split ones bind more buffers
     /// than some adapters allow, and all take drivers long to compile.
     on_demand: [std::sync::OnceLock<wgpu::ComputePipeline>; 20],
-    /// The two-phase schedule's kernels, for plain grids' formats and for displaced grids',
-    /// each made on first use.
-    two_phase: [std::sync::OnceLock<two_phase::Kernels>; 2],
+    /// The two-phase schedule's kernels, for plain grids' formats, displaced grids' and
+    /// compressed values (`two_phase::GridFormats`), each made on first use.
+    two_phase: [std::sync::OnceLock<two_phase::Kernels>; two_phase::GridFormats::COUNT],
     /// Most workgroups the two-phase schedule's finish launches (see
     /// `two_phase::finish_groups_for`).
     finish_groups: u32,
@@ -193,7 +193,8 @@ impl Gpu {
 
     /// Launches the two-phase schedule's finish in at most `groups` workgroups (at least one),
     /// below what the adapter gets by default: each thread then takes more rays in turn, up to
-    /// its limit (`FINISH_RAYS_PER_THREAD`; past it, more workgroups).
+    /// its limit (`FINISH_RAYS_PER_THREAD`, fewer for compressed values; past it, more
+    /// workgroups).
     pub fn limit_finish_groups(&mut self, groups: u32) {
         self.finish_groups = self.finish_groups.min(groups.max(1));
     }

@@ -14,8 +14,8 @@
 //! takes scenes whose grids are walked by their root's visit alone, bound whole.
 
 use gridrt_shared::layout::{
-    HitRecord, LeafEntry, QueueEntry, RayRecord, WalkState, FINISH_RAYS_PER_THREAD, LEAF_TEST_CLASSES,
-    TRACE_WORKGROUP_SIZE,
+    HitRecord, LeafEntry, QueueEntry, RayRecord, WalkState, FINISH_RAYS_PER_THREAD, FINISH_RAYS_PER_THREAD_COMPRESSED,
+    LEAF_TEST_CLASSES, TRACE_WORKGROUP_SIZE,
 };
 use gridrt_shared::traverse::MAX_BVH_DEPTH;
 use std::time::Instant;
@@ -38,6 +38,49 @@ const ROUNDS_PER_SUBMIT: usize = 2;
 /// A ray's saved stack: `MAX_BVH_DEPTH` slots of a node and its distance.
 const STACK_BYTES: u64 = 2 * MAX_BVH_DEPTH as u64 * 4;
 
+/// Which of the schedule's kernel sets a scene's grids take: those of plain grids' formats,
+/// those of displaced grids' (see `Scene::uses_displaced_formats`), or those that also carry
+/// the decoder of compressed values.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum GridFormats {
+    Plain,
+    Displaced,
+    Compressed,
+}
+
+impl GridFormats {
+    /// How many kernel sets there are.
+    pub(super) const COUNT: usize = 3;
+
+    fn of(scene: &Scene) -> GridFormats {
+        if scene.has_compressed_values() {
+            GridFormats::Compressed
+        } else if scene.uses_displaced_formats() {
+            GridFormats::Displaced
+        } else {
+            GridFormats::Plain
+        }
+    }
+
+    /// The suffixes of the kernels' entry points: the walk's (it reads the top level alone, so
+    /// compressed values take the displaced grids' walk), then the grid kernels'.
+    fn suffixes(self) -> (&'static str, &'static str) {
+        match self {
+            GridFormats::Plain => ("", ""),
+            GridFormats::Displaced => ("_displaced", "_displaced"),
+            GridFormats::Compressed => ("_displaced", "_compressed"),
+        }
+    }
+
+    /// Most rays a thread of the finish takes (the kernel's own limit).
+    fn finish_rays_per_thread(self) -> u32 {
+        match self {
+            GridFormats::Compressed => FINISH_RAYS_PER_THREAD_COMPRESSED,
+            _ => FINISH_RAYS_PER_THREAD,
+        }
+    }
+}
+
 /// The schedule's kernels.
 pub(super) struct Kernels {
     walk_first: wgpu::ComputePipeline,
@@ -53,8 +96,8 @@ pub(super) struct Kernels {
 /// and written for the next.
 pub(super) struct Batch {
     rays: u32,
-    /// Whether the scene's grids take the kernels of displaced grids' formats.
-    displaced_formats: bool,
+    /// Which kernels the scene's grids take.
+    formats: GridFormats,
     hits: wgpu::Buffer,
     readback: wgpu::Buffer,
     /// Each an indirect dispatch's three group counts, then the number of items.
@@ -79,10 +122,9 @@ pub(super) struct Batch {
 
 impl GpuScene<'_> {
     /// Whether the two-phase schedule takes this scene: grids walked by their root's visit
-    /// alone, bound whole, and not of compressed values (whose decoder its kernels leave out).
+    /// alone, bound whole.
     pub fn takes_two_phase(&self) -> bool {
         matches!(self.scene, Scene::Grids(g) if g.params.one_visit() && !self.is_split())
-            && !self.scene.has_compressed_values()
     }
 }
 
@@ -123,8 +165,7 @@ impl Gpu {
             _ => fail!(
                 Options,
                 "the two-phase schedule traces grids walked by their root's visit alone (sphere levels down to 1, \
-                 as at the default --levels 3), bound whole, and not of compressed values; this scene is not, \
-                 use the one-pass schedule"
+                 as at the default --levels 3), bound whole; this scene is not, use the one-pass schedule"
             ),
         }
     }
@@ -144,20 +185,19 @@ impl Gpu {
             .max(1) as usize)
     }
 
-    /// The schedule's kernels for grids in plain grids' formats, or in those of displaced
-    /// grids (see `Scene::uses_displaced_formats`), made on first use.
-    fn two_phase_kernels(&self, displaced_formats: bool) -> &Kernels {
-        let (index, suffix) = if displaced_formats { (1, "_displaced") } else { (0, "") };
-        self.two_phase[index].get_or_init(|| {
+    /// The schedule's kernels for grids of `formats`, made on first use.
+    fn two_phase_kernels(&self, formats: GridFormats) -> &Kernels {
+        let (walk, grids) = formats.suffixes();
+        self.two_phase[formats as usize].get_or_init(|| {
             let pipeline = |entry: &str| compute_pipeline(&self.device, &self.module, entry);
             Kernels {
-                walk_first: pipeline(&format!("walk_first_rounds{suffix}")),
-                walk: pipeline(&format!("walk_rounds{suffix}")),
-                visit: pipeline(&format!("visit_queued{suffix}")),
+                walk_first: pipeline(&format!("walk_first_rounds{walk}")),
+                walk: pipeline(&format!("walk_rounds{walk}")),
+                visit: pipeline(&format!("visit_queued{grids}")),
                 order_classes: pipeline("order_leaf_classes"),
                 sort_leaves: pipeline("sort_queued_leaves"),
-                test_leaves: pipeline(&format!("test_queued_leaves{suffix}")),
-                finish: pipeline(&format!("finish_walks{suffix}")),
+                test_leaves: pipeline(&format!("test_queued_leaves{grids}")),
+                finish: pipeline(&format!("finish_walks{grids}")),
             }
         })
     }
@@ -211,8 +251,8 @@ impl Gpu {
         });
         let (_, params) = self.trace_params(scene, n as u32);
         let params = self.buffer("trace parameters", bytemuck::bytes_of(&params));
-        let displaced_formats = scene.scene.uses_displaced_formats();
-        let kernels = self.two_phase_kernels(displaced_formats);
+        let formats = GridFormats::of(scene.scene);
+        let kernels = self.two_phase_kernels(formats);
         // The scene's bindings: static index list, top-level BVH, headers, vertices, radii.
         let [micro_triangles, nodes, headers, vertices, radii] = [0, 1, 2, 3, 4].map(|k| &scene.buffers[k]);
         let walk = |from: usize| {
@@ -316,7 +356,7 @@ impl Gpu {
         let (walk, finish) = ([walk(0), walk(1)], [finish(0), finish(1)]);
         Ok(Batch {
             rays: n as u32,
-            displaced_formats,
+            formats,
             hits,
             readback,
             counts,
@@ -347,7 +387,7 @@ impl Gpu {
         round: usize,
         queries: Option<&super::Queries>,
     ) {
-        let kernels = self.two_phase_kernels(batch.displaced_formats);
+        let kernels = self.two_phase_kernels(batch.formats);
         let from = round % 2;
         encoder.clear_buffer(&batch.counts[1 - from], 0, None);
         encoder.clear_buffer(&batch.queue_count, 0, None);
@@ -397,7 +437,7 @@ impl Gpu {
     /// Runs the rounds of one batch until no ray walks on; returns their seconds.
     pub(super) fn run_rounds(&self, batch: &Batch) -> Result<f64> {
         let n = batch.rays;
-        let kernels = self.two_phase_kernels(batch.displaced_formats);
+        let kernels = self.two_phase_kernels(batch.formats);
         let queries = batch.queries.as_ref();
         self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         self.queue.write_buffer(
@@ -435,7 +475,7 @@ impl Gpu {
         });
         match finish {
             Some((from, walking)) => {
-                let groups = self.groups_taking_turns(walking, FINISH_RAYS_PER_THREAD);
+                let groups = self.groups_taking_turns(walking, batch.formats.finish_rays_per_thread());
                 encoder.clear_buffer(&batch.next, 0, None);
                 direct_pass(&mut encoder, &kernels.finish, &batch.finish[from], groups, closing);
             }
@@ -464,11 +504,12 @@ impl Gpu {
 }
 
 /// Most workgroups the finish launches on `adapter`, unless its list needs more (each thread
-/// takes at most `FINISH_RAYS_PER_THREAD` rays). Each finish thread takes another ray when
-/// its own is done, so a device that runs few workgroups at once (a CPU adapter: about one a
-/// core, each running its SIMD groups one after another) gets only as many, and their first
-/// groups share the list between them, no lane idle while rays are left. A GPU,
-/// which runs far more threads at once than the finish has rays, gets a thread per ray.
+/// takes at most `FINISH_RAYS_PER_THREAD` rays, fewer for compressed values). Each finish
+/// thread takes another ray when its own is done, so a device that runs few workgroups at once
+/// (a CPU adapter: about one a core, each running its SIMD groups one after another) gets only
+/// as many, and their first groups share the list between them, no lane idle while rays are
+/// left. A GPU, which runs far more threads at once than the finish has rays, gets a thread
+/// per ray.
 pub(super) fn finish_groups_for(adapter: &wgpu::AdapterInfo) -> u32 {
     if adapter.device_type == wgpu::DeviceType::Cpu {
         std::thread::available_parallelism().map_or(1, |n| n.get()) as u32
