@@ -228,36 +228,67 @@ pub(crate) fn next_leaf<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
             return entry;
         }
         let w = load_node(nodes, entry);
-        let frame = node_frame(&w, scene);
-        let mut node = w[3];
-        let mut grid = w[7];
-        let bottom = *sp;
-        // Over all seven slots, empty ones skipped rather than ending the loop: a loop of a
-        // fixed count, which compilers unroll, so every code's word and shift are constants.
-        let mut k = 0;
-        loop {
-            let kind = child_kind(&w, k);
-            if kind != 0 {
-                let (lo, hi) = child_box(&w, k, &frame);
-                tally.nodes(1);
-                let t_enter = intersect_aabb(lo, hi, ray, t);
-                let child = if kind == INNER {
-                    node
-                } else {
-                    LEAF | grid << LEAF_SHIFT | kind
-                };
-                if t_enter < T_FAR && *sp < STACK_ENTRIES {
-                    push_sorted(stack, bottom, sp, child, t_enter);
-                }
-                if kind == INNER {
-                    node += 1;
-                } else {
-                    grid += kind;
-                }
+        let mut open = OpenNode {
+            frame: node_frame(&w, scene),
+            node: w[3],
+            grid: w[7],
+            bottom: *sp,
+            w,
+        };
+        // One copy of the child's visit per slot, empty ones skipped: in each the slot is a
+        // constant, so every code's word and shift are too (a loop over the slots, which
+        // not every compiler unrolls, computes them as it goes).
+        open.visit::<0, _, _>(ray, t, stack, sp, tally);
+        open.visit::<1, _, _>(ray, t, stack, sp, tally);
+        open.visit::<2, _, _>(ray, t, stack, sp, tally);
+        open.visit::<3, _, _>(ray, t, stack, sp, tally);
+        open.visit::<4, _, _>(ray, t, stack, sp, tally);
+        open.visit::<5, _, _>(ray, t, stack, sp, tally);
+        open.visit::<6, _, _>(ray, t, stack, sp, tally);
+    }
+}
+
+const _: () = assert!(WIDTH == 7, "next_leaf visits seven slots");
+
+/// A node the walk opened: its words and frame, the node and the grid its next inner and leaf
+/// children begin at, and the stack height its children are pushed above.
+struct OpenNode {
+    w: NodeWords,
+    frame: Frame,
+    node: u32,
+    grid: u32,
+    bottom: usize,
+}
+
+impl OpenNode {
+    /// Child slot `K`: where the ray enters its box closer than `t`, it is pushed among its
+    /// siblings, nearest on top.
+    #[inline(always)]
+    fn visit<const K: u32, S: WalkStack, T: Tally>(
+        &mut self,
+        ray: &Ray,
+        t: f32,
+        stack: &mut S,
+        sp: &mut usize,
+        tally: &mut T,
+    ) {
+        let kind = child_kind(&self.w, K);
+        if kind != 0 {
+            let (lo, hi) = child_box(&self.w, K, &self.frame);
+            tally.nodes(1);
+            let t_enter = intersect_aabb(lo, hi, ray, t);
+            let child = if kind == INNER {
+                self.node
+            } else {
+                LEAF | self.grid << LEAF_SHIFT | kind
+            };
+            if t_enter < T_FAR && *sp < STACK_ENTRIES {
+                push_sorted(stack, self.bottom, sp, child, t_enter);
             }
-            k += 1;
-            if k >= WIDTH {
-                break;
+            if kind == INNER {
+                self.node += 1;
+            } else {
+                self.grid += kind;
             }
         }
     }
