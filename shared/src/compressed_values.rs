@@ -428,7 +428,9 @@ impl CodedGrid {
     /// The values of a sub-triangle's lattice `k` levels deep, coarse to fine from its corners'
     /// values `corners`, into `out` at [`lattice_index`]`(la, lb, 2^k)`: lattice point
     /// `(la, lb)` is grid point `first + (la, lb) * step` (`step` negative for an inverted
-    /// sub-triangle).
+    /// sub-triangle). Only the points of `window` (`[la_lo, la_hi, lb_lo, lb_hi]`, as a leaf
+    /// test reads them) are decoded, with the coarser points they are predicted from; `out`
+    /// holds what it held before elsewhere.
     pub fn decode_lattice<B: Buffer<u32>, const N: usize>(
         &self,
         buffer: B,
@@ -436,6 +438,7 @@ impl CodedGrid {
         step: i32,
         k: u32,
         corners: [u32; 3],
+        window: [u32; 4],
         out: &mut [u32; N],
     ) {
         let m = 1u32 << k;
@@ -445,11 +448,17 @@ impl CodedGrid {
         let mut s = m;
         while s > 1 {
             let h = s / 2;
+            // The window rounded outwards to spacing `h`: a point's parents lie within `h` of
+            // it on the coarser spacing, so the window rounded to each spacing holds the
+            // parents of the points decoded in it at the next finer one.
+            let down = |x: u32| x & !(h - 1);
+            let up = |x: u32| (x + h - 1) & !(h - 1);
+            let (la_hi, lb_lo, lb_hi) = (up(window[1]), down(window[2]), up(window[3]));
             // The points new at spacing `h`: multiples of `h`, not both multiples of `s`.
-            let mut la = 0;
-            while la <= m {
-                let mut lb = 0;
-                while la + lb <= m {
+            let mut la = down(window[0]);
+            while la <= la_hi {
+                let mut lb = lb_lo;
+                while lb <= lb_hi && la + lb <= m {
                     if (la | lb) & h != 0 {
                         let [a, b] = parents([la, lb], h);
                         let p = [

@@ -1074,14 +1074,15 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         };
         let step = d * (size >> k);
         if self.compressed() {
-            self.decode_leaf(&visit.open, sub, step, k, &mut scratch.sides);
+            self.decode_leaf(&visit.open, sub, step, k, window, &mut scratch.sides);
         }
         self.intersect_leaf_triangles(&visit.open, sub.corner, step, k, window, ids, ray, hit, scratch, tally);
     }
 
     /// The compressed values of sub-triangle `sub`'s lattice `k` levels deep (one step
-    /// `step` grid units), decoded into `values` as the leaf test indexes its points. Kept
-    /// out of line on the CPU, so grids of other formats trace the same code as before.
+    /// `step` grid units), those of the points of `window` at least, decoded into `values` as
+    /// the leaf test indexes its points. Kept out of line on the CPU, so grids of other
+    /// formats trace the same code as before.
     #[cfg_attr(not(target_arch = "spirv"), inline(never))]
     fn decode_leaf<const N: usize>(
         &self,
@@ -1089,11 +1090,12 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         sub: &SubTriangle,
         step: i32,
         k: u32,
+        window: [u32; 4],
         values: &mut [u32; N],
     ) {
         let corners = open.coded.sub_triangle_values(self.vertices, sub.level, sub.index);
         open.coded
-            .decode_lattice(self.vertices, sub.corner, step, k, corners, values);
+            .decode_lattice(self.vertices, sub.corner, step, k, corners, window, values);
         if open.decimated != 0 {
             self.snap_leaf_values(open, sub.corner, step, k, values);
         }

@@ -863,6 +863,34 @@ mod tests {
                             "L{levels} {bound} grid {g} {p:?}"
                         );
                     }
+                    windows_decode_their_points(&grid, buffer, n);
+                }
+            }
+        }
+    }
+
+    /// A leaf test's window of the whole grid's lattice, whatever its bounds, decodes each of
+    /// its points to the value the single-point path reads (the rest of the lattice is left
+    /// as it was).
+    fn windows_decode_their_points(grid: &gridrt_shared::compressed_values::CodedGrid, buffer: &[u32], n: u32) {
+        use gridrt_shared::grid_index::lattice_index;
+        let corners = grid.sub_triangle_values(buffer, 0, 0);
+        let points: Vec<_> = lattice_points(n).map(|p| (p, grid.value(buffer, p))).collect();
+        let bounds = [0, 1, n / 2 - 1, n / 2, n / 2 + 1, n - 1, n];
+        for &la_lo in &bounds {
+            for &la_hi in bounds.iter().filter(|&&h| h >= la_lo) {
+                for &lb_lo in &bounds {
+                    for &lb_hi in bounds.iter().filter(|&&h| h >= lb_lo) {
+                        let window = [la_lo, la_hi, lb_lo, lb_hi];
+                        let mut out = [u32::MAX; 561];
+                        grid.decode_lattice(buffer, [0, 0], 1, n.trailing_zeros(), corners, window, &mut out);
+                        for &(p, value) in &points {
+                            if (la_lo..=la_hi).contains(&p[0]) && (lb_lo..=lb_hi).contains(&p[1]) {
+                                let decoded = out[lattice_index(p[0], p[1], n) as usize];
+                                assert_eq!(decoded, value, "window {window:?} {p:?}");
+                            }
+                        }
+                    }
                 }
             }
         }
