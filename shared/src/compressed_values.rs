@@ -425,22 +425,19 @@ impl CodedGrid {
         walk.q
     }
 
-    /// The values of a sub-triangle's lattice `k` levels deep, coarse to fine from its corners'
-    /// values `corners`, into `out` at [`lattice_index`]`(la, lb, 2^k)`: lattice point
-    /// `(la, lb)` is grid point `first + (la, lb) * step` (`step` negative for an inverted
-    /// sub-triangle). Only the points of `window` (`[la_lo, la_hi, lb_lo, lb_hi]`, as a leaf
-    /// test reads them) are decoded, with the coarser points they are predicted from; `out`
-    /// holds what it held before elsewhere.
+    /// The values of sub-triangle lattice `lattice`, coarse to fine from its corners' values
+    /// `corners`, into `out` at [`lattice_index`]`(la, lb, 2^k)`. Only the points of `window`
+    /// (`[la_lo, la_hi, lb_lo, lb_hi]`, as a leaf test reads them) are decoded, with the
+    /// coarser points they are predicted from; `out` holds what it held before elsewhere.
     pub fn decode_lattice<B: Buffer<u32>, const N: usize>(
         &self,
         buffer: B,
-        first: [i32; 2],
-        step: i32,
-        k: u32,
+        lattice: SubLattice,
         corners: [u32; 3],
         window: [u32; 4],
         out: &mut [u32; N],
     ) {
+        let SubLattice { first, step, k } = lattice;
         let m = 1u32 << k;
         out[lattice_index(0, 0, m) as usize] = corners[0];
         out[lattice_index(m, 0, m) as usize] = corners[1];
@@ -476,6 +473,15 @@ impl CodedGrid {
             s = h;
         }
     }
+}
+
+/// A sub-triangle's lattice `k` levels deep: lattice point `(la, lb)` is grid point
+/// `first + (la, lb) * step` (`step` negative for an inverted sub-triangle).
+#[derive(Copy, Clone)]
+pub struct SubLattice {
+    pub first: [i32; 2],
+    pub step: i32,
+    pub k: u32,
 }
 
 /// A sub-triangle on the way down a grid's hierarchy: first corner `a`, edge length `h`,

@@ -4,7 +4,7 @@
 
 use crate::bit_fields::read_bits;
 use crate::buffer::{element, Buffer, Chunks, Split};
-use crate::compressed_values::{CodedGrid, CodedScene, ValueCode};
+use crate::compressed_values::{CodedGrid, CodedScene, SubLattice, ValueCode};
 use crate::cost::Tally;
 use crate::displacement::{decimated_grid_point, displaced_point, unorm11_displacement, DisplacedTriangle};
 use crate::footprint::FootprintFrame;
@@ -1094,8 +1094,13 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         values: &mut [u32; N],
     ) {
         let corners = open.coded.sub_triangle_values(self.vertices, sub.level, sub.index);
+        let lattice = SubLattice {
+            first: sub.corner,
+            step,
+            k,
+        };
         open.coded
-            .decode_lattice(self.vertices, sub.corner, step, k, corners, window, values);
+            .decode_lattice(self.vertices, lattice, corners, window, values);
         if open.decimated != 0 {
             self.snap_leaf_values(open, sub.corner, step, k, values);
         }

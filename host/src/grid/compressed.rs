@@ -873,8 +873,14 @@ mod tests {
     /// its points to the value the single-point path reads (the rest of the lattice is left
     /// as it was).
     fn windows_decode_their_points(grid: &gridrt_shared::compressed_values::CodedGrid, buffer: &[u32], n: u32) {
+        use gridrt_shared::compressed_values::SubLattice;
         use gridrt_shared::grid_index::lattice_index;
         let corners = grid.sub_triangle_values(buffer, 0, 0);
+        let whole = SubLattice {
+            first: [0, 0],
+            step: 1,
+            k: n.trailing_zeros(),
+        };
         let points: Vec<_> = lattice_points(n).map(|p| (p, grid.value(buffer, p))).collect();
         let bounds = [0, 1, n / 2 - 1, n / 2, n / 2 + 1, n - 1, n];
         for &la_lo in &bounds {
@@ -883,7 +889,7 @@ mod tests {
                     for &lb_hi in bounds.iter().filter(|&&h| h >= lb_lo) {
                         let window = [la_lo, la_hi, lb_lo, lb_hi];
                         let mut out = [u32::MAX; 561];
-                        grid.decode_lattice(buffer, [0, 0], 1, n.trailing_zeros(), corners, window, &mut out);
+                        grid.decode_lattice(buffer, whole, corners, window, &mut out);
                         for &(p, value) in &points {
                             if (la_lo..=la_hi).contains(&p[0]) && (lb_lo..=lb_hi).contains(&p[1]) {
                                 let decoded = out[lattice_index(p[0], p[1], n) as usize];
