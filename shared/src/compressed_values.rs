@@ -33,7 +33,7 @@
 //! [`CodedGrid::value`] decodes any one point by walking down from the grid's corners,
 //! deriving the three midpoints of the sub-triangle that holds the point at each level; the
 //! traversal walks to a sub-triangle's corners once ([`CodedGrid::sub_triangle_values`]) and
-//! decodes a leaf's whole lattice from them ([`CodedGrid::decode_lattice`]).
+//! decodes from them the part of a leaf's lattice its test reads ([`CodedGrid::decode_lattice`]).
 
 use crate::bit_fields::read_bits;
 use crate::buffer::Buffer;
