@@ -25,6 +25,9 @@ pub const AO_SAMPLES_PER_PASS: u32 = 8;
 /// runs loops of its own, and a pixel of deep grids that casts eight rays can reach that.
 pub const AO_SAMPLES_PER_PASS_COMPRESSED: u32 = 2;
 
+// The two-phase schedule's finish keeps to the rays one render pass of compressed grids casts.
+const _: () = assert!(gridrt_shared::layout::FINISH_RAYS_PER_THREAD_COMPRESSED == 1 + AO_SAMPLES_PER_PASS_COMPRESSED);
+
 /// Most ambient-occlusion samples per pixel one render pass of `scene` casts.
 pub fn ao_samples_per_pass(scene: &Scene) -> u32 {
     match scene.has_compressed_values() {

@@ -573,7 +573,6 @@ mod tests {
         }
         map.values.extend(&second.values);
         let bary = bary::write(&map);
-        let floats = |v: &[f32]| v.iter().flat_map(|f| f.to_le_bytes()).collect::<Vec<u8>>();
         let mut bin = floats(&[0., 0., 0., 1., 0., 0., 0., 1., 0., 1., 1., 0.]); // 48: positions
         bin.extend(floats(&[0., 0., 1.].repeat(4))); // 48: directions
         bin.extend(floats(&[0.5, 2.0].repeat(4))); // 32: bounds
@@ -647,17 +646,17 @@ mod tests {
         w.iter().flat_map(|x| x.to_le_bytes()).collect()
     }
 
+    fn floats(v: &[f32]) -> Vec<u8> {
+        v.iter().flat_map(|x| x.to_le_bytes()).collect()
+    }
+
     /// Two level-1 triangles of values one to two bytes (`eR11_unorm_pack16`), u-major:
     /// triangle `t`'s values are `100 * (t + 1) + k`.
     fn two_triangle_properties() -> Vec<([u32; 4], Vec<u8>)> {
         let mut values = words(&[1_000_397_001, 1, 1, 12, 2, 4]);
         values.extend((0..12u16).flat_map(|k| (100 * (k / 6 + 1) + k % 6).to_le_bytes()));
         let mut group = words(&[0, 2, 0, 12, 1, 1]);
-        group.extend(
-            [0.0f32, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0]
-                .iter()
-                .flat_map(|f| f.to_le_bytes()),
-        );
+        group.extend(floats(&[0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0]));
         let triangles = words(&[0, 1, 6, 1]);
         vec![
             ([0xb44d_aa04, 0xc9e0_44d5, 0x9a94_4de0, 0xcfd8_fe35], values),
@@ -670,7 +669,6 @@ mod tests {
     /// by `bary` with `extension`'s settings; `extra` bytes follow the square's for accessors
     /// 3 on (`accessors`, their views in `views`).
     fn square_glb(bary: &[u8], extension: Value, extra: (&[u8], Value, Value), normals: bool) -> Vec<u8> {
-        let floats = |v: &[f32]| v.iter().flat_map(|f| f.to_le_bytes()).collect::<Vec<u8>>();
         let mut bin = floats(&[0., 0., 0., 1., 0., 0., 0., 1., 0., 1., 1., 0.]); // 48: positions
         bin.extend(floats(&[0., 0., 1.].repeat(4))); // 48: normals
         bin.extend(words(&[0, 1, 2, 1, 3, 2])); // 24: indices
@@ -752,11 +750,7 @@ mod tests {
         values_property.extend(words(&packed));
         values_property.extend([0u8; 5]);
         let mut group = words(&[0, 2, 0, bytes, 1, 2]);
-        group.extend(
-            [0.0f32, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0]
-                .iter()
-                .flat_map(|f| f.to_le_bytes()),
-        );
+        group.extend(floats(&[0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0]));
         let mut minima_maxima = words(&[1_000_397_001, 4, 2, 4]);
         minima_maxima.extend([0u16, 2047, 0, 2047].iter().flat_map(|q| q.to_le_bytes()));
         let bary = hand_bary(&[
@@ -765,7 +759,6 @@ mod tests {
             ([0x0045_8e68, 0xee59_426c, 0xb3bf_1b7f, 0x749d_eb8e], triangles),
             ([0x1111_2222, 0x3333_4444, 0x5555_6666, 0x7777_8888], minima_maxima),
         ]);
-        let floats = |v: &[f32]| v.iter().flat_map(|f| f.to_le_bytes()).collect::<Vec<u8>>();
         let mut bin = words(&[0, 1, 2, 2, 1, 3]); // 24: indices
         bin.extend(floats(&[0., 0., 0., 1., 0., 0., 0., 1., 0., 1., 1., 0.])); // 48: positions
         bin.extend(floats(&[0., 0., 0.5].repeat(4))); // 48: directions
@@ -873,7 +866,7 @@ mod tests {
         let mut properties = two_triangle_properties();
         let mut directions = words(&[106, 5, 12, 4]);
         for d in 0..5 {
-            directions.extend([0.0f32, d as f32, 1.0].iter().flat_map(|f| f.to_le_bytes()));
+            directions.extend(floats(&[0.0, d as f32, 1.0]));
         }
         properties.push(([0xf262_d687, 0xb928_4aeb, 0xa706_803c, 0xcbed_ae52], directions));
         let mut mappings = words(&[74, 2, 2, 4]);
