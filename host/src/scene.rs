@@ -57,6 +57,14 @@ impl Scene {
         matches!(self, Scene::Grids(g) if g.params.uses_displaced_formats() || g.has_wide_top())
     }
 
+    /// Whether the scene holds what displaced grids alone do (their values, a wide top level,
+    /// leaf radius pairs): split, only the split kernels of displaced grids read it, and those
+    /// bind fewer chunks (see `gridrt_shared::buffer::Split`). Tight headers and relative radii
+    /// without leaf pairs are read by the plain grids' split kernels too.
+    pub fn splits_as_displaced(&self) -> bool {
+        matches!(self, Scene::Grids(g) if g.params.displaced != 0 || g.has_wide_top() || g.params.leaf_pairs())
+    }
+
     /// Bytes of everything the traversal reads.
     pub fn memory(&self) -> usize {
         let parts = match self {

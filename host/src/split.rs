@@ -5,7 +5,7 @@
 //! them through the same shared code to check it.
 
 use crate::error::{fail, Result};
-use gridrt_shared::buffer::{Chunks, Split, SPLIT_CHUNKS};
+use gridrt_shared::buffer::{Chunks, Split, FEW_CHUNKS, SPLIT_CHUNKS};
 use gridrt_shared::grid_index::MICRO_TRIANGLES;
 use gridrt_shared::grid_traverse;
 use gridrt_shared::layout::{BvhNode, FrameParams, SplitParams, GRID_NODES, TRIANGLE_NODES};
@@ -58,6 +58,17 @@ pub fn scene_buffers(scene: &Scene) -> Vec<SceneBuffer<'_>> {
     }
 }
 
+/// Most chunks `scene` may be split into: [`FEW_CHUNKS`] for what only the split kernels of
+/// displaced grids read ([`Scene::splits_as_displaced`]), which bind no more, else
+/// [`SPLIT_CHUNKS`].
+pub fn most_chunks(scene: &Scene) -> u32 {
+    if scene.splits_as_displaced() {
+        FEW_CHUNKS
+    } else {
+        SPLIT_CHUNKS
+    }
+}
+
 /// Chunks of `chunk_words` words the buffers take (one at least each, so that every buffer
 /// has a binding).
 pub fn chunks_needed(sizes: &[BufferSize], chunk_words: u32) -> u64 {
@@ -67,11 +78,11 @@ pub fn chunks_needed(sizes: &[BufferSize], chunk_words: u32) -> u64 {
         .sum()
 }
 
-/// Refuses buffers that need more than [`SPLIT_CHUNKS`] chunks of `chunk_words` words, naming
-/// each buffer and its size; `device` names where the chunk size comes from.
-pub fn check_chunks(sizes: &[BufferSize], chunk_words: u32, device: &str) -> Result<()> {
+/// Refuses buffers that need more than `most` chunks of `chunk_words` words, naming each
+/// buffer and its size; `device` names where the chunk size comes from.
+pub fn check_chunks(sizes: &[BufferSize], chunk_words: u32, most: u32, device: &str) -> Result<()> {
     let needed = chunks_needed(sizes, chunk_words);
-    if needed <= SPLIT_CHUNKS as u64 {
+    if needed <= most as u64 {
         return Ok(());
     }
     let least = |yes: bool| if yes { "at least " } else { "" };
@@ -82,7 +93,7 @@ pub fn check_chunks(sizes: &[BufferSize], chunk_words: u32, device: &str) -> Res
         .collect();
     fail!(
         Limits,
-        "the scene's buffers ({}) need {at_least}{needed} bindings of {} bytes, more than the {SPLIT_CHUNKS} that \
+        "the scene's buffers ({}) need {at_least}{needed} bindings of {} bytes, more than the {most} that \
          gridrt binds on {device}; use fewer levels or --backend cpu",
         sizes.join(", "),
         chunk_words as u64 * 4,
@@ -103,7 +114,7 @@ pub fn chunk_words(limit: u64) -> u32 {
 
 /// Cuts `scene`'s buffers into chunks of `chunk_words` words (a power of two, at least 8, so
 /// that no node or header straddles two). Fails, naming every buffer and its size, when they
-/// need more than [`SPLIT_CHUNKS`] chunks; `device` names where that limit comes from.
+/// need more than [`most_chunks`]; `device` names where that limit comes from.
 pub fn split<'a>(scene: &'a Scene, chunk_words: u32, device: &str) -> Result<SplitScene<'a>> {
     assert!(
         chunk_words.is_power_of_two() && chunk_words >= 8,
@@ -111,28 +122,7 @@ pub fn split<'a>(scene: &'a Scene, chunk_words: u32, device: &str) -> Result<Spl
     );
     let buffers = scene_buffers(scene);
     let sizes: Vec<BufferSize> = buffers.iter().map(SceneBuffer::size).collect();
-    // The split kernels leave the displaced decoder, the wide walk and leaf radius pairs out:
-    // with them they grow much larger, and so does the time their first compile takes.
-    let whole_only = match scene {
-        Scene::Grids(g) if g.params.displaced != 0 => Some(("displaced grids are", "")),
-        Scene::Grids(g) if g.has_wide_top() => Some(("a wide top level (--wide-top) is", "; use --compact-top")),
-        Scene::Grids(g) if g.params.leaf_pairs() => Some((
-            "relative radii (--radii relative) at this depth are",
-            "; use --radii half",
-        )),
-        _ => None,
-    };
-    if let Some((what, way_out)) = whole_only {
-        let largest = sizes.iter().max_by_key(|b| b.bytes).expect("a scene has buffers");
-        fail!(
-            Limits,
-            "{what} read from one binding per buffer, and this scene's {} buffer ({}) is larger than {device} \
-             binds at once{way_out}",
-            largest.name,
-            crate::limits::human(largest.bytes)
-        );
-    }
-    check_chunks(&sizes, chunk_words, device)?;
+    check_chunks(&sizes, chunk_words, most_chunks(scene), device)?;
     let mut params = SplitParams {
         chunk_shift: chunk_words.trailing_zeros(),
         ..Default::default()

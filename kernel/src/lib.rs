@@ -6,18 +6,18 @@
 //! than one binding may be. Both run the same traversal. Grids in the formats made for
 //! displaced grids have whole-buffer kernels of their own, the only ones that carry those
 //! formats, and grids of compressed values others again, the only ones that carry their
-//! decoder (see `Buffer::DISPLACED_FORMATS`); neither is ever split. The two-phase schedule's
-//! grid kernels come in the same three kinds.
+//! decoder (see `Buffer::DISPLACED_FORMATS`); split scenes of either have one kernel per job
+//! for both. The two-phase schedule's grid kernels come in the same three kinds.
 #![cfg_attr(target_arch = "spirv", no_std)]
 
-use gridrt_shared::buffer::{Buffer, Chunks, CompressedWords, DisplacedWords, Split};
+use gridrt_shared::buffer::{AnyDisplacedWords, Buffer, Chunks, CompressedWords, DisplacedWords, Split};
 use gridrt_shared::cost::Uncounted;
 use gridrt_shared::glam::{UVec3, Vec3};
 use gridrt_shared::grid_traverse::{leaf_test_class, GridScene, OneVisitGrids};
 use gridrt_shared::layout::{
-    BvhNode, FrameParams, GridHeader, Hit, HitRecord, LeafEntry, QueueEntry, RayRecord, TraceParams, WalkState,
-    FINISH_RAYS_PER_THREAD, FINISH_RAYS_PER_THREAD_COMPRESSED, GRID_NODES, LEAF_TEST_CLASSES, NO_HIT,
-    TRACE_WORKGROUP_SIZE, TRIANGLE_NODES, WORKGROUP_SIZE,
+    BvhNode, FrameParams, GridHeader, GridParams, Hit, HitRecord, LeafEntry, QueueEntry, RayRecord, SplitParams,
+    TraceParams, WalkState, FINISH_RAYS_PER_THREAD, FINISH_RAYS_PER_THREAD_COMPRESSED, GRID_HEADERS, GRID_NODES,
+    GRID_RADII, GRID_VERTICES, LEAF_TEST_CLASSES, NO_HIT, TRACE_WORKGROUP_SIZE, TRIANGLE_NODES, WORKGROUP_SIZE,
 };
 use gridrt_shared::ray::Ray;
 use gridrt_shared::shade::{cost_pixel, render_pixel};
@@ -64,8 +64,36 @@ fn trace_record<N: Hierarchy, P: LeafPrimitives>(nodes: N, prims: &P, r: &RayRec
 }
 
 /// Declares a kernel whose scene is split into chunks: its own bindings in set 0, then one
-/// binding per chunk in set 1, gathered into `Chunks` named `$chunks` for the body.
+/// binding per chunk in set 1, gathered into `Chunks` named `$chunks` for the body. With
+/// `few`, the first `FEW_CHUNKS` chunks alone (the body reads them as `Split<_, true>`); the
+/// other fields of `Chunks` repeat the last, never read.
 macro_rules! split_kernel {
+    (
+        few
+        $(#[$attr:meta])*
+        fn $name:ident($($arg:tt)*) |$chunks:ident| $body:block
+    ) => {
+        $(#[$attr])*
+        #[allow(clippy::too_many_arguments)] // one per binding
+        pub fn $name(
+            $($arg)*
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 0)] c0: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 1)] c1: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 2)] c2: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 3)] c3: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 4)] c4: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 5)] c5: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 6)] c6: &[u32],
+            #[spirv(storage_buffer, descriptor_set = 1, binding = 7)] c7: &[u32],
+        ) {
+            let $chunks = Chunks {
+                c0, c1, c2, c3, c4, c5, c6, c7, c8: c7, c9: c7, c10: c7, c11: c7, c12: c7, c13: c7, c14: c7,
+                c15: c7, c16: c7, c17: c7, c18: c7, c19: c7, c20: c7, c21: c7, c22: c7, c23: c7, c24: c7,
+                c25: c7, c26: c7, c27: c7,
+            };
+            $body
+        }
+    };
     (
         $(#[$attr:meta])*
         fn $name:ident($($arg:tt)*) |$chunks:ident| $body:block
@@ -189,13 +217,12 @@ macro_rules! grid_image_kernel {
     };
 }
 
-/// Declares the two kernels that colour a frame's pixels of grid primitives by `$pixel`, each
-/// grid walked as `$walk` wraps the scene, reading whole buffers and a split scene.
-macro_rules! grid_image_kernels {
-    ($pixel:path, $walk:path: $name:ident, $split:ident) => {
-        grid_image_kernel!($pixel, $walk, whole: $name);
-
+/// Declares a kernel that colours a frame's pixels of grid primitives by `$pixel` over a split
+/// scene, each grid walked as `$walk` wraps the scene, its words read as `$words` wraps them.
+macro_rules! grid_image_split_kernel {
+    ($pixel:path, $walk:path, $words:path, $few:literal $(, $kind:ident)?: $split:ident) => {
         split_kernel! {
+            $($kind)?
             /// Grid primitives over a split scene.
             #[spirv(compute(threads(8, 8, 1)))]
             fn $split(
@@ -205,12 +232,21 @@ macro_rules! grid_image_kernels {
                 #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] micro_triangles: &[u32],
             ) |chunks| {
                 if let Some(i) = tile_index(id, frame) {
-                    let nodes = TopNodes::new(Split::<BvhNode>::new(&chunks, &frame.split, GRID_NODES));
-                    let scene = GridScene::split(&chunks, &frame.split, micro_triangles, frame.grid);
+                    let nodes = TopNodes::new(Split::<BvhNode, $few>::new(&chunks, &frame.split, GRID_NODES));
+                    let scene = split_grids::<_, $few>(&chunks, &frame.split, micro_triangles, frame.grid, $words);
                     image[i] = $pixel(frame, nodes, &$walk(scene), frame.tile_x + id.x, frame.tile_y + id.y);
                 }
             }
         }
+    };
+}
+
+/// Declares the two kernels that colour a frame's pixels of grid primitives by `$pixel`, each
+/// grid walked as `$walk` wraps the scene, reading whole buffers and a split scene.
+macro_rules! grid_image_kernels {
+    ($pixel:path, $walk:path: $name:ident, $split:ident) => {
+        grid_image_kernel!($pixel, $walk, whole: $name);
+        grid_image_split_kernel!($pixel, $walk, whole, false: $split);
     };
 }
 
@@ -220,10 +256,27 @@ fn stacked<S>(scene: S) -> S {
 }
 
 /// A scene's words read as they are: plain grids' formats only. Kernels for the formats of
-/// displaced grids read them as [`DisplacedWords`], and those for compressed values as
-/// [`CompressedWords`] (split scenes never hold either).
-fn whole(words: &[u32]) -> &[u32] {
+/// displaced grids read them as [`DisplacedWords`], those for compressed values as
+/// [`CompressedWords`], and split kernels for either as [`AnyDisplacedWords`].
+fn whole<W>(words: W) -> W {
     words
+}
+
+/// The grids of a split scene, their words read as `words` wraps them; `FEW` as for `Split`.
+fn split_grids<'a, W: Buffer<u32>, const FEW: bool>(
+    chunks: &Chunks<'a>,
+    split: &SplitParams,
+    micro_triangles: &'a [u32],
+    params: GridParams,
+    words: impl Fn(Split<'a, u32, FEW>) -> W,
+) -> GridScene<'a, Split<'a, GridHeader, FEW>, W> {
+    GridScene {
+        headers: Split::new(chunks, split, GRID_HEADERS),
+        vertices: words(Split::new(chunks, split, GRID_VERTICES)),
+        radii: words(Split::new(chunks, split, GRID_RADII)),
+        micro_triangles,
+        params,
+    }
 }
 
 // Pictures, and the cost heat map's counts (packed `Costs` per pixel, coloured on the host).
@@ -240,6 +293,11 @@ grid_image_kernel!(cost_pixel, stacked, DisplacedWords: cost_grids_displaced);
 grid_image_kernel!(render_pixel, stacked, CompressedWords: render_grids_compressed);
 grid_image_kernel!(render_pixel, OneVisitGrids, CompressedWords: render_grids_one_visit_compressed);
 grid_image_kernel!(cost_pixel, stacked, CompressedWords: cost_grids_compressed);
+// Split scenes of displaced grids: one kernel per job for every format, walked with the stack
+// (which finds what the root's visit alone does), in the first `FEW_CHUNKS` chunks: each split
+// kernel takes lavapipe minutes to compile.
+grid_image_split_kernel!(render_pixel, stacked, AnyDisplacedWords, true, few: render_grids_displaced_split);
+grid_image_split_kernel!(cost_pixel, stacked, AnyDisplacedWords, true, few: cost_grids_displaced_split);
 
 /// A list of rays against the baseline (benchmarks, and anything that brings its own rays).
 #[spirv(compute(threads(64, 1, 1)))]
@@ -307,13 +365,12 @@ macro_rules! grid_ray_kernel {
     };
 }
 
-/// Declares the two kernels that trace a list of rays against grid primitives, each grid
-/// walked as `$walk` wraps the scene, reading whole buffers and a split scene.
-macro_rules! grid_ray_kernels {
-    ($walk:path: $name:ident, $split:ident) => {
-        grid_ray_kernel!($walk, whole: $name);
-
+/// Declares a kernel that traces a list of rays against grid primitives over a split scene,
+/// each grid walked as `$walk` wraps the scene, its words read as `$words` wraps them.
+macro_rules! grid_ray_split_kernel {
+    ($walk:path, $words:path, $few:literal $(, $kind:ident)?: $split:ident) => {
         split_kernel! {
+            $($kind)?
             /// A list of rays against grid primitives over a split scene.
             #[spirv(compute(threads(64, 1, 1)))]
             fn $split(
@@ -324,12 +381,21 @@ macro_rules! grid_ray_kernels {
                 #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] micro_triangles: &[u32],
             ) |chunks| {
                 if let Some(i) = ray_index(id, params) {
-                    let nodes = TopNodes::new(Split::<BvhNode>::new(&chunks, &params.split, GRID_NODES));
-                    let scene = GridScene::split(&chunks, &params.split, micro_triangles, params.grid);
+                    let nodes = TopNodes::new(Split::<BvhNode, $few>::new(&chunks, &params.split, GRID_NODES));
+                    let scene = split_grids::<_, $few>(&chunks, &params.split, micro_triangles, params.grid, $words);
                     hits[i] = trace_record(nodes, &$walk(scene), &rays[i]);
                 }
             }
         }
+    };
+}
+
+/// Declares the two kernels that trace a list of rays against grid primitives, each grid
+/// walked as `$walk` wraps the scene, reading whole buffers and a split scene.
+macro_rules! grid_ray_kernels {
+    ($walk:path: $name:ident, $split:ident) => {
+        grid_ray_kernel!($walk, whole: $name);
+        grid_ray_split_kernel!($walk, whole, false: $split);
     };
 }
 
@@ -339,6 +405,7 @@ grid_ray_kernel!(stacked, DisplacedWords: trace_grids_rays_displaced);
 grid_ray_kernel!(OneVisitGrids, DisplacedWords: trace_grids_rays_one_visit_displaced);
 grid_ray_kernel!(stacked, CompressedWords: trace_grids_rays_compressed);
 grid_ray_kernel!(OneVisitGrids, CompressedWords: trace_grids_rays_one_visit_compressed);
+grid_ray_split_kernel!(stacked, AnyDisplacedWords, true, few: trace_grids_rays_displaced_split);
 
 // The workgroup sizes are literals because attribute arguments cannot name constants; one
 // group of `order_leaf_classes` covers every class.

@@ -15,10 +15,6 @@ use crate::layout::{BvhNode, GridHeader, SplitParams};
 
 /// Random read access to the elements of a buffer.
 pub trait Buffer<T>: Copy {
-    /// Whether the buffer is split into chunks: code that split scenes never run (displaced
-    /// grids) is left out of their kernels at compile time.
-    const SPLIT: bool = false;
-
     /// Whether code reading this buffer carries the decoder of compressed displacement values
     /// (see `crate::compressed_values`). Natively always; a GPU kernel only when it reads its
     /// words as [`CompressedWords`], since a decoder that no ray of a kernel runs still costs
@@ -27,12 +23,19 @@ pub trait Buffer<T>: Copy {
 
     /// Whether code reading this buffer carries the formats made for displaced grids (see
     /// `GridParams::uses_displaced_formats`): natively always; a GPU kernel over whole buffers
-    /// only when it reads its words as [`DisplacedWords`] or [`CompressedWords`]. Plain grids'
-    /// kernels leave them out: lavapipe runs the code of branches that none of a group's lanes
-    /// takes, and spills the registers they need. Split buffers keep the formats plain grids
-    /// may ask for (tight headers, relative radii); split kernels leave out the others by
-    /// [`Self::SPLIT`].
+    /// only when it reads its words through one of the wrappers below. Plain grids' kernels
+    /// leave them out: lavapipe runs the code of branches that none of a group's lanes takes,
+    /// and spills the registers they need. Split buffers keep the formats plain grids may ask
+    /// for (tight headers, relative radii), and leave out the others by
+    /// [`Self::DISPLACED_GRIDS`].
     const DISPLACED_FORMATS: bool = !cfg!(target_arch = "spirv");
+
+    /// Whether code reading this buffer carries what displaced grids alone hold: their values,
+    /// spheres at each grid's own level, leaf radius pairs and the wide top level's walk.
+    /// Natively always; a GPU kernel only when it reads its words through one of the wrappers
+    /// below, whole or split. The split kernels of plain grids leave it out: every read of a
+    /// split buffer is a branch per chunk, and this code would make them far larger.
+    const DISPLACED_GRIDS: bool = !cfg!(target_arch = "spirv");
 
     /// Whether every scene read through this buffer holds compressed displacement values: a
     /// GPU kernel of them, which the host runs for no other grids, then leaves out the code of
@@ -100,21 +103,21 @@ impl<T: Copy, const N: usize> Buffer<T> for &[T; N] {
     }
 }
 
-/// Declares a wrapper of a scene's words, each buffer whole, through which a GPU kernel reads
-/// them with the formats its constants say it carries.
+/// Declares a wrapper of a scene's words (whole, or a [`Split`] buffer) through which a GPU
+/// kernel reads them with the formats its constants say it carries.
 macro_rules! scene_words {
     (
         $(#[$attr:meta])* $name:ident,
-        displaced: $displaced:expr,
         compressed: $compressed:expr,
         only_compressed: $only_compressed:expr
     ) => {
         $(#[$attr])*
         #[derive(Copy, Clone)]
-        pub struct $name<'a>(pub &'a [u32]);
+        pub struct $name<B>(pub B);
 
-        impl Buffer<u32> for $name<'_> {
-            const DISPLACED_FORMATS: bool = $displaced;
+        impl<B: Buffer<u32>> Buffer<u32> for $name<B> {
+            const DISPLACED_FORMATS: bool = true;
+            const DISPLACED_GRIDS: bool = true;
             const DECODES_COMPRESSED: bool = $compressed;
             const ONLY_COMPRESSED: bool = $only_compressed;
 
@@ -140,7 +143,6 @@ scene_words!(
     /// The words of a scene in the formats made for displaced grids, other than compressed
     /// values (see [`Buffer::DISPLACED_FORMATS`]).
     DisplacedWords,
-    displaced: true,
     compressed: false,
     only_compressed: false
 );
@@ -150,10 +152,22 @@ scene_words!(
     /// scene through this type decodes them (see [`Buffer::DECODES_COMPRESSED`]), and reads
     /// no other grids (see [`Buffer::ONLY_COMPRESSED`]).
     CompressedWords,
-    displaced: true,
     compressed: true,
     only_compressed: true
 );
+
+scene_words!(
+    /// The words of a scene in any format of displaced grids, compressed values included: the
+    /// split kernels' one family for them, so that lavapipe compiles one large kernel per job
+    /// rather than one per format.
+    AnyDisplacedWords,
+    compressed: true,
+    only_compressed: false
+);
+
+/// Most chunks a split scene of displaced grids' formats may use (see [`Split`]): the first
+/// of the bindings, the rest left unbound.
+pub const FEW_CHUNKS: u32 = 8;
 
 /// Most chunks a split scene may use. Their bindings come after a kernel's own (parameters,
 /// static list, rays and hits, or image), in a set of their own: lavapipe allows 32 storage
@@ -198,6 +212,41 @@ macro_rules! declare_chunks {
                 }
             }
 
+            /// [`Self::word`] among the first [`FEW_CHUNKS`] chunks alone.
+            #[inline(always)]
+            pub fn word_of_few(&self, chunk: u32, offset: u32) -> u32 {
+                let o = offset as usize;
+                match chunk {
+                    0 => element(self.c0, o),
+                    1 => element(self.c1, o),
+                    2 => element(self.c2, o),
+                    3 => element(self.c3, o),
+                    4 => element(self.c4, o),
+                    5 => element(self.c5, o),
+                    6 => element(self.c6, o),
+                    _ => element(self.c7, o),
+                }
+            }
+
+            /// [`Self::word4`] among the first [`FEW_CHUNKS`] chunks alone.
+            #[inline(always)]
+            pub fn word4_of_few(&self, chunk: u32, offset: u32) -> [u32; 4] {
+                let o = offset as usize;
+                let four = |words: &[u32]| {
+                    [element(words, o), element(words, o + 1), element(words, o + 2), element(words, o + 3)]
+                };
+                match chunk {
+                    0 => four(self.c0),
+                    1 => four(self.c1),
+                    2 => four(self.c2),
+                    3 => four(self.c3),
+                    4 => four(self.c4),
+                    5 => four(self.c5),
+                    6 => four(self.c6),
+                    _ => four(self.c7),
+                }
+            }
+
             /// Chunks from a list of at most [`SPLIT_CHUNKS`] slices; the rest are empty.
             #[cfg(not(target_arch = "spirv"))]
             pub fn from_slices(parts: &[&'a [u32]]) -> Self {
@@ -219,8 +268,13 @@ declare_chunks!(
 );
 
 /// Buffer `buffer` of a split scene (its index in [`SplitParams`]), read as elements of `T`.
+///
+/// `FEW`: whether the scene lies in the first [`FEW_CHUNKS`] chunks, so that each read
+/// branches over those alone. The split kernels of displaced grids' formats take that: their
+/// traversal reads words at far more places than plain grids', each place inlining its
+/// branch, and with every chunk's arm lavapipe took over twenty minutes to compile one.
 #[derive(Copy, Clone)]
-pub struct Split<'a, T> {
+pub struct Split<'a, T, const FEW: bool = false> {
     /// By value: a reference to the caller's `Chunks` would be a pointer to a function
     /// variable inside a struct, which shaders cannot hold.
     chunks: Chunks<'a>,
@@ -230,7 +284,7 @@ pub struct Split<'a, T> {
     item: PhantomData<T>,
 }
 
-impl<'a, T> Split<'a, T> {
+impl<'a, T, const FEW: bool> Split<'a, T, FEW> {
     #[inline(always)]
     pub fn new(chunks: &Chunks<'a>, params: &SplitParams, buffer: usize) -> Self {
         Split {
@@ -246,8 +300,12 @@ impl<'a, T> Split<'a, T> {
     #[inline(always)]
     fn word(&self, word: u32, offset: u32) -> u32 {
         let mask = (1u32 << self.shift) - 1;
-        self.chunks
-            .word(self.first_chunk + (word >> self.shift), (word & mask) + offset)
+        let (chunk, at) = (self.first_chunk + (word >> self.shift), (word & mask) + offset);
+        if FEW {
+            self.chunks.word_of_few(chunk, at)
+        } else {
+            self.chunks.word(chunk, at)
+        }
     }
 
     /// Words `word .. word + 4`, which lie in one chunk (`word` a multiple of 4: chunks hold
@@ -255,12 +313,16 @@ impl<'a, T> Split<'a, T> {
     #[inline(always)]
     fn word4(&self, word: u32) -> [u32; 4] {
         let mask = (1u32 << self.shift) - 1;
-        self.chunks.word4(self.first_chunk + (word >> self.shift), word & mask)
+        let (chunk, at) = (self.first_chunk + (word >> self.shift), word & mask);
+        if FEW {
+            self.chunks.word4_of_few(chunk, at)
+        } else {
+            self.chunks.word4(chunk, at)
+        }
     }
 }
 
-impl Buffer<u32> for Split<'_, u32> {
-    const SPLIT: bool = true;
+impl<const FEW: bool> Buffer<u32> for Split<'_, u32, FEW> {
     const DISPLACED_FORMATS: bool = true;
 
     #[inline(always)]
@@ -274,9 +336,7 @@ impl Buffer<u32> for Split<'_, u32> {
     }
 }
 
-impl Buffer<f32> for Split<'_, f32> {
-    const SPLIT: bool = true;
-
+impl<const FEW: bool> Buffer<f32> for Split<'_, f32, FEW> {
     #[inline(always)]
     fn load(self, index: u32) -> f32 {
         f32::from_bits(self.word(index, 0))
@@ -288,9 +348,7 @@ impl Buffer<f32> for Split<'_, f32> {
     }
 }
 
-impl Buffer<BvhNode> for Split<'_, BvhNode> {
-    const SPLIT: bool = true;
-
+impl<const FEW: bool> Buffer<BvhNode> for Split<'_, BvhNode, FEW> {
     #[inline(always)]
     fn load(self, index: u32) -> BvhNode {
         let [x0, y0, z0, first] = self.word4(8 * index);
@@ -310,9 +368,7 @@ impl Buffer<BvhNode> for Split<'_, BvhNode> {
     }
 }
 
-impl Buffer<GridHeader> for Split<'_, GridHeader> {
-    const SPLIT: bool = true;
-
+impl<const FEW: bool> Buffer<GridHeader> for Split<'_, GridHeader, FEW> {
     #[inline(always)]
     fn load(self, index: u32) -> GridHeader {
         let [e0, e1, c0, c1] = self.word4(4 * index);

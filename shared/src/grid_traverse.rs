@@ -397,12 +397,11 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         self.stored_vertex(grid, p)
     }
 
-    /// Whether the grids hold displacement values, plain or compressed. Never in a split scene
-    /// (the host refuses to split one), nor in kernels built for plain grids (see
-    /// `Buffer::DISPLACED_FORMATS`).
+    /// Whether the grids hold displacement values, plain or compressed. Never in kernels built
+    /// for plain grids (see `Buffer::DISPLACED_GRIDS`).
     #[inline(always)]
     fn displaced(&self) -> bool {
-        !W::SPLIT && W::DISPLACED_FORMATS && (W::ONLY_COMPRESSED || self.params.displaced != 0)
+        W::DISPLACED_GRIDS && (W::ONLY_COMPRESSED || self.params.displaced != 0)
     }
 
     /// Whether the grids hold compressed values, which the traversal decodes a sub-triangle
@@ -489,12 +488,11 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     }
 
     /// Whether the leaves of `room` hold their radii in their bytes
-    /// ([`GridParams::leaf_pairs_at`]). Never in a split scene: the host refuses to split such
-    /// scenes, and their kernels leave the pairs' reads out, since every read of a split buffer
-    /// is a branch per chunk.
+    /// ([`GridParams::leaf_pairs_at`]). Never in kernels built for plain grids (see
+    /// `Buffer::DISPLACED_GRIDS`): relative radii are a format of displaced grids' kernels.
     #[inline(always)]
     fn leaf_pairs(&self, room: &SphereRoom) -> bool {
-        !W::SPLIT && W::DISPLACED_FORMATS && self.params.leaf_pairs_at(room.leaf_level)
+        W::DISPLACED_GRIDS && self.params.leaf_pairs_at(room.leaf_level)
     }
 
     /// Whether the radii are bytes relative to each grid's root ([`RADII_RELATIVE`]), a
@@ -505,10 +503,10 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     }
 
     /// Whether each grid's spheres are at its own level (see `GridParams::own_rooms`): only
-    /// for displaced grids, which are never split.
+    /// for displaced grids.
     #[inline(always)]
     fn own_rooms(&self) -> bool {
-        !W::SPLIT && W::DISPLACED_FORMATS && self.params.own_rooms != 0
+        W::DISPLACED_GRIDS && self.params.own_rooms != 0
     }
 
     /// Where the spheres of `grid`, whose own level is `own`, lie in the radius buffer.
@@ -526,7 +524,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             };
         }
         let first_radius = if self.relative_radii() {
-            let stored = g.spheres_in_radius_area(!W::SPLIT && g.leaf_pairs());
+            let stored = g.spheres_in_radius_area(W::DISPLACED_GRIDS && g.leaf_pairs());
             grid * relative_radius_words(stored)
         } else {
             grid * g.sphere_count
@@ -1339,7 +1337,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
 
 /// Grid primitives of any hierarchy depth: each grid walked with a stack of sub-triangles.
 impl<H: Buffer<GridHeader>, W: Buffer<u32>> LeafPrimitives for GridScene<'_, H, W> {
-    const DISPLACED_FORMATS: bool = W::DISPLACED_FORMATS;
+    const DISPLACED_GRIDS: bool = W::DISPLACED_GRIDS;
     type Scratch = GridScratch;
 
     fn scratch(&self, ray: &Ray) -> GridScratch {
@@ -1418,7 +1416,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> OneVisitGrids<'_, H, W> {
 }
 
 impl<H: Buffer<GridHeader>, W: Buffer<u32>> LeafPrimitives for OneVisitGrids<'_, H, W> {
-    const DISPLACED_FORMATS: bool = W::DISPLACED_FORMATS;
+    const DISPLACED_GRIDS: bool = W::DISPLACED_GRIDS;
     type Scratch = GridScratch;
 
     fn scratch(&self, ray: &Ray) -> GridScratch {

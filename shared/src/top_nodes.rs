@@ -119,7 +119,7 @@ impl<N: Buffer<BvhNode>> Hierarchy for TopNodes<N> {
     #[inline(always)]
     fn search<P: LeafPrimitives, T: Tally>(self, prims: &P, ray: &Ray, hit: &mut Hit, tally: &mut T) {
         // A constant condition: each kernel holds one of the two walks' instances.
-        if P::DISPLACED_FORMATS {
+        if P::DISPLACED_GRIDS {
             traverse_bvh(self.walk::<true>(), prims, ray, hit, tally)
         } else {
             traverse_bvh(self.walk::<false>(), prims, ray, hit, tally)
@@ -131,10 +131,8 @@ impl<N: Buffer<BvhNode>> Hierarchy for TopNodes<N> {
 /// one by one, or wide nodes as `crate::wide_nodes` walks them, every entry on the stack, nodes
 /// and leaves alike, sorted nearest on top.
 ///
-/// `WIDE_WALK`: whether the walk may meet wide nodes. Kernels of plain grids leave the wide
-/// walk out (see `LeafPrimitives::DISPLACED_FORMATS`), and so do split kernels: with it their
-/// first compile takes far longer, and split scenes never hold a wide top level (the host
-/// refuses to split one).
+/// `WIDE_WALK`: whether the walk may meet wide nodes. Kernels of plain grids, whole or split,
+/// leave the wide walk out (see `LeafPrimitives::DISPLACED_GRIDS`).
 #[derive(Copy, Clone)]
 pub struct TopWalk<N, const WIDE_WALK: bool>(TopNodes<N>);
 
@@ -142,7 +140,7 @@ impl<N: Buffer<BvhNode>, const WIDE_WALK: bool> LeafWalk for TopWalk<N, WIDE_WAL
     #[inline(always)]
     fn enter<T: Tally>(self, ray: &Ray, t: f32, tally: &mut T) -> f32 {
         let top = self.0;
-        if WIDE_WALK && !N::SPLIT && top.wide {
+        if WIDE_WALK && top.wide {
             root_entry(top.nodes, &top.scene_frame(), ray, t, tally)
         } else {
             BinaryWalk(top).enter(ray, t, tally)
@@ -159,7 +157,7 @@ impl<N: Buffer<BvhNode>, const WIDE_WALK: bool> LeafWalk for TopWalk<N, WIDE_WAL
         tally: &mut T,
     ) -> BvhNode {
         let top = self.0;
-        if WIDE_WALK && !N::SPLIT && top.wide {
+        if WIDE_WALK && top.wide {
             let entry = next_leaf(top.nodes, &top.scene_frame(), ray, t, stack, sp, tally);
             if entry == NO_NODE {
                 BvhNode::default()
@@ -174,8 +172,6 @@ impl<N: Buffer<BvhNode>, const WIDE_WALK: bool> LeafWalk for TopWalk<N, WIDE_WAL
 
 /// Binary nodes one by one (full or compact; not wide ones).
 impl<N: Buffer<BvhNode>> Buffer<BvhNode> for TopNodes<N> {
-    const SPLIT: bool = N::SPLIT;
-
     #[inline]
     fn load(self, index: u32) -> BvhNode {
         if !self.compact {

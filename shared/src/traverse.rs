@@ -15,9 +15,9 @@ pub const MAX_BVH_DEPTH: usize = 64;
 
 /// What a BVH leaf refers to.
 pub trait LeafPrimitives {
-    /// Whether the kernel reading these primitives carries the formats of displaced grids
-    /// (see `Buffer::DISPLACED_FORMATS`), the wide top level among them.
-    const DISPLACED_FORMATS: bool = !cfg!(target_arch = "spirv");
+    /// Whether the kernel reading these primitives carries what displaced grids alone hold
+    /// (see `Buffer::DISPLACED_GRIDS`), the wide top level's walk among them.
+    const DISPLACED_GRIDS: bool = !cfg!(target_arch = "spirv");
 
     /// Working memory of the leaf tests and the per-ray constants they need, made once per
     /// ray rather than once per leaf: on GPUs every fresh local array costs a store per element.

@@ -3,7 +3,9 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+use gridrt::bake::{bake, BakeOptions, Base};
 use gridrt::bvh::Aabb;
+use gridrt::displaced::DisplacedMesh;
 use gridrt::error::ErrorKind;
 use gridrt::gpu::Gpu;
 use gridrt::grid;
@@ -264,4 +266,73 @@ pub fn bumpy_ball(levels: u32) -> Mesh {
         triangles: sub.micro_triangles(levels),
     };
     gridrt::mesh::WorldMesh::from(mesh).validate("ball").unwrap().0.to_f32()
+}
+
+/// A bumpy ball baked at `levels` on a base of 64 triangles.
+pub fn baked_ball(levels: u32) -> DisplacedMesh {
+    let reference = bumpy_ball(4);
+    let options = BakeOptions {
+        base: Base::Decimated { triangles: 64 },
+        ..BakeOptions::for_reference(&reference, levels)
+    };
+    bake(&reference, &options).unwrap().mesh
+}
+
+/// The ball baked at `levels`, then each base triangle taken down to a level of its own: the
+/// deepest at one triangle, one level less for each step away from it across edges, to level
+/// 1 at least (so neighbours differ by one at most), its values those of its level's points,
+/// and the finer side of each step decimating the edge. Levels 1 to `levels`, with decimated
+/// edges at every step.
+pub fn mixed_ball(levels: u32) -> DisplacedMesh {
+    use gridrt_shared::displacement::u_major_index;
+    let mut mesh = baked_ball(levels);
+    let triangles = mesh.triangles.clone();
+    // Steps from triangle 0 across shared edges, breadth first.
+    let mut by_edge = std::collections::HashMap::<(u32, u32), Vec<usize>>::new();
+    for (t, c) in triangles.iter().enumerate() {
+        for e in 0..3 {
+            let (a, b) = (c[e], c[(e + 1) % 3]);
+            by_edge.entry((a.min(b), a.max(b))).or_default().push(t);
+        }
+    }
+    let mut steps = vec![u32::MAX; triangles.len()];
+    let mut queue = std::collections::VecDeque::from([0usize]);
+    steps[0] = 0;
+    while let Some(t) = queue.pop_front() {
+        for e in 0..3 {
+            let (a, b) = (triangles[t][e], triangles[t][(e + 1) % 3]);
+            for &u in &by_edge[&(a.min(b), a.max(b))] {
+                if steps[u] == u32::MAX {
+                    steps[u] = steps[t] + 1;
+                    queue.push_back(u);
+                }
+            }
+        }
+    }
+    let own: Vec<u32> = steps.iter().map(|&d| levels.saturating_sub(d).max(1)).collect();
+    let n = 1u32 << levels;
+    let mut micromap = mesh.micromap.clone();
+    micromap.values.clear();
+    micromap.triangles.clear();
+    for (t, &l) in own.iter().enumerate() {
+        let (values, shift, m) = (mesh.micromap.triangle_values(t), levels - l, 1u32 << l);
+        micromap.triangles.push(gridrt::bary::MicromapTriangle {
+            level: l,
+            first_value: micromap.values.len() as u32,
+        });
+        for i in 0..=m {
+            for j in 0..=m - i {
+                micromap
+                    .values
+                    .push(values[u_major_index([i << shift, j << shift], n) as usize]);
+            }
+        }
+    }
+    micromap.value_code = None;
+    mesh.micromap = micromap;
+    mesh.decimated_edges = gridrt::bake::levels::decimated_edges(&triangles, &own);
+    assert!((1..=levels).all(|l| own.contains(&l)), "{own:?}");
+    assert!(mesh.decimated_edges.iter().filter(|&&f| f != 0).count() >= 4);
+    mesh.check().unwrap();
+    mesh
 }

@@ -5,7 +5,6 @@
 //! levels step) likewise, and a file of them, as another tool writes it, watertight.
 
 use gridrt::backend::Backend;
-use gridrt::bake::{bake, BakeOptions, Base};
 use gridrt::bvh::Aabb;
 use gridrt::camera;
 use gridrt::displaced::DisplacedMesh;
@@ -17,17 +16,7 @@ use gridrt::scene::{render_cpu, Scene};
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::layout::{RayRecord, NO_HIT, SHADE_EYE_LIGHT};
 use gridrt_shared::ray::{Ray, T_FAR};
-use gridrt_tests::{bumpy_ball, gpu_or_skip, Rng};
-
-/// A bumpy ball baked at `levels` on a base of 64 triangles.
-fn baked_ball(levels: u32) -> DisplacedMesh {
-    let reference = bumpy_ball(4);
-    let options = BakeOptions {
-        base: Base::Decimated { triangles: 64 },
-        ..BakeOptions::for_reference(&reference, levels)
-    };
-    bake(&reference, &options).unwrap().mesh
-}
+use gridrt_tests::{baked_ball, gpu_or_skip, mixed_ball, Rng};
 
 /// The ball's values plain, and compressed loosely enough that most levels lose bits (and
 /// clamped corrections, shifts and zero widths all occur).
@@ -35,65 +24,6 @@ fn variants(levels: u32) -> [(&'static str, DisplacedMesh); 2] {
     let mesh = baked_ball(levels);
     let compressed = compress(&mesh, &ValueCompression::bounded(2e-3)).unwrap().mesh;
     [("plain", mesh), ("compressed", compressed)]
-}
-
-/// The ball baked at `levels`, then each base triangle taken down to a level of its own: the
-/// deepest at one triangle, one level less for each step away from it across edges, to level
-/// 1 at least (so neighbours differ by one at most), its values those of its level's points,
-/// and the finer side of each step decimating the edge. Levels 1 to `levels`, with decimated
-/// edges at every step.
-fn mixed_ball(levels: u32) -> DisplacedMesh {
-    use gridrt_shared::displacement::u_major_index;
-    let mut mesh = baked_ball(levels);
-    let triangles = mesh.triangles.clone();
-    // Steps from triangle 0 across shared edges, breadth first.
-    let mut by_edge = std::collections::HashMap::<(u32, u32), Vec<usize>>::new();
-    for (t, c) in triangles.iter().enumerate() {
-        for e in 0..3 {
-            let (a, b) = (c[e], c[(e + 1) % 3]);
-            by_edge.entry((a.min(b), a.max(b))).or_default().push(t);
-        }
-    }
-    let mut steps = vec![u32::MAX; triangles.len()];
-    let mut queue = std::collections::VecDeque::from([0usize]);
-    steps[0] = 0;
-    while let Some(t) = queue.pop_front() {
-        for e in 0..3 {
-            let (a, b) = (triangles[t][e], triangles[t][(e + 1) % 3]);
-            for &u in &by_edge[&(a.min(b), a.max(b))] {
-                if steps[u] == u32::MAX {
-                    steps[u] = steps[t] + 1;
-                    queue.push_back(u);
-                }
-            }
-        }
-    }
-    let own: Vec<u32> = steps.iter().map(|&d| levels.saturating_sub(d).max(1)).collect();
-    let n = 1u32 << levels;
-    let mut micromap = mesh.micromap.clone();
-    micromap.values.clear();
-    micromap.triangles.clear();
-    for (t, &l) in own.iter().enumerate() {
-        let (values, shift, m) = (mesh.micromap.triangle_values(t), levels - l, 1u32 << l);
-        micromap.triangles.push(gridrt::bary::MicromapTriangle {
-            level: l,
-            first_value: micromap.values.len() as u32,
-        });
-        for i in 0..=m {
-            for j in 0..=m - i {
-                micromap
-                    .values
-                    .push(values[u_major_index([i << shift, j << shift], n) as usize]);
-            }
-        }
-    }
-    micromap.value_code = None;
-    mesh.micromap = micromap;
-    mesh.decimated_edges = gridrt::bake::levels::decimated_edges(&triangles, &own);
-    assert!((1..=levels).all(|l| own.contains(&l)), "{own:?}");
-    assert!(mesh.decimated_edges.iter().filter(|&&f| f != 0).count() >= 4);
-    mesh.check().unwrap();
-    mesh
 }
 
 /// Mixed balls of deepest levels 3 and 4, their values plain, and compressed as loosely as

@@ -5,16 +5,19 @@
 
 use gridrt::bvh::Aabb;
 use gridrt::camera;
+use gridrt::displaced::DisplacedMesh;
+use gridrt::grid::compressed::{compress, ValueCompression};
 use gridrt::grid::{GridOptions, RadiusFormat, TopFormat};
 use gridrt::image_io::fraction_within;
 use gridrt::mesh::scene::default_scene;
+use gridrt::pipeline::BuildOptions;
 use gridrt::rays::{primary_rays, trace_cpu};
 use gridrt::scene::{render_cpu, Scene};
 use gridrt::split::{render_cpu_split, scene_buffers, split};
 use gridrt::subdiv::Scheme;
 use gridrt_shared::buffer::SPLIT_CHUNKS;
 use gridrt_shared::layout::SHADE_NORMAL;
-use gridrt_tests::{build_pair, build_pair_with, gpu_or_skip, Pair};
+use gridrt_tests::{baked_ball, build_pair, build_pair_with, gpu_or_skip, mixed_ball, Pair};
 
 /// The smallest power-of-two chunk (at least 1 KiB) that holds `scene` in at most
 /// [`SPLIT_CHUNKS`] chunks; the tests check that it still cuts every buffer larger than 1 KiB.
@@ -51,11 +54,41 @@ fn named_scenes<'a>(pair: &'a Pair, stacked: &'a Scene) -> [(&'static str, &'a S
     ]
 }
 
+/// Grids in the formats made for displaced grids, which split scenes read through kernels of
+/// their own: a wide top level, leaf radius pairs (relative radii at L = 4), and baked balls
+/// of plain and compressed values, of one level and of mixed levels.
+fn displaced_formats() -> Vec<(&'static str, Scene)> {
+    let subdivided =
+        |levels, options: &GridOptions| build_pair_with(&default_scene(), levels, levels, Scheme::Loop, options).grids;
+    let wide = GridOptions {
+        top: TopFormat::Wide,
+        ..GridOptions::default()
+    };
+    let relative = GridOptions {
+        radii: RadiusFormat::Relative,
+        ..GridOptions::default()
+    };
+    let compressed = |m: &DisplacedMesh| compress(m, &ValueCompression::bounded(2e-3)).unwrap().mesh;
+    let baked = |m: &DisplacedMesh| Scene::build_displaced(m, &BuildOptions::for_displaced()).unwrap();
+    vec![
+        ("wide top level", subdivided(2, &wide)),
+        ("leaf radius pairs", subdivided(4, &relative)),
+        ("displaced, L = 3", baked(&baked_ball(3))),
+        ("displaced, L = 4", baked(&baked_ball(4))),
+        ("displaced compressed, L = 3", baked(&compressed(&baked_ball(3)))),
+        ("displaced mixed compressed, L = 4", baked(&compressed(&mixed_ball(4)))),
+    ]
+}
+
 #[test]
 fn cpu_reads_split_scenes_as_whole_ones() {
     let pair = pair();
     let stacked = stacked_grids();
-    for (name, scene) in named_scenes(&pair, &stacked) {
+    let displaced = displaced_formats();
+    let all = named_scenes(&pair, &stacked)
+        .into_iter()
+        .chain(displaced.iter().map(|(name, scene)| (*name, scene)));
+    for (name, scene) in all {
         let bytes = smallest_chunk_bytes(scene);
         let cut = split(scene, (bytes / 4) as u32, "test").unwrap();
         let buffers = scene_buffers(scene);
@@ -64,9 +97,11 @@ fn cpu_reads_split_scenes_as_whole_ones() {
             cut.chunks.len(),
             buffers.iter().map(|b| b.words.len() * 4).collect::<Vec<_>>()
         );
-        // Every buffer larger than a chunk is cut, so each is read across chunk boundaries.
-        assert!(buffers.iter().filter(|b| b.words.len() * 4 > bytes as usize).count() >= 2);
-        let frame = scene.frame(camera::frame(&pair.bounds, 96, 72), SHADE_NORMAL);
+        // Every buffer larger than a chunk is cut, so each is read across chunk boundaries: two
+        // at least, or one where displaced grids' few chunks allow no more.
+        let cut_buffers = buffers.iter().filter(|b| b.words.len() * 4 > bytes as usize).count();
+        assert!(cut_buffers >= if scene.splits_as_displaced() { 1 } else { 2 }, "{name}");
+        let frame = scene.frame(camera::frame(&scene.bounds(), 96, 72), SHADE_NORMAL);
         assert_eq!(
             render_cpu(scene, &frame),
             render_cpu_split(scene, &cut, &frame),
@@ -89,36 +124,6 @@ fn too_many_chunks_are_refused_with_the_sizes() {
         assert!(err.contains(part), "{err:?} lacks {part:?}");
     }
     assert!(!err.contains('\n'), "{err:?} is not one line");
-}
-
-/// A wide top level and leaf radius pairs are never split (the split kernels leave them out):
-/// refused on one line that names the way out.
-#[test]
-fn wide_top_levels_and_leaf_radius_pairs_are_refused() {
-    let wide = GridOptions {
-        top: TopFormat::Wide,
-        ..GridOptions::default()
-    };
-    let relative = GridOptions {
-        radii: RadiusFormat::Relative,
-        ..GridOptions::default()
-    };
-    for (options, levels, parts) in [
-        (wide, 2, ["wide top level", "--compact-top"]),
-        (relative, 4, ["relative radii", "--radii half"]),
-    ] {
-        let grids = build_pair_with(&default_scene(), levels, levels, Scheme::Loop, &options).grids;
-        let Scene::Grids(g) = &grids else { panic!("grids") };
-        assert!(g.has_wide_top() || g.params.leaf_pairs());
-        let err = split(&grids, 1 << 10, "a small GPU")
-            .err()
-            .expect("refused")
-            .to_string();
-        for part in parts.iter().chain(&["a small GPU"]) {
-            assert!(err.contains(part), "{err:?} lacks {part:?}");
-        }
-        assert!(!err.contains('\n'), "{err:?} is not one line");
-    }
 }
 
 /// What the GPU gives for `scene` with a binding limit small enough to split it: its own
@@ -173,6 +178,26 @@ fn split_grids_on_the_gpu_render_as_whole_ones() {
 fn split_stacked_grids_on_the_gpu_trace_as_whole_ones() {
     let pair = pair();
     split_on_the_gpu_equals_whole("split stacked grids", &stacked_grids(), &pair.bounds, false, true);
+}
+
+// Split scenes in displaced grids' formats have one kernel per job, checked the same way: the
+// picture on a compressed bake of mixed levels (the decoder, each grid's own level and its
+// spheres, decimated edges, the wide top level, leaf radius pairs), and ray lists on a plain
+// bake of one level, walked with the stack where whole kernels take the root's visit alone.
+
+#[test]
+fn split_displaced_grids_on_the_gpu_render_as_whole_ones() {
+    let mesh = compress(&mixed_ball(4), &ValueCompression::bounded(2e-3)).unwrap().mesh;
+    let grids = Scene::build_displaced(&mesh, &BuildOptions::for_displaced()).unwrap();
+    let bounds = grids.bounds();
+    split_on_the_gpu_equals_whole("split displaced grids", &grids, &bounds, true, false);
+}
+
+#[test]
+fn split_displaced_grids_on_the_gpu_trace_as_whole_ones() {
+    let grids = Scene::build_displaced(&baked_ball(3), &BuildOptions::for_displaced()).unwrap();
+    let bounds = grids.bounds();
+    split_on_the_gpu_equals_whole("split displaced grids", &grids, &bounds, false, true);
 }
 
 #[test]

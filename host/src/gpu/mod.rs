@@ -17,7 +17,7 @@ use wgpu::util::DeviceExt;
 use crate::limits::parse_bytes;
 use crate::limits::{self, BufferSize};
 use crate::scene::Scene;
-use crate::split::{check_chunks, chunk_words, scene_buffers, split};
+use crate::split::{check_chunks, chunk_words, most_chunks, scene_buffers, split};
 
 /// The SPIR-V module of the `kernel` crate.
 pub const KERNEL_SPV: &[u8] = include_bytes!(env!("kernel.spv"));
@@ -58,7 +58,7 @@ pub struct Gpu {
     /// The kernels for split scenes, grids in displaced grids' formats or of compressed values,
     /// and the heat map's, each made the first time it runs: the split ones bind more buffers
     /// than some adapters allow, and all take drivers long to compile.
-    on_demand: [std::sync::OnceLock<wgpu::ComputePipeline>; 20],
+    on_demand: [std::sync::OnceLock<wgpu::ComputePipeline>; 23],
     /// The two-phase schedule's kernels, for plain grids' formats, displaced grids' and
     /// compressed values (`two_phase::GridFormats`), each made on first use.
     two_phase: [std::sync::OnceLock<two_phase::Kernels>; two_phase::GridFormats::COUNT],
@@ -242,10 +242,14 @@ impl Gpu {
     /// of compressed values, or the heat map's.
     fn on_demand_pipeline(&self, scene: &Scene, job: Job, split: bool) -> Result<&wgpu::ComputePipeline> {
         let one_visit = matches!(scene, Scene::Grids(s) if s.params.one_visit());
-        let compressed = scene.has_compressed_values();
         let displaced = !split && scene.uses_displaced_formats();
+        let compressed = !split && scene.has_compressed_values();
+        let split_displaced = split && scene.splits_as_displaced();
         let (index, entry) = match (scene, job, split) {
-            // Never split: `crate::split` refuses displaced grids that need it.
+            // One kernel per job for split scenes of what displaced grids alone hold.
+            (Scene::Grids(_), Job::Render, _) if split_displaced => (20, "render_grids_displaced_split"),
+            (Scene::Grids(_), Job::Trace, _) if split_displaced => (21, "trace_grids_rays_displaced_split"),
+            (Scene::Grids(_), Job::Cost, _) if split_displaced => (22, "cost_grids_displaced_split"),
             (Scene::Grids(_), Job::Render, _) if compressed && one_visit => (10, "render_grids_one_visit_compressed"),
             (Scene::Grids(_), Job::Trace, _) if compressed && one_visit => {
                 (11, "trace_grids_rays_one_visit_compressed")
@@ -327,13 +331,20 @@ impl Gpu {
     }
 
     /// Refuses, before it is built, a scene whose buffers will be at least `sizes` and cannot
-    /// be bound on this adapter: the check [`Gpu::upload`] makes on the built scene.
+    /// be bound on this adapter: the check [`Gpu::upload`] makes on the built scene, for plain
+    /// grids' formats (split scenes of displaced grids' formats bind fewer chunks, checked as
+    /// they are uploaded).
     pub fn check_fits(&self, sizes: &[BufferSize]) -> Result<()> {
         if self.binds_whole(sizes) {
             return Ok(());
         }
         self.check_split_bindings()?;
-        check_chunks(sizes, chunk_words(self.binding_limit), &self.describe_limits())
+        check_chunks(
+            sizes,
+            chunk_words(self.binding_limit),
+            SPLIT_CHUNKS,
+            &self.describe_limits(),
+        )
     }
 
     /// Whether every buffer fits in one binding, so that none need be split.
@@ -369,7 +380,7 @@ impl Gpu {
         let mut chunks: Vec<wgpu::Buffer> = (split.chunks.iter())
             .map(|c| self.buffer("scene chunk", bytemuck::cast_slice(c)))
             .collect();
-        chunks.resize_with(SPLIT_CHUNKS as usize, || self.buffer("unused chunk", &[]));
+        chunks.resize_with(most_chunks(scene) as usize, || self.buffer("unused chunk", &[]));
         Ok(GpuScene {
             scene,
             buffers: statics,
