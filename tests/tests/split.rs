@@ -13,7 +13,7 @@ use gridrt::mesh::scene::default_scene;
 use gridrt::pipeline::BuildOptions;
 use gridrt::rays::{primary_rays, trace_cpu};
 use gridrt::scene::{render_cpu, Scene};
-use gridrt::split::{render_cpu_split, scene_buffers, split};
+use gridrt::split::{chunks_needed, render_cpu_split, scene_buffers, split};
 use gridrt::subdiv::Scheme;
 use gridrt_shared::buffer::SPLIT_CHUNKS;
 use gridrt_shared::layout::SHADE_NORMAL;
@@ -262,4 +262,40 @@ fn binding_limit_from_the_environment() {
     let bad = run("lots", "bad.png", "grid");
     assert!(String::from_utf8_lossy(&bad.stderr).contains("GRIDRT_GPU_BINDING_LIMIT=lots"));
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A displaced micro-mesh file that needs more than the 8 chunks its split kernels bind (but
+/// no more than plain grids' 28) is refused as it is uploaded, on one line naming the file.
+#[test]
+fn displaced_files_past_their_chunks_are_refused_naming_the_file() {
+    if gpu_or_skip("displaced_files_past_their_chunks_are_refused_naming_the_file").is_none() {
+        return;
+    }
+    let mesh = baked_ball(4);
+    let grids = Scene::build_displaced(&mesh, &BuildOptions::for_displaced()).unwrap();
+    let sizes: Vec<_> = scene_buffers(&grids).iter().map(|b| b.size()).collect();
+    let bytes = (10..20)
+        .map(|k| 1u64 << k)
+        .find(|&b| (9..=SPLIT_CHUNKS as u64).contains(&chunks_needed(&sizes, (b / 4) as u32)))
+        .expect("a binding limit between 8 and 28 chunks");
+    let dir = gridrt_tests::scratch("split-displaced");
+    let file = dir.join("ball.gltf");
+    gridrt::micromesh_gltf::write(&file, &mesh, &gridrt::mesh::frame::LocalFrame::IDENTITY).unwrap();
+    let png = dir.join("ball.png");
+    let o = std::process::Command::new(gridrt_tests::gridrt_exe())
+        .args(["render", "--backend", "gpu", "--width", "32", "--height", "24"])
+        .arg(&file)
+        .arg("-o")
+        .arg(&png)
+        .env("GRIDRT_GPU_BINDING_LIMIT", bytes.to_string())
+        .output()
+        .unwrap();
+    let err = gridrt_tests::stderr(&o);
+    assert!(!o.status.success(), "{err}");
+    let lines: Vec<&str> = err.lines().filter(|l| l.starts_with("error")).collect();
+    assert_eq!(lines.len(), 1, "{err}");
+    for part in ["ball.gltf", "grid vertex", "more than the 8"] {
+        assert!(lines[0].contains(part), "{err:?} lacks {part:?}");
+    }
+    assert!(!png.exists());
 }

@@ -291,7 +291,8 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
             if let Some((scene, _)) = &reference_scene {
                 contenders.push((scene, Schedule::OnePass));
             }
-            let mut timed = device.time_traces(&contenders, rays, args.warmup, args.repeats)?;
+            let mut timed = (device.time_traces(&contenders, rays, args.warmup, args.repeats))
+                .map_err(super::naming_input(name))?;
             if let (Some(t), Some(r)) = (timed.get(2), reference_rates.as_mut()) {
                 let rate = rays.len() as f64 / summarize(t.seconds.clone()).0 / 1e6;
                 match kind {

@@ -992,7 +992,9 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
             stages.say(describe_lod(&report, args.lod_pixels));
         }
         let image = if render.shading == Shading::Cost {
-            let costs = stages.run("render", || backend.render_costs(&scene, &view, &render))?;
+            let costs = stages.run("render", || {
+                (backend.render_costs(&scene, &view, &render)).map_err(naming_input(&name))
+            })?;
             let summary = costs.summary();
             let white = summary.white(render.heat_white);
             stages.say(describe_costs(&summary, white, render.heat_white.is_none()));
@@ -1004,7 +1006,8 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
                 _ => 0,
             };
             stages.run_counted("render", samples, |bar| {
-                backend.render_reporting(&scene, &view, &render, &|done| bar.set_position(done as u64))
+                (backend.render_reporting(&scene, &view, &render, &|done| bar.set_position(done as u64)))
+                    .map_err(naming_input(&name))
             })?
         };
         stages.run("write", || image.write_png(output))?;
@@ -1142,6 +1145,18 @@ fn check_upload_memory(name: &str, sizes: &[limits::BufferSize], device: &Backen
         &format!("{name} uploaded to {}", device.describe()),
         "use fewer --levels, or --backend cpu",
     )?)
+}
+
+/// A refusal of the scene's size (a device that cannot bind it, found as it is uploaded)
+/// names the input it came from; other errors say what failed as they are.
+pub(crate) fn naming_input(name: &str) -> impl Fn(gridrt::error::Error) -> gridrt::error::Error + '_ {
+    move |e| {
+        if e.kind() == gridrt::error::ErrorKind::Limits {
+            e.prefixed(name)
+        } else {
+            e
+        }
+    }
 }
 
 /// Refuses a render whose build and image would not fit in memory, before building.
