@@ -1100,42 +1100,42 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         open.coded
             .decode_lattice(self.vertices, lattice, corners, window, values);
         if open.decimated != 0 {
-            self.snap_leaf_values(open, sub.corner, step, k, values);
+            self.snap_leaf_values(open, lattice, window, values);
         }
     }
 
-    /// Gives each point of a leaf's decoded lattice (see [`Self::decode_leaf`]) that a
-    /// decimated edge moves the value of the point it moves to: one step along the edge, an
-    /// even point, which stays, and lies in the same leaf (whose corners are even).
+    /// Gives each point of `window` of a leaf's decoded lattice (see [`Self::decode_leaf`])
+    /// that a decimated edge moves the value of the point it moves to: one step along the
+    /// edge, an even point, which stays, lies in the same leaf (whose corners are even), and
+    /// was decoded with the window (which the decoder rounds outward to each spacing).
     fn snap_leaf_values<const N: usize>(
         &self,
         open: &OpenGrid,
-        first: [i32; 2],
-        step: i32,
-        k: u32,
+        lattice: SubLattice,
+        window: [u32; 4],
         values: &mut [u32; N],
     ) {
+        let SubLattice { first, step, k } = lattice;
         let m = 1u32 << k;
-        let (mut la, mut lb) = (0u32, 0u32);
-        loop {
-            let p = [
-                (first[0] + la as i32 * step) as u32,
-                (first[1] + lb as i32 * step) as u32,
-            ];
-            let on = self.snapped(open, p);
-            if on[0] != p[0] || on[1] != p[1] {
-                let to_a = (on[0] as i32 - first[0]) / step;
-                let to_b = (on[1] as i32 - first[1]) / step;
-                values[lattice_index(la, lb, m) as usize] = values[lattice_index(to_a as u32, to_b as u32, m) as usize];
+        let mut lb = window[2];
+        while lb <= window[3] && lb <= m {
+            let row_end = window_row_end(window[1], lb, m);
+            let mut la = window[0];
+            while la <= row_end {
+                let p = [
+                    (first[0] + la as i32 * step) as u32,
+                    (first[1] + lb as i32 * step) as u32,
+                ];
+                let on = self.snapped(open, p);
+                if on[0] != p[0] || on[1] != p[1] {
+                    let to_a = (on[0] as i32 - first[0]) / step;
+                    let to_b = (on[1] as i32 - first[1]) / step;
+                    values[lattice_index(la, lb, m) as usize] =
+                        values[lattice_index(to_a as u32, to_b as u32, m) as usize];
+                }
+                la += 1;
             }
-            la += 1;
-            if la + lb > m {
-                la = 0;
-                lb += 1;
-            }
-            if lb > m {
-                break;
-            }
+            lb += 1;
         }
     }
 }
