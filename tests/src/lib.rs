@@ -336,3 +336,15 @@ pub fn mixed_ball(levels: u32) -> DisplacedMesh {
     mesh.check().unwrap();
     mesh
 }
+
+/// `mesh` with its values compressed loosely enough that most levels lose bits (and clamped
+/// corrections, shifts and zero widths all occur).
+pub fn loosely_compressed(mesh: &DisplacedMesh) -> DisplacedMesh {
+    let loose = gridrt::grid::compressed::ValueCompression::bounded(2e-3);
+    gridrt::grid::compressed::compress(mesh, &loose).unwrap().mesh
+}
+
+/// `mesh` built as displaced grids in their default formats.
+pub fn displaced_grids(mesh: &DisplacedMesh) -> Scene {
+    Scene::build_displaced(mesh, &BuildOptions::for_displaced()).unwrap()
+}

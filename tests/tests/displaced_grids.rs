@@ -8,7 +8,6 @@ use gridrt::backend::Backend;
 use gridrt::bvh::Aabb;
 use gridrt::camera;
 use gridrt::displaced::DisplacedMesh;
-use gridrt::grid::compressed::{compress, ValueCompression};
 use gridrt::grid::TopFormat;
 use gridrt::image_io::fraction_within;
 use gridrt::pipeline::{BuildOptions, RenderOptions, Representation, Shading};
@@ -16,13 +15,12 @@ use gridrt::scene::{render_cpu, Scene};
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::layout::{RayRecord, NO_HIT, SHADE_EYE_LIGHT};
 use gridrt_shared::ray::{Ray, T_FAR};
-use gridrt_tests::{baked_ball, gpu_or_skip, mixed_ball, Rng};
+use gridrt_tests::{baked_ball, gpu_or_skip, loosely_compressed, mixed_ball, Rng};
 
-/// The ball's values plain, and compressed loosely enough that most levels lose bits (and
-/// clamped corrections, shifts and zero widths all occur).
+/// The ball's values plain, and compressed loosely.
 fn variants(levels: u32) -> [(&'static str, DisplacedMesh); 2] {
     let mesh = baked_ball(levels);
-    let compressed = compress(&mesh, &ValueCompression::bounded(2e-3)).unwrap().mesh;
+    let compressed = loosely_compressed(&mesh);
     [("plain", mesh), ("compressed", compressed)]
 }
 
@@ -30,10 +28,9 @@ fn variants(levels: u32) -> [(&'static str, DisplacedMesh); 2] {
 /// [`variants`]'.
 fn mixed_variants() -> Vec<(&'static str, DisplacedMesh)> {
     let (l3, l4) = (mixed_ball(3), mixed_ball(4));
-    let compressed = |m: &DisplacedMesh| compress(m, &ValueCompression::bounded(2e-3)).unwrap().mesh;
     vec![
-        ("mixed compressed", compressed(&l3)),
-        ("mixed compressed", compressed(&l4)),
+        ("mixed compressed", loosely_compressed(&l3)),
+        ("mixed compressed", loosely_compressed(&l4)),
         ("mixed", l3),
         ("mixed", l4),
     ]

@@ -5,19 +5,18 @@
 
 use gridrt::bvh::Aabb;
 use gridrt::camera;
-use gridrt::displaced::DisplacedMesh;
-use gridrt::grid::compressed::{compress, ValueCompression};
 use gridrt::grid::{GridOptions, RadiusFormat, TopFormat};
 use gridrt::image_io::fraction_within;
 use gridrt::mesh::scene::default_scene;
-use gridrt::pipeline::BuildOptions;
 use gridrt::rays::{primary_rays, trace_cpu};
 use gridrt::scene::{render_cpu, Scene};
 use gridrt::split::{chunks_needed, render_cpu_split, scene_buffers, split};
 use gridrt::subdiv::Scheme;
 use gridrt_shared::buffer::SPLIT_CHUNKS;
 use gridrt_shared::layout::SHADE_NORMAL;
-use gridrt_tests::{baked_ball, build_pair, build_pair_with, gpu_or_skip, mixed_ball, Pair};
+use gridrt_tests::{
+    baked_ball, build_pair, build_pair_with, displaced_grids, gpu_or_skip, loosely_compressed, mixed_ball, Pair,
+};
 
 /// The smallest power-of-two chunk (at least 1 KiB) that holds `scene` in at most
 /// [`SPLIT_CHUNKS`] chunks; the tests check that it still cuts every buffer larger than 1 KiB.
@@ -68,15 +67,19 @@ fn displaced_formats() -> Vec<(&'static str, Scene)> {
         radii: RadiusFormat::Relative,
         ..GridOptions::default()
     };
-    let compressed = |m: &DisplacedMesh| compress(m, &ValueCompression::bounded(2e-3)).unwrap().mesh;
-    let baked = |m: &DisplacedMesh| Scene::build_displaced(m, &BuildOptions::for_displaced()).unwrap();
     vec![
         ("wide top level", subdivided(2, &wide)),
         ("leaf radius pairs", subdivided(4, &relative)),
-        ("displaced, L = 3", baked(&baked_ball(3))),
-        ("displaced, L = 4", baked(&baked_ball(4))),
-        ("displaced compressed, L = 3", baked(&compressed(&baked_ball(3)))),
-        ("displaced mixed compressed, L = 4", baked(&compressed(&mixed_ball(4)))),
+        ("displaced, L = 3", displaced_grids(&baked_ball(3))),
+        ("displaced, L = 4", displaced_grids(&baked_ball(4))),
+        (
+            "displaced compressed, L = 3",
+            displaced_grids(&loosely_compressed(&baked_ball(3))),
+        ),
+        (
+            "displaced mixed compressed, L = 4",
+            displaced_grids(&loosely_compressed(&mixed_ball(4))),
+        ),
     ]
 }
 
@@ -187,15 +190,14 @@ fn split_stacked_grids_on_the_gpu_trace_as_whole_ones() {
 
 #[test]
 fn split_displaced_grids_on_the_gpu_render_as_whole_ones() {
-    let mesh = compress(&mixed_ball(4), &ValueCompression::bounded(2e-3)).unwrap().mesh;
-    let grids = Scene::build_displaced(&mesh, &BuildOptions::for_displaced()).unwrap();
+    let grids = displaced_grids(&loosely_compressed(&mixed_ball(4)));
     let bounds = grids.bounds();
     split_on_the_gpu_equals_whole("split displaced grids", &grids, &bounds, true, false);
 }
 
 #[test]
 fn split_displaced_grids_on_the_gpu_trace_as_whole_ones() {
-    let grids = Scene::build_displaced(&baked_ball(3), &BuildOptions::for_displaced()).unwrap();
+    let grids = displaced_grids(&baked_ball(3));
     let bounds = grids.bounds();
     split_on_the_gpu_equals_whole("split displaced grids", &grids, &bounds, false, true);
 }
@@ -272,7 +274,7 @@ fn displaced_files_past_their_chunks_are_refused_naming_the_file() {
         return;
     }
     let mesh = baked_ball(4);
-    let grids = Scene::build_displaced(&mesh, &BuildOptions::for_displaced()).unwrap();
+    let grids = displaced_grids(&mesh);
     let sizes: Vec<_> = scene_buffers(&grids).iter().map(|b| b.size()).collect();
     let bytes = (10..20)
         .map(|k| 1u64 << k)
