@@ -88,7 +88,56 @@ pub fn check_bary(data: &[u8]) {
             }
             assert!(map.values.len() <= 8 * data.len() / 11 + 3 * map.triangles.len());
             assert_eq!(bary::read(&bary::write(&map)).expect("a written file reads"), map);
+            check_written_set(&map);
         }
+    }
+}
+
+/// A micromap written as a micro-mesh's files (glTF, buffer, `.bary`) over an earlier set of
+/// another micromap in the same place: the glTF reads back with this micromap, and the folder
+/// holds this set alone, whole.
+fn check_written_set(map: &gridrt::bary::Micromap) {
+    use gridrt::displaced::DisplacedMesh;
+    use gridrt::mesh::frame::LocalFrame;
+    // A primitive reads one group: a micromap of one group of all its triangles reads back
+    // whole.
+    let count = map.triangles.len() as u32;
+    let whole = |g: &gridrt::bary::MicromapGroup| g.triangle_first == 0 && g.triangle_count == count;
+    if count == 0 || map.groups.len() != 1 || !whole(&map.groups[0]) {
+        return;
+    }
+    // One triangle of its own for each of the micromap's, side by side.
+    let corner = |t: u32, k: u32| Vec3::new((t + (k == 1) as u32) as f32, (k == 2) as u32 as f32, 0.0);
+    let mesh = |micromap: gridrt::bary::Micromap| DisplacedMesh {
+        positions: (0..count).flat_map(|t| (0..3).map(move |k| corner(t, k))).collect(),
+        directions: vec![Vec3::Z; 3 * count as usize],
+        triangles: (0..count).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect(),
+        micromap,
+        decimated_edges: Vec::new(),
+    };
+    let folder = std::env::temp_dir().join(format!("gridrt-fuzz-set-{}", std::process::id()));
+    std::fs::create_dir_all(&folder).expect("a scratch folder");
+    let gltf = folder.join("set.gltf");
+    let mut earlier = map.clone();
+    earlier.values.iter_mut().for_each(|v| *v ^= 1);
+    gridrt::micromesh_gltf::write(&gltf, &mesh(earlier), &LocalFrame::IDENTITY).expect("the earlier set is written");
+    let written =
+        gridrt::micromesh_gltf::write(&gltf, &mesh(map.clone()), &LocalFrame::IDENTITY).expect("the set is written");
+    let mut names: Vec<_> = (std::fs::read_dir(&folder).expect("the folder lists"))
+        .map(|e| e.expect("an entry").path())
+        .collect();
+    names.sort();
+    let mut expected = written.clone();
+    expected.sort();
+    assert_eq!(names, expected, "the folder holds the new set alone");
+    let bytes = std::fs::read(&gltf).expect("the glTF reads");
+    let read = gridrt::mesh::gltf_micromap::parse_displaced(&bytes, Some(&folder))
+        .expect("the written set reads")
+        .expect("it is displaced");
+    let levels = |m: &gridrt::bary::Micromap| m.triangles.iter().map(|t| t.level).collect::<Vec<_>>();
+    assert_eq!(levels(&read.micromap), levels(map));
+    for t in 0..map.triangles.len() {
+        assert_eq!(read.micromap.triangle_values(t), map.triangle_values(t), "triangle {t}");
     }
 }
 

@@ -174,12 +174,21 @@ pub struct Placement {
 pub fn placement(points: &[Vec3], viewpoint: &Viewpoint, width: u32, height: u32) -> Result<Placement> {
     let v = viewpoint;
     check(v, height)?;
-    let points = if points.is_empty() { &[Vec3::ZERO][..] } else { points };
+    let empty = points.is_empty();
+    let points = if empty { &[Vec3::ZERO][..] } else { points };
     let up = v.up.normalize_or_zero();
     if up == Vec3::ZERO {
         fail!(Options, "the up direction {} has no length", v.up);
     }
     let bounds = Aabb::from_points(points.iter().copied());
+    let extent = (bounds.max - bounds.min).max_element();
+    if !empty && (extent.is_nan() || extent <= 0.0) {
+        fail!(
+            Input,
+            "the scene has no size: all its points are at {}, so there is nothing to look at",
+            bounds.min
+        );
+    }
     let back = orbit_direction(up, v.azimuth_degrees, v.elevation_degrees);
     let lens = Lens::new(back, up, v.fov_degrees, width as f32 / height as f32);
     let centre = bounds.center();

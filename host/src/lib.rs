@@ -42,6 +42,7 @@ pub mod bvh;
 pub mod camera;
 pub mod displaced;
 pub mod error;
+pub mod files;
 #[cfg(feature = "gpu")]
 pub mod gpu;
 pub mod grid;

@@ -34,6 +34,18 @@ pub const CPU_DEVICE_BYTES: u64 = 512 << 20;
 /// byte copy the PNG encoder reads.
 pub const IMAGE_BYTES_PER_PIXEL: u64 = 8;
 
+/// Peak host bytes per triangle of loading a glTF scene (positions in `f64` per corner
+/// before welding, the weld's table, the triangles), and per micro-triangle of decoding a
+/// displaced micro-mesh (its decoded mesh, welded, in the file's units for `bake` and
+/// `compare`), measured (peak resident size over triangles drawn, see docs/RESULTS.md "Peak
+/// host memory") and rounded up.
+pub const LOADED_BYTES_PER_TRIANGLE: u64 = 96;
+pub const DECODED_BYTES_PER_MICRO_TRIANGLE: u64 = 176;
+
+/// Peak host bytes per micro-triangle of baking (both passes' crossings, the fit's lines,
+/// samples and nearest-point BVH), measured the same way and rounded up.
+pub const BAKE_BYTES_PER_MICRO_TRIANGLE: u64 = 300;
+
 /// Which representations a run builds.
 #[derive(Copy, Clone, Debug, PartialEq, Eq)]
 pub enum Builds {

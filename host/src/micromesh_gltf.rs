@@ -1,6 +1,8 @@
 //! Writing a displaced micro-mesh as glTF 2.0 with NVIDIA's draft extensions `NV_micromaps`
-//! and `NV_displacement_micromap`: `NAME.gltf`, its buffer `NAME.bin` (base positions,
-//! directions, indices) and its micromap `NAME.bary` side by side.
+//! and `NV_displacement_micromap`: `NAME.gltf`, its buffer `NAME.TAG.bin` (base positions,
+//! directions, indices) and its micromap `NAME.TAG.bary` side by side, `TAG` a hash of their
+//! bytes. The three appear whole or not at all (see `files::write_set`): a reader, a kill or
+//! a second writer never meets a new buffer beside an old glTF.
 //!
 //! The base mesh is written in its local frame, with the node's translation (the frame's
 //! centre, every digit of its `f64`) and scale (a power of two) taking it back to the input's
@@ -12,43 +14,57 @@
 
 use std::path::{Path, PathBuf};
 
-use serde_json::json;
+use serde_json::{json, Value};
 
 use crate::bary;
 use crate::displaced::DisplacedMesh;
 use crate::error::{error, Result};
-use crate::image_io::write_atomically;
+use crate::files::{self, MainFile, SideFile};
 use crate::mesh::frame::LocalFrame;
 
-/// The three files a micro-mesh is written to, named after `gltf`'s stem.
-pub fn companion_paths(gltf: &Path) -> (PathBuf, PathBuf) {
-    (gltf.with_extension("bin"), gltf.with_extension("bary"))
+/// Writes `mesh` (in `frame`'s local units) to `path` (a `.gltf`), its buffer and its
+/// micromap beside it; returns the three paths, the glTF first.
+pub fn write(path: &Path, mesh: &DisplacedMesh, frame: &LocalFrame) -> Result<Vec<PathBuf>> {
+    write_keeping(path, mesh, frame, &[])
 }
 
-/// Writes `mesh` (in `frame`'s local units) to `path` (a `.gltf`), its `.bin` and its `.bary`.
-pub fn write(path: &Path, mesh: &DisplacedMesh, frame: &LocalFrame) -> Result<()> {
-    let (bin_path, bary_path) = companion_paths(path);
-    let file_name = |p: &Path| {
-        p.file_name()
-            .map_or(String::new(), |f| f.to_string_lossy().into_owned())
-    };
-    let (bin, document) = document(mesh, frame, &file_name(&bin_path), &file_name(&bary_path));
-    let failed = |p: &Path, e: std::io::Error| error!(Output, "{}: cannot write: {e}", p.display());
-    write_atomically(&bin_path, |temp| {
-        std::fs::write(temp, &bin).map_err(|e| failed(&bin_path, e))
-    })?;
-    let bary = bary::write(&mesh.micromap);
-    write_atomically(&bary_path, |temp| {
-        std::fs::write(temp, &bary).map_err(|e| failed(&bary_path, e))
-    })?;
-    let text = serde_json::to_string_pretty(&document).map_err(|e| error!(Output, "{e}"))?;
-    write_atomically(path, |temp| {
-        std::fs::write(temp, text + "\n").map_err(|e| failed(path, e))
-    })
+/// [`write`], never writing or removing a file of `keep` (the files the run reads): where the
+/// glTF replaced names one of them, it stays.
+pub fn write_keeping(path: &Path, mesh: &DisplacedMesh, frame: &LocalFrame, keep: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    let (bin, document) = document(mesh, frame);
+    let sides = [
+        SideFile {
+            extension: "bin",
+            bytes: bin,
+        },
+        SideFile {
+            extension: "bary",
+            bytes: bary::write(&mesh.micromap),
+        },
+    ];
+    files::write_set(path, &sides, &Gltf(document), keep)
+}
+
+/// The glTF document of a micro-mesh, its buffer and micromap named as [`files::write_set`]
+/// names them.
+struct Gltf(Value);
+
+impl MainFile for Gltf {
+    fn bytes(&self, names: &[String]) -> Result<Vec<u8>> {
+        let mut document = self.0.clone();
+        document["buffers"][0]["uri"] = json!(names[0]);
+        document["extensions"]["NV_micromaps"]["micromaps"][0]["uri"] = json!(names[1]);
+        let text = serde_json::to_string_pretty(&document).map_err(|e| error!(Output, "{e}"))?;
+        Ok((text + "\n").into_bytes())
+    }
+
+    fn side_names(&self, bytes: &[u8]) -> Vec<String> {
+        serde_json::from_slice::<Value>(bytes).map_or(Vec::new(), |old| crate::mesh::gltf::uris_named(&old))
+    }
 }
 
 /// The buffer's bytes and the glTF document that names them and the micromap.
-fn document(mesh: &DisplacedMesh, frame: &LocalFrame, bin: &str, bary: &str) -> (Vec<u8>, serde_json::Value) {
+fn document(mesh: &DisplacedMesh, frame: &LocalFrame) -> (Vec<u8>, Value) {
     let floats = |v: &[gridrt_shared::glam::Vec3]| -> Vec<u8> {
         v.iter().flat_map(|p| p.to_array()).flat_map(f32::to_le_bytes).collect()
     };
@@ -72,7 +88,7 @@ fn document(mesh: &DisplacedMesh, frame: &LocalFrame, bin: &str, bary: &str) -> 
     let mut document = json!({
         "asset": {"version": "2.0", "generator": "gridrt"},
         "extensionsUsed": ["NV_micromaps", "NV_displacement_micromap"],
-        "extensions": {"NV_micromaps": {"micromaps": [{"uri": bary}]}},
+        "extensions": {"NV_micromaps": {"micromaps": [{"uri": ""}]}},
         "scene": 0,
         "scenes": [{"nodes": [0]}],
         "nodes": [{
@@ -86,7 +102,7 @@ fn document(mesh: &DisplacedMesh, frame: &LocalFrame, bin: &str, bary: &str) -> 
             "mode": 4,
             "extensions": {"NV_displacement_micromap": {"micromap": 0, "directions": 1}},
         }]}],
-        "buffers": [{"uri": bin, "byteLength": buffer.len()}],
+        "buffers": [{"uri": "", "byteLength": buffer.len()}],
         "bufferViews": [
             view(0, directions_at),
             view(directions_at, indices_at - directions_at),
@@ -163,10 +179,18 @@ mod tests {
         let expected: Vec<DVec3> = mesh.positions.iter().map(|&p| frame.to_world(p)).collect();
         assert_eq!(base.positions, expected);
         assert_eq!(base.triangles, mesh.triangles);
-        let (_, bary_path) = companion_paths(&path);
-        assert_eq!(bary::read(&std::fs::read(bary_path).unwrap()).unwrap(), mesh.micromap);
         let json: serde_json::Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
-        assert_eq!(json["extensions"]["NV_micromaps"]["micromaps"][0]["uri"], "baked.bary");
+        let bary_name = json["extensions"]["NV_micromaps"]["micromaps"][0]["uri"]
+            .as_str()
+            .unwrap();
+        assert!(
+            bary_name.starts_with("baked.") && bary_name.ends_with(".bary"),
+            "{bary_name}"
+        );
+        assert_eq!(
+            bary::read(&std::fs::read(dir.join(bary_name)).unwrap()).unwrap(),
+            mesh.micromap
+        );
         let extension = &json["meshes"][0]["primitives"][0]["extensions"]["NV_displacement_micromap"];
         assert_eq!(
             (extension["micromap"].as_u64(), extension["directions"].as_u64()),

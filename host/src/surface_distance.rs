@@ -14,6 +14,7 @@
 use rayon::prelude::*;
 
 use crate::bvh::{self, Aabb, BuildParams};
+use crate::error::Result;
 use crate::mesh::Mesh;
 use gridrt_shared::glam::{DVec3, Vec3};
 use gridrt_shared::layout::BvhNode;
@@ -32,6 +33,45 @@ impl Default for Sampling {
             seed: 0x5eed,
         }
     }
+}
+
+/// Peak host bytes per sample of [`measure`], both surfaces' samples together: a side's
+/// points (24 B each) and distances (8 B) alive with the other side's distances (8 B), and
+/// rounded up for the threads' collection.
+pub const BYTES_PER_SAMPLE: u64 = 48;
+
+/// Refuses, before any work, `samples` per surface whose [`measure`] would not fit in
+/// memory (see [`crate::limits`]); `option` names the option that set them.
+pub fn check_samples(samples: usize, option: &str) -> Result<()> {
+    crate::limits::check_memory(
+        (samples as u64).saturating_mul(BYTES_PER_SAMPLE),
+        crate::limits::available_memory()?,
+        &format!("measuring {samples} samples per surface ({option})"),
+        &format!("give fewer {option}"),
+    )
+}
+
+/// The area of `mesh`'s triangles, in its units squared.
+pub fn area(mesh: &Mesh) -> f64 {
+    (mesh.triangles.iter())
+        .map(|t| {
+            let [a, b, c] = t.map(|i| mesh.positions[i as usize].as_dvec3());
+            (b - a).cross(c - a).length() * 0.5
+        })
+        .sum()
+}
+
+/// Refuses a surface without area (every triangle's corners on one line): no point can be
+/// sampled on it, and a distance from it would be no measure. `name` is its file.
+pub fn check_area(mesh: &Mesh, name: &str) -> Result<()> {
+    let area = area(mesh);
+    if area.is_nan() || area <= 0.0 {
+        crate::error::fail!(
+            Input,
+            "{name}: the surface has no area: every triangle's corners lie on one line, so no distance can be measured from it"
+        );
+    }
+    Ok(())
 }
 
 /// Distances from points on one surface to the other surface, in the meshes' units.

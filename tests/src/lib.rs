@@ -255,6 +255,20 @@ pub fn fails_with(args: &[&str], env: &[(&str, &str)], needles: &[&str]) -> Stri
     err
 }
 
+/// The files a glTF names beside it (its buffers', then its micromaps' `uri`s), as paths in
+/// its folder.
+pub fn side_files(gltf: &std::path::Path) -> Vec<PathBuf> {
+    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(gltf).expect("read the glTF")).expect("JSON");
+    let uris = |list: Option<&serde_json::Value>| -> Vec<PathBuf> {
+        (list.and_then(|l| l.as_array()).into_iter().flatten())
+            .filter_map(|entry| entry.get("uri")?.as_str().map(|u| gltf.with_file_name(u)))
+            .collect()
+    };
+    let mut files = uris(json.get("buffers"));
+    files.extend(uris(json.pointer("/extensions/NV_micromaps/micromaps")));
+    files
+}
+
 /// A bumpy ball of `8 * 4^levels` triangles around the origin: a detailed closed surface to
 /// bake.
 pub fn bumpy_ball(levels: u32) -> Mesh {

@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use gridrt::mesh::Mesh;
-use gridrt_tests::{bumpy_ball, fails_with, gridrt, render_small, scratch, stderr, TINY_BENCH};
+use gridrt_tests::{bumpy_ball, fails_with, gridrt, render_small, scratch, side_files, stderr, TINY_BENCH};
 
 fn write_obj(path: &Path, mesh: &Mesh, offset: f64) {
     let mut text = String::new();
@@ -62,13 +62,15 @@ fn a_mesh_bakes_into_files_the_other_commands_read() {
     assert!(rms <= 1.25 * plain_rms, "{report}");
     assert_eq!(compression["widths"].as_array().map(Vec::len), Some(3), "{report}");
     // The files as written: the distance `compare` measures is the one `bake` reported.
-    for file in ["ball.gltf", "ball.bin", "ball.bary"] {
-        assert!(dir.join(file).is_file(), "{file}");
+    let mut written = vec![out.clone()];
+    written.extend(side_files(&out));
+    assert_eq!(written.len(), 3, "{written:?}");
+    for (file, ext) in written.iter().zip(["gltf", "bin", "bary"]) {
+        assert!(file.is_file(), "{}", file.display());
+        let name = file.file_name().unwrap().to_str().unwrap();
+        assert!(name.starts_with("ball.") && name.ends_with(ext), "{name}");
     }
-    let files: u64 = ["ball.gltf", "ball.bin", "ball.bary"]
-        .iter()
-        .map(|f| std::fs::metadata(dir.join(f)).unwrap().len())
-        .sum();
+    let files: u64 = written.iter().map(|f| std::fs::metadata(f).unwrap().len()).sum();
     assert_eq!(report["file_bytes"].as_u64().unwrap(), files);
     reads_back_as_measured(&reference, &out, &report);
 
@@ -178,7 +180,7 @@ fn a_bake_in_nvidia_blocks_reads_back_as_measured() {
         report["nv_blocks"]["before_symmetric"]["rms"].as_f64().unwrap(),
     );
     assert!(rms <= 1.25 * before, "{report}");
-    let map = gridrt::bary::read(&std::fs::read(dir.join("ball.bary")).unwrap()).unwrap();
+    let map = gridrt::bary::read(&std::fs::read(&side_files(&out)[1]).unwrap()).unwrap();
     assert!(map.nv_blocks && map.triangles.iter().all(|t| t.level == 4));
     reads_back_as_measured(&reference, &out, &report);
     fails_with(

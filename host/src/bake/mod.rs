@@ -107,12 +107,23 @@ pub fn default_byte_budget(levels: u32) -> Option<f64> {
 /// at level 3, about as many micro-triangles as the reference has triangles.
 pub const REDUCTION: usize = 64;
 
+/// The fewest base triangles a default bake decimates to: a base of fewer keeps too little
+/// of any shape for the values to make up (a square of two triangles decimated to one
+/// loses half of itself), so a small reference is decimated less, or not at all.
+pub const MIN_BASE_TRIANGLES: usize = 128;
+
+/// The base triangles a reference of `triangles` is decimated to by default: 1/[`REDUCTION`]
+/// of them, or [`MIN_BASE_TRIANGLES`] (all of them where it has fewer).
+pub fn default_base_triangles(triangles: usize) -> usize {
+    (triangles / REDUCTION).max(triangles.min(MIN_BASE_TRIANGLES)).max(1)
+}
+
 impl BakeOptions {
-    /// A base of 1/[`REDUCTION`] of `reference`'s triangles, at `levels`.
+    /// A base of [`default_base_triangles`] of `reference`'s, at `levels`.
     pub fn for_reference(reference: &Mesh, levels: u32) -> BakeOptions {
         BakeOptions {
             base: Base::Decimated {
-                triangles: (reference.triangles.len() / REDUCTION).max(1),
+                triangles: default_base_triangles(reference.triangles.len()),
             },
             levels,
             reach: 2.0,
@@ -120,6 +131,67 @@ impl BakeOptions {
         }
     }
 }
+
+/// A share of a bake's values whose lines met no reference surface beyond which the base
+/// does not follow the reference (see [`shortfalls`]).
+pub const MISSES_WARNING: f64 = 0.10;
+
+/// A distance, as a fraction of the reference's bounding-box diagonal, beyond which one
+/// percent of the reference lying from the bake means part of it is lost (see [`shortfalls`]).
+pub const LOSS_WARNING: f64 = 0.05;
+
+/// How close a bake came to what was asked: its report, where its base came from, its
+/// distances from the reference (fractions of the reference's diagonal), and the symmetric RMS
+/// bound asked for, if any (`--max-error`).
+pub struct Outcome<'a> {
+    pub report: &'a BakeReport,
+    pub base: &'a Base,
+    pub reference_to_baked: &'a crate::surface_distance::DistanceSummary,
+    pub symmetric: &'a crate::surface_distance::DistanceSummary,
+    pub max_error: Option<f32>,
+}
+
+/// Where a bake falls short of what the reference and the options ask, one line each with
+/// the figure and what to do: values that met no surface (a base that does not follow the
+/// reference: too coarse, or another mesh or units), part of the reference lost (a base too
+/// coarse for its shape), an error bound not met. Empty for a bake that did what was asked.
+pub fn shortfalls(o: &Outcome) -> Vec<String> {
+    let mut lines = Vec::new();
+    let advice = match o.base {
+        Base::Decimated { .. } => format!(
+            "a base of {} triangle(s) is too coarse for it; give more --base-triangles",
+            o.report.base_triangles
+        ),
+        Base::Given(_) => "the base mesh does not follow it (another mesh, or other units?)".to_string(),
+    };
+    let missed = o.report.misses as f64 / o.report.values.max(1) as f64;
+    if missed > MISSES_WARNING {
+        lines.push(format!(
+            "{:.1}% of the values met no surface of the reference within reach: {advice}",
+            100.0 * missed
+        ));
+    }
+    if o.reference_to_baked.p99 > LOSS_WARNING {
+        lines.push(format!(
+            "part of the reference is lost: 1% of its surface lies more than {:.1}% of its diagonal from the \
+             bake (at most {:.1}%): {advice}",
+            100.0 * o.reference_to_baked.p99,
+            100.0 * o.reference_to_baked.max
+        ));
+    }
+    if let Some(bound) = o.max_error.filter(|&b| o.symmetric.rms > b as f64 * MAX_ERROR_SLACK) {
+        lines.push(format!(
+            "--max-error {bound} is not met: the bake's symmetric RMS distance is {:.3e} of the diagonal, as close \
+             as level {} comes; give more --levels or a finer base",
+            o.symmetric.rms, o.report.levels
+        ));
+    }
+    lines
+}
+
+/// How far over `--max-error` a bake may land and still count as within it: the bound is
+/// one the levels aim at ("about"), met on a measure taken by sampling.
+const MAX_ERROR_SLACK: f64 = 1.1;
 
 /// A baked micro-mesh and what happened on the way.
 #[derive(Clone, Debug)]
@@ -211,6 +283,18 @@ impl Crossed {
     }
 }
 
+/// Refuses, before the rays are cast, a bake of `base_triangles` at `levels` that would not
+/// fit in memory (see [`crate::limits`]).
+fn check_memory(base_triangles: usize, levels: u32) -> Result<()> {
+    let micro = crate::limits::micro_triangles(base_triangles, levels);
+    crate::limits::check_memory(
+        micro.saturating_mul(crate::limits::BAKE_BYTES_PER_MICRO_TRIANGLE),
+        crate::limits::available_memory()?,
+        &format!("baking {base_triangles} base triangles at level {levels} ({micro} micro-triangles)"),
+        "use fewer --levels or --base-triangles",
+    )
+}
+
 /// A folded base mesh's positions, directions and triangles.
 type FoldedBase<'a> = (&'a [Vec3], &'a [Vec3], &'a [[u32; 3]]);
 
@@ -230,8 +314,16 @@ fn cross(reference: &Mesh, options: &BakeOptions) -> Result<Crossed> {
         Base::Given(mesh) => mesh.clone(),
     };
     if base.triangles.is_empty() {
-        fail!(Input, "the base mesh has no triangles");
+        match &options.base {
+            Base::Decimated { triangles } => fail!(
+                Options,
+                "decimated to {triangles} triangles (--base-triangles), none is left: the simplifier cannot \
+                 collapse this mesh that far; ask for more"
+            ),
+            Base::Given(_) => fail!(Input, "the base mesh has no triangles"),
+        }
     }
+    check_memory(base.triangles.len(), options.levels)?;
     let directions = directions::area_weighted_normals(&base);
     let surface = Reference::new(reference);
     let lines = Lines {

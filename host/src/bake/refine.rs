@@ -18,7 +18,10 @@
 //! on every base triangle that shares it) keeps one value, so shared edges and corners stay
 //! shared and the surface stays watertight; values stay within `[0, 1]`, the range fitted to
 //! them; the result does not depend on the number of threads (samples are found in parallel
-//! and summed in order); a round never reads a value it has already changed.
+//! and summed in order); a round never reads a value it has already changed; a step is kept
+//! only while it brings the reference's samples closer to the surface (their mean squared
+//! offset), and the rounds end once a step no longer does, so more rounds never fit worse by
+//! that measure.
 
 use std::collections::HashMap;
 
@@ -45,6 +48,10 @@ impl Default for Refinement {
         Refinement { rounds: 2, samples: 3 }
     }
 }
+
+/// The most rounds a refinement takes: each costs a search of every sample, and a fit
+/// settles in a few.
+pub const MAX_ROUNDS: u32 = 100;
 
 /// A lattice point's line lying this close to the tangent plane does not move the surface
 /// enough, along its normal, to be moved by it: `(D . n)^2 < TANGENT * |D|^2`.
@@ -169,13 +176,16 @@ pub fn refine(reference: &Mesh, lines: &MicroLines, values: &mut [f32], refineme
     if refinement.rounds == 0 || lines.micro_triangles.is_empty() {
         return;
     }
+    let rounds = refinement.rounds.min(MAX_ROUNDS);
     let sampling = Sampling {
         samples: refinement.samples as usize * lines.micro_triangles.len(),
         seed: 0x0ff5e7,
     };
     let samples = area_samples(reference, &sampling);
     let mut micro = lines.mesh(values);
-    for round in 0..refinement.rounds {
+    // The mean squared offset the values had before the last step, and those values.
+    let mut before: Option<(f64, Vec<f32>)> = None;
+    for round in 0..rounds {
         if round > 0 {
             micro.positions = lines.positions(values);
         }
@@ -190,9 +200,24 @@ pub fn refine(reference: &Mesh, lines: &MicroLines, values: &mut [f32], refineme
                 .collect();
             sums.add(lines, &micro, &found);
         }
+        // A Jacobi step can overshoot where neighbouring lines pull on the same samples:
+        // once a step no longer brings the surface closer by a share worth a round, the
+        // values before it stay.
+        let residual = sums.mean_squared_offset();
+        if let Some((last, kept)) = &before {
+            if residual > (1.0 - SETTLED) * last {
+                values.copy_from_slice(kept);
+                return;
+            }
+        }
+        before = Some((residual, values.to_vec()));
         sums.apply(values);
     }
 }
+
+/// A step that brings the mean squared offset down by less than this share of it is undone
+/// and ends the refinement: the fit has settled.
+const SETTLED: f64 = 1e-3;
 
 /// A sample's point on a micro-triangle, and how far along the triangle's normal the surface
 /// should move there.
@@ -231,6 +256,9 @@ impl Offset {
 struct Sums {
     moved: Vec<f64>,
     weight: Vec<f64>,
+    /// The offsets' squares summed, and how many there were.
+    squared: f64,
+    offsets: usize,
 }
 
 impl Sums {
@@ -238,14 +266,23 @@ impl Sums {
         Sums {
             moved: vec![0.0; lines],
             weight: vec![0.0; lines],
+            squared: 0.0,
+            offsets: 0,
         }
+    }
+
+    /// How far, squared and on average, the samples lay from the surface the sums were taken on.
+    fn mean_squared_offset(&self) -> f64 {
+        self.squared / self.offsets.max(1) as f64
     }
 
     /// Each offset's share, for each corner of its micro-triangle: the value change that
     /// moves the surface by the offset there, weighted by the corner's barycentric and by how
     /// squarely its line crosses the triangle.
     fn add(&mut self, lines: &MicroLines, micro: &Mesh, offsets: &[Offset]) {
+        self.offsets += offsets.len();
         for o in offsets {
+            self.squared += o.along * o.along;
             for (&line, &w) in micro.triangles[o.triangle as usize].iter().zip(&o.weights) {
                 let d = lines.directions[line as usize].as_dvec3();
                 let dn = d.dot(o.normal);

@@ -220,6 +220,14 @@ pub fn read(bytes: &[u8]) -> Result<Micromap> {
 /// Reads a `.bary` file's bytes: its micromap, and the mesh properties it carries.
 pub fn read_with_mesh(bytes: &[u8]) -> Result<(Micromap, MeshProperties)> {
     let file = Reader(bytes);
+    let start = &bytes[..bytes.len().min(MAGIC.len())];
+    if bytes.len() < HEADER_BYTES && start == &MAGIC[..start.len()] {
+        fail!(
+            Input,
+            "truncated: {} bytes, less than the {HEADER_BYTES}-byte header of a .bary file",
+            bytes.len()
+        );
+    }
     if bytes.len() < HEADER_BYTES || bytes[..16] != MAGIC {
         let shown = String::from_utf8_lossy(&bytes[..bytes.len().min(16)])
             .escape_debug()

@@ -1,7 +1,7 @@
 //! `gridrt bake`: a detailed mesh baked into a displaced micro-mesh (see `gridrt::bake`),
 //! written as glTF + `.bary`, with its size and its distance from the reference.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Result};
 use serde::Serialize;
@@ -11,9 +11,9 @@ use super::BakeArgs;
 use gridrt::bake::refine::Refinement;
 use gridrt::bake::{self, BakeOptions, BakeReport, Base};
 use gridrt::displaced::DisplacedMesh;
+use gridrt::files;
 use gridrt::grid::compressed::{compress, CompressedMesh, Compressor, ValueCompression};
 use gridrt::grid::{self, GridOptions};
-use gridrt::image_io;
 use gridrt::mesh;
 use gridrt::micromesh_gltf;
 use gridrt::surface_distance::{self, DistanceSummary, Sampling, SurfaceDistance};
@@ -85,8 +85,11 @@ struct BlocksReport {
 }
 
 pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
-    let outputs = check_outputs(args)?;
-    let (reference, cleaning) = stages.run("load", || mesh::load_world(&args.reference))?;
+    let inputs = check_outputs(args)?;
+    let (reference, cleaning, warnings) = stages.run("load", || mesh::load_world_warning(&args.reference))?;
+    for warning in warnings {
+        eprintln!("warning: {warning}");
+    }
     if cleaning.welded + cleaning.dropped > 0 {
         stages.say(format!(
             "note: {}: welded {} vertices, dropped {} degenerate or repeated triangles",
@@ -97,12 +100,14 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
     }
     let frame = reference.local_frame();
     let reference_mesh = reference.in_frame(&frame);
+    let name = args.reference.display().to_string();
+    surface_distance::check_area(&reference_mesh, &name)?;
     let base = match &args.base {
         Some(path) => Base::Given(stages.run("load base", || mesh::load_world(path))?.0.in_frame(&frame)),
         None => Base::Decimated {
             triangles: args
                 .base_triangles
-                .unwrap_or((reference_mesh.triangles.len() / bake::REDUCTION).max(1)),
+                .unwrap_or(bake::default_base_triangles(reference_mesh.triangles.len())),
         },
     };
     let defaults = BakeOptions::for_reference(&reference_mesh, args.levels);
@@ -117,13 +122,18 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
     let started = std::time::Instant::now();
     // The distance of the bake from the reference, where choosing its levels measured it.
     let mut measured = None;
+    let named = |e: gridrt::error::Error| e.prefixed(&name);
     let baked = match (args.max_error, args.within_bytes) {
         (None, Some(bytes)) => {
-            let (baked, distance) = stages.run("bake", || bake_within_bytes(&reference_mesh, &options, bytes, args))?;
+            let (baked, distance) = stages
+                .run("bake", || bake_within_bytes(&reference_mesh, &options, bytes, args))
+                .map_err(named)?;
             measured = distance;
             baked
         }
-        (None, None) => stages.run("bake", || bake::bake(&reference_mesh, &options))?,
+        (None, None) => stages
+            .run("bake", || bake::bake(&reference_mesh, &options))
+            .map_err(named)?,
         (Some(max_error), _) => {
             let (lo, hi) = reference_mesh.bounds();
             let share = if compression_follows(args) {
@@ -132,7 +142,9 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
                 1.0
             };
             let target = bake::levels::LevelTarget::MaxError(share * max_error * (hi - lo).length());
-            stages.run("bake", || bake::levels::bake_levels(&reference_mesh, &options, target))?
+            stages
+                .run("bake", || bake::levels::bake_levels(&reference_mesh, &options, target))
+                .map_err(named)?
         }
     };
     let bake_seconds = started.elapsed().as_secs_f64();
@@ -200,7 +212,9 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
             (mesh, Some(report), d)
         }
     };
-    stages.run("write", || micromesh_gltf::write(&args.output, &mesh, &frame))?;
+    let outputs = stages.run("write", || {
+        micromesh_gltf::write_keeping(&args.output, &mesh, &frame, &inputs)
+    })?;
     let bytes = |p: &Path| std::fs::metadata(p).map_or(0, |m| m.len());
     let report = Report {
         reference: args.reference.display().to_string(),
@@ -224,6 +238,16 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
         print!("{}", summary(&report));
+    }
+    let outcome = bake::Outcome {
+        report: &report.bake,
+        base: &options.base,
+        reference_to_baked: &report.reference_to_baked,
+        symmetric: &report.symmetric,
+        max_error: args.max_error,
+    };
+    for line in bake::shortfalls(&outcome) {
+        eprintln!("warning: {name} -> {}: {line}", args.output.display());
     }
     stages.report();
     Ok(())
@@ -488,25 +512,28 @@ fn compression_follows(args: &BakeArgs) -> bool {
     compresses(args) && args.compress_values.is_none()
 }
 
-/// The glTF, its buffer and its micromap, checked before any work: writable, none of them an
-/// input.
-fn check_outputs(args: &BakeArgs) -> Result<[std::path::PathBuf; 3]> {
-    image_io::check_output(&args.output, "gltf")?;
-    let (bin, bary) = micromesh_gltf::companion_paths(&args.output);
-    let outputs = [args.output.clone(), bin, bary];
-    let mut inputs = vec![args.reference.as_path()];
-    inputs.extend(args.base.as_deref());
-    for output in &outputs {
-        image_io::check_writable(output)?;
-        image_io::check_not_input(output, &inputs)?;
-    }
-    if args.base.as_deref().is_some_and(|b| b == args.reference) {
+/// The glTF and the samples, checked before any work: the glTF writable, and none of the
+/// files the run reads (the meshes, and the buffers and micromaps a glTF among them names),
+/// the samples within memory. Its buffer and micromap
+/// take names of their own as they are written, never an input's. Returns those files.
+fn check_outputs(args: &BakeArgs) -> Result<Vec<PathBuf>> {
+    surface_distance::check_samples(args.samples, "--samples")?;
+    files::check_output(&args.output, "gltf")?;
+    let mut paths = vec![args.reference.as_path()];
+    paths.extend(args.base.as_deref());
+    let inputs = mesh::files_read(&paths);
+    files::check_not_input(&args.output, &inputs)?;
+    if args
+        .base
+        .as_deref()
+        .is_some_and(|b| files::same_file(b, &args.reference) || b == args.reference)
+    {
         bail!(
             "--base {}: is the reference itself; give a coarser mesh",
             args.reference.display()
         );
     }
-    Ok(outputs)
+    Ok(inputs)
 }
 
 fn summary(r: &Report) -> String {

@@ -76,19 +76,26 @@ const RAY_BYTES: u64 = 2 * std::mem::size_of::<RayRecord>() as u64 + 2 * std::me
 /// Every file the run will write, checked before the first mesh is measured.
 fn check_outputs(args: &BenchArgs) -> Result<()> {
     if let Some(json) = &args.json {
-        gridrt::image_io::check_output(json, "json")?;
+        gridrt::files::check_output(json, "json")?;
     }
     if let Some(markdown) = &args.markdown {
-        gridrt::image_io::check_output(markdown, "md")?;
+        gridrt::files::check_output(markdown, "md")?;
     }
     let outputs: Vec<&std::path::Path> = [&args.json, &args.markdown, &args.chart]
         .into_iter()
         .flatten()
         .map(|p| p.as_path())
         .collect();
-    gridrt::image_io::check_distinct(&outputs)?;
+    gridrt::files::check_distinct(&outputs)?;
+    let mut read: Vec<&std::path::Path> = args.meshes.iter().map(|p| p.as_path()).collect();
+    read.extend(args.reference.as_deref());
+    let mut inputs = gridrt::mesh::files_read(&read);
+    inputs.push(args.font.clone());
+    for output in &outputs {
+        gridrt::files::check_not_input(output, &inputs)?;
+    }
     if let Some(chart) = &args.chart {
-        gridrt::image_io::check_png_path(chart)?;
+        gridrt::files::check_png_path(chart)?;
         if let Err(e) = std::fs::metadata(&args.font) {
             bail!(
                 "{}: cannot read the chart's font: {}",

@@ -23,8 +23,13 @@ struct Report {
 }
 
 pub fn run(args: &CompareArgs) -> Result<()> {
-    let (reference, _) = mesh::load_world(&args.reference)?;
-    let (other, _) = mesh::load_world(&args.other)?;
+    surface_distance::check_samples(args.samples, "--samples")?;
+    let (reference, _, mut warnings) = mesh::load_world_warning(&args.reference)?;
+    let (other, _, more) = mesh::load_world_warning(&args.other)?;
+    warnings.extend(more);
+    for warning in warnings {
+        eprintln!("warning: {warning}");
+    }
     // Both meshes in the reference's local frame (moved in `f64`, one rounding to `f32`):
     // a ratio of lengths there is the ratio in the files' units.
     let frame = reference.local_frame();
@@ -32,7 +37,10 @@ pub fn run(args: &CompareArgs) -> Result<()> {
         samples: args.samples,
         ..Sampling::default()
     };
-    let d = surface_distance::measure(&reference.in_frame(&frame), &other.in_frame(&frame), &sampling);
+    let (reference, other) = (reference.in_frame(&frame), other.in_frame(&frame));
+    surface_distance::check_area(&reference, &args.reference.display().to_string())?;
+    surface_distance::check_area(&other, &args.other.display().to_string())?;
+    let d = surface_distance::measure(&reference, &other, &sampling);
     let report = Report {
         reference: args.reference.display().to_string(),
         other: args.other.display().to_string(),

@@ -15,9 +15,9 @@ use gridrt::pipeline::{BuildOptions, RenderOptions, Representation, Shading};
 use gridrt::rays::RayOrder;
 use gridrt::scene::Scene;
 use gridrt::subdiv::{self, Scheme, Subdivided};
-use gridrt::{camera, grid, image_io, limits, triangles};
+use gridrt::{camera, files, grid, limits, triangles};
 use gridrt_shared::glam::DVec3;
-use progress::Stages;
+use progress::{note, Stages};
 
 mod bake;
 mod bench;
@@ -84,7 +84,7 @@ pub fn open_backend(arg: BackendArg, work: &str) -> Result<Backend> {
         BackendArg::Cpu => BackendChoice::Cpu,
     })?;
     if let Some(reason) = backend.fallback() {
-        eprintln!("note: {reason}; {work} on the CPU");
+        note!("note: {reason}; {work} on the CPU");
     }
     Ok(backend)
 }
@@ -268,7 +268,7 @@ pub fn compress_values(input: &mut Input, build: &BuildArgs) -> Result<()> {
     };
     let options = grid::compressed::ValueCompression::bounded(bound);
     let compressed = grid::compressed::compress(micromesh, &options).map_err(|e| e.prefixed(&input.name))?;
-    eprintln!(
+    note!(
         "note: {}: values compressed to {:.2} bits each (base edges at widths {:?} bits per level, each grid \
          at its own), adding {:.3e} of the diagonal (RMS)",
         input.name,
@@ -591,11 +591,13 @@ impl RenderArgs {
 
 #[derive(clap::Args, Debug)]
 pub struct ExportArgs {
-    /// Mesh to subdivide (.obj, .ply, .gltf or .glb); the built-in scene when absent.
+    /// Mesh to subdivide (.obj, .ply, .gltf or .glb); the built-in scene when absent. A
+    /// displaced micro-mesh is written as its decoded micro-triangles, at its own levels.
     pub mesh: Option<PathBuf>,
-    /// Subdivision depth L: every base triangle becomes 4^L micro-triangles.
-    #[arg(long, short = 'L', default_value_t = 3, value_parser = clap::value_parser!(u32).range(0..=6))]
-    pub levels: u32,
+    /// Subdivision depth L: every base triangle becomes 4^L micro-triangles [default: 3; a
+    /// displaced micro-mesh takes none].
+    #[arg(long, short = 'L', value_parser = clap::value_parser!(u32).range(0..=6))]
+    pub levels: Option<u32>,
     #[arg(long, value_enum, default_value_t = SubdivisionArg::Loop)]
     pub subdivision: SubdivisionArg,
     /// Keep edges sharp where the surface folds by more than this many degrees (0 to 180;
@@ -627,7 +629,8 @@ pub struct BakeArgs {
     /// non-manifold edges and several parts are fine.
     pub reference: PathBuf,
     /// Triangles of the base mesh the reference is decimated to [default: 1/64 of the
-    /// reference's, so that level 3 has about as many micro-triangles as the reference].
+    /// reference's, so that level 3 has about as many micro-triangles as the reference, and
+    /// no fewer than 128 (all of a smaller reference's)].
     #[arg(long, value_name = "N", value_parser = at_least_one(), conflicts_with = "base")]
     pub base_triangles: Option<usize>,
     /// Bake onto this base mesh (in the reference's units) instead of decimating.
@@ -637,8 +640,14 @@ pub struct BakeArgs {
     #[arg(long, short = 'L', default_value_t = 3, value_parser = clap::value_parser!(u32).range(0..=6))]
     pub levels: u32,
     /// Rounds of fitting the values to the reference in the least-squares sense after the
-    /// rays have found it (0: every micro-vertex stays on the reference).
-    #[arg(long, value_name = "N", default_value_t = gridrt::bake::refine::Refinement::default().rounds)]
+    /// rays have found it (0: every micro-vertex stays on the reference); at most 100, and
+    /// fewer are taken once a round no longer brings the surface closer.
+    #[arg(
+        long,
+        value_name = "N",
+        default_value_t = gridrt::bake::refine::Refinement::default().rounds,
+        value_parser = clap::value_parser!(u32).range(0..=gridrt::bake::refine::MAX_ROUNDS as i64)
+    )]
     pub fit_rounds: u32,
     /// The glTF to write; its buffer (.bin) and micromap (.bary) go beside it.
     #[arg(long, short, default_value = "baked.gltf")]
@@ -788,6 +797,9 @@ pub fn load(path: Option<&Path>) -> Result<Input> {
 /// [`load`] for several meshes rendered together.
 pub fn load_all(paths: &[&Path]) -> Result<Input> {
     let input = mesh::open_all(paths)?;
+    for warning in &input.warnings {
+        eprintln!("warning: {warning}");
+    }
     let cleaning = &input.cleaning;
     if let Some(d) = input.displaced {
         let levels = match d.min_level == d.max_level {
@@ -806,16 +818,17 @@ pub fn load_all(paths: &[&Path]) -> Result<Input> {
             }
             (None, false) => String::new(),
         };
-        eprintln!(
+        note!(
             "note: {}: a displaced micro-mesh of {} base triangles at {levels}, {} micro-triangles{values}",
             input.name,
             d.base_triangles,
             input.mesh.triangles.len()
         );
     } else if cleaning.welded > 0 {
-        eprintln!(
+        note!(
             "note: {}: welded {} vertices to others at the same position (split at seams, or unindexed)",
-            input.name, cleaning.welded
+            input.name,
+            cleaning.welded
         );
     }
     if let Some(seams) = (input.micromesh.as_ref().map(|m| m.open_seams())).filter(|&n| n > 0) {
@@ -840,7 +853,7 @@ pub fn load_all(paths: &[&Path]) -> Result<Input> {
             input.name
         );
     } else if cleaning.zero_area > 0 {
-        eprintln!(
+        note!(
             "note: {}: {} of {} triangles have zero area (corners on one line)",
             input.name,
             cleaning.zero_area,
@@ -890,10 +903,12 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
     let outputs: Vec<PathBuf> = (0..frames)
         .map(|k| frame_path(&args.output, k, args.turntable))
         .collect();
-    for output in &outputs {
-        image_io::check_png_path(output)?;
-    }
     let paths: Vec<&Path> = args.meshes.iter().map(PathBuf::as_path).collect();
+    let inputs = mesh::files_read(&paths);
+    for output in &outputs {
+        files::check_png_path(output)?;
+        files::check_not_input(output, &inputs)?;
+    }
     let Input {
         name,
         mesh,
@@ -938,7 +953,8 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
         Some(m) => check_render_memory(&name, &m.base_mesh(), args)?,
         None => check_render_memory(&name, &mesh, args)?,
     }
-    let placed = camera::placement(&mesh.positions, &viewpoint, args.width, args.height)?;
+    let placed =
+        camera::placement(&mesh.positions, &viewpoint, args.width, args.height).map_err(naming_input_of(&name))?;
     let sizes = match (args.mode, &displaced_grids) {
         (Mode::Grid, Some(m)) => {
             grid::displaced::least_buffer_sizes(m, &args.build.grid_options()).map_err(|e| e.prefixed(&name))?
@@ -1089,11 +1105,14 @@ fn frame_path(output: &Path, k: u32, turntable: Option<u32>) -> PathBuf {
     output.with_file_name(format!("{stem}_{k:0width$}.png", width = digits.max(3)))
 }
 
+/// `export`'s subdivision depth when none is given.
+const DEFAULT_EXPORT_LEVELS: u32 = 3;
+
 /// Subdivides a mesh and writes the micro-mesh, in the input's units, as binary PLY.
 fn export(args: &ExportArgs, stages: &mut Stages) -> Result<()> {
-    image_io::check_output(&args.output, "ply")?;
-    let inputs: Vec<&Path> = args.mesh.iter().map(PathBuf::as_path).collect();
-    image_io::check_not_input(&args.output, &inputs)?;
+    files::check_output(&args.output, "ply")?;
+    let paths: Vec<&Path> = args.mesh.iter().map(PathBuf::as_path).collect();
+    files::check_not_input(&args.output, &mesh::files_read(&paths))?;
     let Input {
         name,
         mesh,
@@ -1102,7 +1121,17 @@ fn export(args: &ExportArgs, stages: &mut Stages) -> Result<()> {
         ..
     } = stages.run("load", || load(args.mesh.as_deref()))?;
     // A displaced micro-mesh is written as its decoded micro-triangles.
-    let levels = if displaced.is_some() { 0 } else { args.levels };
+    let levels = match (displaced, args.levels) {
+        (Some(d), Some(asked)) => bail!(
+            "{name}: is a displaced micro-mesh of {} base triangles at levels {} to {}: export writes its decoded \
+             micro-triangles at those levels, so --levels {asked} does not apply; leave it out",
+            d.base_triangles,
+            d.min_level,
+            d.max_level
+        ),
+        (Some(_), None) => 0,
+        (None, asked) => asked.unwrap_or(DEFAULT_EXPORT_LEVELS),
+    };
     limits::check_build(
         &format!("subdividing {name}"),
         mesh.triangles.len(),
@@ -1156,6 +1185,15 @@ pub(crate) fn naming_input(name: &str) -> impl Fn(gridrt::error::Error) -> gridr
         } else {
             e
         }
+    }
+}
+
+/// An error about the input (its contents) names the input it came from; others say what
+/// failed as they are.
+pub(crate) fn naming_input_of(name: &str) -> impl Fn(gridrt::error::Error) -> gridrt::error::Error + '_ {
+    move |e| match e.kind() {
+        gridrt::error::ErrorKind::Input => e.prefixed(name),
+        _ => e,
     }
 }
 

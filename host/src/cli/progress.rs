@@ -1,6 +1,7 @@
 //! What the command line shows while it works: a spinner or bar per stage on a terminal
 //! (nothing when stderr is not one, or with `--quiet`), and each stage's time at the end.
 
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -11,8 +12,29 @@ pub struct Stages {
     done: Vec<(&'static str, Duration)>,
 }
 
+/// Set by `--quiet`: notes are then not printed (warnings and errors still are).
+static QUIET: AtomicBool = AtomicBool::new(false);
+
+/// Whether notes are printed (see [`note!`]).
+pub fn quiet() -> bool {
+    QUIET.load(Ordering::Relaxed)
+}
+
+/// `eprintln!` for a note (what gridrt did or found that is worth knowing but asks nothing
+/// of the user): not printed with `--quiet`.
+macro_rules! note {
+    ($($line:tt)+) => {
+        if !$crate::cli::progress::quiet() {
+            eprintln!($($line)+)
+        }
+    };
+}
+pub(crate) use note;
+
 impl Stages {
+    /// The stages of a command; `quiet` also silences every note of the run.
     pub fn new(quiet: bool) -> Self {
+        QUIET.store(quiet, Ordering::Relaxed);
         Stages {
             quiet,
             done: Vec::new(),

@@ -31,10 +31,8 @@ use super::{quote, WorldMesh};
 /// buffers are read from `folder` and never from outside it. Errors carry no file name; the
 /// caller adds it.
 pub fn parse_gltf(bytes: &[u8], folder: Option<&Path>) -> Result<WorldMesh> {
-    if bytes.starts_with(b"glTF") {
-        return parse_glb(bytes, folder);
-    }
-    parse_document(bytes, None, folder)
+    let (json, bin) = split_file(bytes)?;
+    parse_document(json, bin, folder)
 }
 
 /// Parses a `.glb` file's bytes: the binary container, then its JSON and binary chunks.
@@ -200,15 +198,31 @@ fn half_float_accessors(raw: &Value) -> Result<Vec<usize>> {
 
 /// The JSON and binary chunk of a `.gltf` or `.glb` file's bytes.
 pub(super) fn split_file(bytes: &[u8]) -> Result<(&[u8], Option<&[u8]>)> {
-    match bytes.starts_with(b"glTF") {
-        true => glb_chunks(bytes),
-        false => Ok((bytes, None)),
+    if bytes.starts_with(b"glTF") {
+        return glb_chunks(bytes);
     }
+    // JSON text starts with its object's brace (after a byte-order mark or blanks).
+    let text = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
+    if text.iter().find(|b| !b.is_ascii_whitespace()) != Some(&b'{') {
+        let start = String::from_utf8_lossy(&bytes[..bytes.len().min(4)]).into_owned();
+        fail!(
+            Input,
+            "neither a GLB container nor glTF JSON: it starts with {} instead of \"glTF\" or \"{{\"",
+            quote(&start)
+        );
+    }
+    Ok((bytes, None))
 }
 
 /// Reads the document's default scene into one mesh.
 fn parse_document(json: &[u8], bin: Option<&[u8]>, folder: Option<&Path>) -> Result<WorldMesh> {
     let opened = open_document(json, bin, folder)?;
+    check_drawn_size(
+        &opened,
+        |_, _| 1.0,
+        crate::limits::LOADED_BYTES_PER_TRIANGLE,
+        "triangles",
+    )?;
     let nodes: Vec<gltf::Node> = opened.document.nodes().collect();
     let mut mesh = WorldMesh::default();
     for &(n, transform) in &opened.drawn {
@@ -222,6 +236,40 @@ fn parse_document(json: &[u8], bin: Option<&[u8]>, folder: Option<&Path>) -> Res
         fail!(Input, "no triangle primitives in its scene");
     }
     Ok(mesh)
+}
+
+/// Refuses, before anything is expanded, a scene whose drawn triangles would not fit in
+/// memory at `bytes_per` bytes each: every primitive counted once per node that draws it
+/// (instances), from its accessors' counts, each triangle as `weight` of the mesh's index and
+/// the primitive says
+/// (the micro-triangles a displaced one decodes to). `what` names what is counted.
+pub(super) fn check_drawn_size(
+    opened: &OpenedGltf,
+    weight: impl Fn(usize, &gltf::Primitive) -> f64,
+    bytes_per: u64,
+    what: &str,
+) -> Result<()> {
+    let nodes: Vec<gltf::Node> = opened.document.nodes().collect();
+    let (mut drawn, mut instances) = (0.0f64, 0usize);
+    for &(n, _) in &opened.drawn {
+        let Some(mesh) = nodes[n].mesh() else { continue };
+        instances += 1;
+        for primitive in mesh.primitives() {
+            let corners = match (primitive.indices(), primitive.get(&gltf::Semantic::Positions)) {
+                (Some(indices), _) => indices.count(),
+                (None, Some(positions)) => positions.count(),
+                (None, None) => 0,
+            };
+            drawn += (corners / 3) as f64 * weight(mesh.index(), &primitive);
+        }
+    }
+    let count = drawn as u64;
+    crate::limits::check_memory(
+        count.saturating_mul(bytes_per),
+        crate::limits::available_memory()?,
+        &format!("its scene's {count} {what} ({instances} meshes drawn, instances counted)"),
+        "draw fewer instances, or give it more memory",
+    )
 }
 
 /// Refuses a primitive whose POSITION names an accessor the file does not have: the `gltf`
@@ -395,6 +443,34 @@ fn load_buffers(document: &gltf::Document, bin: Option<&[u8]>, folder: Option<&P
         .collect()
 }
 
+/// The files in `folder` that a `.gltf` or `.glb` file's `bytes` name: its buffers' and its
+/// micromaps' `uri`s (data URIs and names that cannot be read from the folder left out).
+/// Nothing is read but the document.
+pub fn files_named(bytes: &[u8], folder: Option<&Path>) -> Vec<PathBuf> {
+    let Ok((json, _)) = split_file(bytes) else {
+        return Vec::new();
+    };
+    let Ok(raw) = serde_json::from_slice::<Value>(json) else {
+        return Vec::new();
+    };
+    (uris_named(&raw).iter())
+        .filter(|uri| !uri.starts_with("data:"))
+        .filter_map(|uri| asset_file(uri, folder).ok())
+        .collect()
+}
+
+/// The `uri`s a glTF document names: its buffers', then its micromaps' (`NV_micromaps`).
+pub fn uris_named(document: &Value) -> Vec<String> {
+    let uris = |list: Option<&Value>| -> Vec<String> {
+        (list.and_then(Value::as_array).into_iter().flatten())
+            .filter_map(|entry| entry.get("uri")?.as_str().map(str::to_string))
+            .collect()
+    };
+    let mut named = uris(document.get("buffers"));
+    named.extend(uris(document.pointer("/extensions/NV_micromaps/micromaps")));
+    named
+}
+
 /// The bytes a buffer's `uri` names, and where they came from (for messages).
 pub(super) fn read_uri(uri: &str, folder: Option<&Path>) -> Result<(Vec<u8>, String)> {
     if let Some(data) = uri.strip_prefix("data:") {
@@ -408,14 +484,8 @@ pub(super) fn read_uri(uri: &str, folder: Option<&Path>) -> Result<(Vec<u8>, Str
         return Ok((bytes, "its data URI".into()));
     }
     let path = asset_file(uri, folder)?;
-    let bytes = std::fs::read(&path).map_err(|e| {
-        error!(
-            Input,
-            "cannot read {}: {}",
-            path.display(),
-            crate::image_io::io_reason(&e)
-        )
-    })?;
+    let bytes = crate::files::read_plain_file(&path)
+        .map_err(|reason| error!(Input, "cannot read {}: {reason}", path.display()))?;
     Ok((bytes, path.display().to_string()))
 }
 
@@ -672,6 +742,17 @@ pub(super) fn add_primitive(
     };
     if let Some(&bad) = indices.iter().find(|&&i| i >= count) {
         fail!(Input, "index {bad} is out of range ({count} positions)");
+    }
+    if primitive.mode() == Mode::Triangles && !indices.len().is_multiple_of(3) {
+        let what = match primitive.indices() {
+            Some(_) => "indices",
+            None => "positions, drawn without indices,",
+        };
+        fail!(
+            Input,
+            "its {} {what} are not whole triangles: a triangle list needs a multiple of 3",
+            indices.len()
+        );
     }
     let base = mesh.positions.len() as u32;
     let mirrored = transform.determinant() < 0.0;

@@ -21,7 +21,8 @@ use gridrt_shared::glam::{DMat4, DVec3};
 use serde_json::Value;
 
 use super::gltf::{
-    add_primitive, describe, open_document, read_accessor, read_uri, split_file, view_bytes, OpenedGltf,
+    add_primitive, check_drawn_size, describe, open_document, read_accessor, read_uri, split_file, view_bytes,
+    OpenedGltf,
 };
 use super::WorldMesh;
 use crate::bary::{self, MeshProperties, Micromap, MicromapGroup, MicromapTriangle};
@@ -42,6 +43,9 @@ pub struct DisplacedWorld {
     /// Per triangle, its `primitiveFlags` (see `DisplacedMesh::decimated_edges`); empty when
     /// no primitive has any.
     pub decimated_edges: Vec<u8>,
+    /// Where the file is read otherwise than it may mean, one line each (a default taken for
+    /// what it leaves out); a caller shows them.
+    pub warnings: Vec<String>,
 }
 
 impl DisplacedWorld {
@@ -55,6 +59,16 @@ impl DisplacedWorld {
             .extend(other.triangles.iter().map(|t| t.map(|i| i + first)));
         self.micromap.append(&other.micromap);
         self.add_decimated_edges(triangles, &other.decimated_edges);
+        for warning in &other.warnings {
+            self.warn(warning);
+        }
+    }
+
+    /// Adds `warning`, once.
+    fn warn(&mut self, warning: &str) {
+        if !self.warnings.iter().any(|w| w == warning) {
+            self.warnings.push(warning.to_string());
+        }
     }
 
     /// Flags for the triangles from `first` on (none: all zero), keeping the list empty while
@@ -100,11 +114,32 @@ pub fn parse_displaced(bytes: &[u8], folder: Option<&Path>) -> Result<Option<Dis
     let (json, bin) = split_file(bytes)?;
     let opened = open_document(json, bin, folder)?;
     let Some(micromaps) = opened.raw.pointer("/extensions/NV_micromaps/micromaps") else {
+        if let Some((m, p)) = first_displaced_primitive(&opened.raw) {
+            fail!(
+                Input,
+                "mesh {m} primitive {p} is displaced (NV_displacement_micromap) but the file lists no micromaps \
+                 (no NV_micromaps at its root): its values are missing"
+            );
+        }
         return Ok(None);
     };
     let micromaps: Vec<(Micromap, MeshProperties)> = (micromaps.as_array().into_iter().flatten().enumerate())
         .map(|(k, entry)| read_micromap(entry, &opened, folder).map_err(|e| error!(Input, "micromap {k}: {e}")))
         .collect::<Result<_>>()?;
+    check_drawn_size(
+        &opened,
+        |mesh, primitive| {
+            let at = format!(
+                "/meshes/{mesh}/primitives/{}/extensions/NV_displacement_micromap/micromap",
+                primitive.index()
+            );
+            let map = opened.raw.pointer(&at).and_then(Value::as_u64);
+            map.and_then(|k| micromaps.get(k as usize))
+                .map_or(1.0, |(m, _)| mean_micro_triangles(m))
+        },
+        crate::limits::DECODED_BYTES_PER_MICRO_TRIANGLE,
+        "micro-triangles",
+    )?;
     let nodes: Vec<gltf::Node> = opened.document.nodes().collect();
     let mut out = DisplacedWorld::default();
     for &(n, transform) in &opened.drawn {
@@ -138,12 +173,33 @@ pub fn parse_displaced(bytes: &[u8], folder: Option<&Path>) -> Result<Option<Dis
     Ok(Some(out))
 }
 
+/// Micro-triangles per triangle of `micromap`, on average over its triangles.
+fn mean_micro_triangles(micromap: &Micromap) -> f64 {
+    let all: f64 = micromap.triangles.iter().map(|t| 4f64.powi(t.level as i32)).sum();
+    all / micromap.triangles.len().max(1) as f64
+}
+
+/// The first primitive, as (mesh, primitive), that carries `NV_displacement_micromap`.
+fn first_displaced_primitive(raw: &Value) -> Option<(usize, usize)> {
+    let meshes = raw.get("meshes")?.as_array()?;
+    meshes.iter().enumerate().find_map(|(m, mesh)| {
+        let primitives = mesh.get("primitives")?.as_array()?;
+        let p = primitives
+            .iter()
+            .position(|p| p.pointer("/extensions/NV_displacement_micromap").is_some())?;
+        Some((m, p))
+    })
+}
+
 /// A micromap's `.bary` bytes, from its `uri` or its `bufferView`, read with the mesh
 /// properties it carries.
 fn read_micromap(entry: &Value, opened: &OpenedGltf, folder: Option<&Path>) -> Result<(Micromap, MeshProperties)> {
     let uri = entry.get("uri").and_then(Value::as_str);
     match (uri, entry.get("bufferView").and_then(Value::as_u64)) {
-        (Some(uri), _) => bary::read_with_mesh(&read_uri(uri, folder)?.0),
+        (Some(uri), _) => {
+            let (bytes, source) = read_uri(uri, folder)?;
+            bary::read_with_mesh(&bytes).map_err(|e| e.prefixed(source))
+        }
         (None, Some(v)) => {
             let view = (opened.document.views().nth(v as usize))
                 .ok_or_else(|| error!(Input, "its bufferView {v} does not exist"))?;
@@ -263,11 +319,17 @@ impl Primitive<'_> {
     }
 
     fn append_to(&self, out: &mut DisplacedWorld) -> Result<()> {
-        if self.primitive.mode() != Mode::Triangles {
-            fail!(
+        match self.primitive.mode() {
+            Mode::Triangles => {}
+            Mode::TriangleStrip | Mode::TriangleFan => fail!(
                 Input,
                 "displaced strips and fans are not supported: write a triangle list"
-            );
+            ),
+            mode => fail!(
+                Input,
+                "it is drawn as {mode:?} (mode {}), but a micromap displaces triangles alone",
+                mode.as_gl_enum()
+            ),
         }
         if self.transform.determinant() < 0.0 {
             fail!(
@@ -279,7 +341,13 @@ impl Primitive<'_> {
         add_primitive(&mut base, self.primitive, &DMat4::IDENTITY, &self.opened.buffers)?;
         let flags = self.primitive_flags(base.triangles.len())?;
         let mut positions = base.positions;
-        let mut directions = self.directions(positions.len())?;
+        let (mut directions, from_normals) = self.directions(positions.len())?;
+        if from_normals {
+            out.warn(
+                "a displaced primitive has no directions (no accessor, none in its micromap): its vertex normals \
+                 displace it, as the extension allows; if it was baked along other directions it renders off",
+            );
+        }
         if let Some(bounds) = self.direction_bounds(positions.len())? {
             for ((p, d), [bias, scale]) in positions.iter_mut().zip(&mut directions).zip(bounds) {
                 *p += *d * bias;
@@ -300,13 +368,15 @@ impl Primitive<'_> {
 
     /// Each of the primitive's `vertices` vertices' direction: from the `directions`
     /// accessor, else from the micromap's, else the vertex normals, as the extension says.
-    fn directions(&self, vertices: usize) -> Result<Vec<DVec3>> {
+    /// The directions, and whether they are the vertex normals the extension falls back on.
+    fn directions(&self, vertices: usize) -> Result<(Vec<DVec3>, bool)> {
         let found = self.own_or_micromaps(
             self.floats::<3>("directions", &[Dimensions::Vec3, Dimensions::Vec4])?,
             (|m| m.directions.as_ref(), "directionsOffset"),
             vertices,
             |d| d.map(f64::from),
         )?;
+        let from_normals = found.is_none();
         let directions = match found {
             Some(d) => d,
             None => self.normals()?.ok_or_else(|| {
@@ -319,7 +389,7 @@ impl Primitive<'_> {
         if directions.len() != vertices {
             fail!(Input, "{} directions for {vertices} positions", directions.len());
         }
-        Ok(directions.into_iter().map(DVec3::from_array).collect())
+        Ok((directions.into_iter().map(DVec3::from_array).collect(), from_normals))
     }
 
     /// The primitive's `NORMAL` attribute, which directions default to.

@@ -298,6 +298,9 @@ pub struct Input {
     /// The displaced micro-mesh itself, in the same frame as `mesh` (whose triangles are its
     /// decoded micro-triangles, point for point).
     pub micromesh: Option<crate::displaced::DisplacedMesh>,
+    /// Where a file was read otherwise than it may mean (a default taken for what it leaves
+    /// out), one line each naming the file; a caller shows them.
+    pub warnings: Vec<String>,
 }
 
 /// A displaced micro-mesh that was loaded as its decoded micro-triangles.
@@ -327,6 +330,7 @@ pub fn open_all(paths: &[&Path]) -> Result<Input> {
             cleaning: Cleaning::default(),
             displaced: None,
             micromesh: None,
+            warnings: Vec::new(),
         });
     };
     let mut name = first.display().to_string();
@@ -368,13 +372,15 @@ pub fn open_all(paths: &[&Path]) -> Result<Input> {
         cleaning,
         displaced: None,
         micromesh: None,
+        warnings: Vec::new(),
     })
 }
 
 /// Displaced micro-meshes side by side, in the local frame of their base meshes: the
 /// micro-mesh itself, and its decoded micro-triangles (points decoded alike stored once) as
 /// the mesh, so that both decode the same points.
-fn open_displaced(all: gltf_micromap::DisplacedWorld, name: String) -> Result<Input> {
+fn open_displaced(mut all: gltf_micromap::DisplacedWorld, name: String) -> Result<Input> {
+    let warnings = std::mem::take(&mut all.warnings);
     let (micromesh, frame) = all.into_local();
     micromesh.check().map_err(|e| e.prefixed(&name))?;
     let micromesh = micromesh.with_ranges_folded();
@@ -392,6 +398,7 @@ fn open_displaced(all: gltf_micromap::DisplacedWorld, name: String) -> Result<In
         cleaning: Cleaning::default(),
         displaced: Some(source),
         micromesh: Some(micromesh),
+        warnings,
     })
 }
 
@@ -404,18 +411,41 @@ pub fn load_mesh_quiet(path: &Path) -> Result<(Mesh, usize)> {
 /// Loads and validates one file, in its own units and in double precision (a displaced
 /// micro-mesh as its decoded micro-triangles).
 pub fn load_world(path: &Path) -> Result<(WorldMesh, Cleaning)> {
+    load_world_warning(path).map(|(mesh, cleaning, _)| (mesh, cleaning))
+}
+
+/// [`load_world`], with the warnings of [`Input::warnings`].
+pub fn load_world_warning(path: &Path) -> Result<(WorldMesh, Cleaning, Vec<String>)> {
     match read_file(path)? {
-        Loaded::Plain(mesh, cleaning) => Ok((mesh, cleaning)),
-        Loaded::Displaced(displaced) => {
+        Loaded::Plain(mesh, cleaning) => Ok((mesh, cleaning, Vec::new())),
+        Loaded::Displaced(mut displaced) => {
+            let warnings = std::mem::take(&mut displaced.warnings);
             let (local, frame) = displaced.into_local();
             let decoded = local.decoded();
             let world = WorldMesh {
                 positions: decoded.positions.iter().map(|&p| frame.to_world(p)).collect(),
                 triangles: decoded.triangles,
             };
-            world.validate(&path.display().to_string())
+            let (world, cleaning) = world.validate(&path.display().to_string())?;
+            Ok((world, cleaning, warnings))
         }
     }
+}
+
+/// Every file that loading `paths` reads: each of them, and the files a glTF names beside it
+/// (buffers, micromaps). An output must be none of them.
+pub fn files_read(paths: &[&Path]) -> Vec<std::path::PathBuf> {
+    let mut files = Vec::new();
+    for &path in paths {
+        files.push(path.to_path_buf());
+        let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+        if matches!(ext.as_deref(), Some("gltf" | "glb")) {
+            if let Ok(bytes) = crate::files::read_plain_file(path) {
+                files.extend(gltf::files_named(&bytes, path.parent()));
+            }
+        }
+    }
+    files
 }
 
 /// One file as read: a triangle mesh (validated), or a displaced micro-mesh (checked).
@@ -431,14 +461,17 @@ fn read_file(path: &Path) -> Result<Loaded> {
     if !matches!(ext.as_deref(), Some("obj" | "ply" | "gltf" | "glb")) {
         fail!(Input, "{name}: unsupported format (expected .obj, .ply, .gltf or .glb)");
     }
-    let bytes = std::fs::read(path).map_err(|e| error!(Input, "{name}: cannot open: {}", io_reason(&e)))?;
+    let bytes = crate::files::read_plain_file(path).map_err(|reason| error!(Input, "{name}: cannot open: {reason}"))?;
     if bytes.is_empty() {
         fail!(Input, "{name}: no triangles (empty file)");
     }
     let is_gltf = matches!(ext.as_deref(), Some("gltf" | "glb"));
     if is_gltf && bytes.windows(24).any(|w| w == b"NV_displacement_micromap") {
         let named = |e: crate::error::Error| error!(Input, "{name}: {}", one_line(&e.to_string()));
-        if let Some(displaced) = gltf_micromap::parse_displaced(&bytes, path.parent()).map_err(named)? {
+        if let Some(mut displaced) = gltf_micromap::parse_displaced(&bytes, path.parent()).map_err(named)? {
+            for warning in &mut displaced.warnings {
+                *warning = format!("{name}: {warning}");
+            }
             // Checked in the frame it is decoded in, so the error names this file.
             displaced.clone().into_local().0.check().map_err(named)?;
             return Ok(Loaded::Displaced(displaced));
@@ -455,7 +488,7 @@ fn read_file(path: &Path) -> Result<Loaded> {
     Ok(Loaded::Plain(mesh, cleaning))
 }
 
-pub use crate::image_io::io_reason;
+pub use crate::files::io_reason;
 
 /// Guards the one-line promise against messages that quote file content.
 fn one_line(s: &str) -> String {

@@ -7,7 +7,7 @@ use std::path::Path;
 use crate::error::{error, Result};
 use gridrt_shared::glam::Vec3;
 
-use crate::image_io::write_atomically;
+use crate::files::write_atomically;
 
 /// Writes `positions` and `triangles` (indices into `positions`) to `path`, through a
 /// temporary file renamed over it.
