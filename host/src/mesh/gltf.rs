@@ -264,12 +264,14 @@ pub(super) fn check_drawn_size(
         }
     }
     let count = drawn as u64;
+    // A file that asks for more than there is, is refused as its contents are: an input error.
     crate::limits::check_memory(
         count.saturating_mul(bytes_per),
         crate::limits::available_memory()?,
         &format!("its scene's {count} {what} ({instances} meshes drawn, instances counted)"),
         "draw fewer instances, or give it more memory",
     )
+    .map_err(|e| error!(Input, "{}", e.message()))
 }
 
 /// Refuses a primitive whose POSITION names an accessor the file does not have: the `gltf`
