@@ -17,11 +17,19 @@ use crate::error::{error, fail, Result};
 /// The bytes of `path` where it is a plain file (links followed); otherwise, or where it
 /// cannot be read, the reason, without the name: `is a named pipe, not a file`.
 pub fn read_plain_file(path: &Path) -> std::result::Result<Vec<u8>, String> {
+    let mut bytes = Vec::new();
+    std::io::Read::read_to_end(&mut open_plain_file(path)?, &mut bytes).map_err(|e| io_reason(&e))?;
+    Ok(bytes)
+}
+
+/// `path` opened for reading where it is a plain file (links followed); otherwise the reason,
+/// as [`read_plain_file`] gives it.
+pub fn open_plain_file(path: &Path) -> std::result::Result<std::fs::File, String> {
     let meta = std::fs::metadata(path).map_err(|e| io_reason(&e))?;
     if !meta.is_file() {
         return Err(format!("is {}, not a file", file_kind(&meta)));
     }
-    std::fs::read(path).map_err(|e| io_reason(&e))
+    std::fs::File::open(path).map_err(|e| io_reason(&e))
 }
 
 /// What a file that is not a plain file is, for messages.

@@ -53,12 +53,13 @@ pub fn check_samples(samples: usize, option: &str) -> Result<()> {
 
 /// The area of `mesh`'s triangles, in its units squared.
 pub fn area(mesh: &Mesh) -> f64 {
-    (mesh.triangles.iter())
-        .map(|t| {
-            let [a, b, c] = t.map(|i| mesh.positions[i as usize].as_dvec3());
-            (b - a).cross(c - a).length() * 0.5
-        })
-        .sum()
+    mesh.triangles.iter().map(|t| triangle_area(mesh, t)).sum()
+}
+
+/// The area of triangle `t` of `mesh`, in `f64`.
+fn triangle_area(mesh: &Mesh, t: &[u32; 3]) -> f64 {
+    let [a, b, c] = t.map(|i| mesh.positions[i as usize].as_dvec3());
+    (b - a).cross(c - a).length() * 0.5
 }
 
 /// Refuses a surface without area (every triangle's corners on one line): no point can be
@@ -169,8 +170,7 @@ fn samples_as<T: Send>(mesh: &Mesh, sampling: &Sampling, sample: impl Fn(DVec3, 
     let mut cumulative = Vec::with_capacity(mesh.triangles.len());
     let mut total = 0.0f64;
     for t in &mesh.triangles {
-        let [a, b, c] = corners(t);
-        total += (b - a).cross(c - a).length() * 0.5;
+        total += triangle_area(mesh, t);
         cumulative.push(total);
     }
     if total.is_nan() || total <= 0.0 || sampling.samples == 0 {

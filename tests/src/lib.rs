@@ -259,14 +259,9 @@ pub fn fails_with(args: &[&str], env: &[(&str, &str)], needles: &[&str]) -> Stri
 /// its folder.
 pub fn side_files(gltf: &std::path::Path) -> Vec<PathBuf> {
     let json: serde_json::Value = serde_json::from_slice(&std::fs::read(gltf).expect("read the glTF")).expect("JSON");
-    let uris = |list: Option<&serde_json::Value>| -> Vec<PathBuf> {
-        (list.and_then(|l| l.as_array()).into_iter().flatten())
-            .filter_map(|entry| entry.get("uri")?.as_str().map(|u| gltf.with_file_name(u)))
-            .collect()
-    };
-    let mut files = uris(json.get("buffers"));
-    files.extend(uris(json.pointer("/extensions/NV_micromaps/micromaps")));
-    files
+    (gridrt::mesh::gltf::uris_named(&json).iter())
+        .map(|uri| gltf.with_file_name(uri))
+        .collect()
 }
 
 /// A bumpy ball of `8 * 4^levels` triangles around the origin: a detailed closed surface to

@@ -103,7 +103,13 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
     let name = args.reference.display().to_string();
     surface_distance::check_area(&reference_mesh, &name)?;
     let base = match &args.base {
-        Some(path) => Base::Given(stages.run("load base", || mesh::load_world(path))?.0.in_frame(&frame)),
+        Some(path) => {
+            let (base, _, warnings) = stages.run("load base", || mesh::load_world_warning(path))?;
+            for warning in warnings {
+                eprintln!("warning: {warning}");
+            }
+            Base::Given(base.in_frame(&frame))
+        }
         None => Base::Decimated {
             triangles: args
                 .base_triangles

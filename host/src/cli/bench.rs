@@ -299,7 +299,7 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
                 contenders.push((scene, Schedule::OnePass));
             }
             let mut timed = (device.time_traces(&contenders, rays, args.warmup, args.repeats))
-                .map_err(super::naming_input(name))?;
+                .map_err(super::naming_input(name, gridrt::error::ErrorKind::Limits))?;
             if let (Some(t), Some(r)) = (timed.get(2), reference_rates.as_mut()) {
                 let rate = rays.len() as f64 / summarize(t.seconds.clone()).0 / 1e6;
                 match kind {

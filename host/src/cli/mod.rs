@@ -953,8 +953,8 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
         Some(m) => check_render_memory(&name, &m.base_mesh(), args)?,
         None => check_render_memory(&name, &mesh, args)?,
     }
-    let placed =
-        camera::placement(&mesh.positions, &viewpoint, args.width, args.height).map_err(naming_input_of(&name))?;
+    let placed = camera::placement(&mesh.positions, &viewpoint, args.width, args.height)
+        .map_err(naming_input(&name, gridrt::error::ErrorKind::Input))?;
     let sizes = match (args.mode, &displaced_grids) {
         (Mode::Grid, Some(m)) => {
             grid::displaced::least_buffer_sizes(m, &args.build.grid_options()).map_err(|e| e.prefixed(&name))?
@@ -1009,7 +1009,8 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
         }
         let image = if render.shading == Shading::Cost {
             let costs = stages.run("render", || {
-                (backend.render_costs(&scene, &view, &render)).map_err(naming_input(&name))
+                (backend.render_costs(&scene, &view, &render))
+                    .map_err(naming_input(&name, gridrt::error::ErrorKind::Limits))
             })?;
             let summary = costs.summary();
             let white = summary.white(render.heat_white);
@@ -1023,7 +1024,7 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
             };
             stages.run_counted("render", samples, |bar| {
                 (backend.render_reporting(&scene, &view, &render, &|done| bar.set_position(done as u64)))
-                    .map_err(naming_input(&name))
+                    .map_err(naming_input(&name, gridrt::error::ErrorKind::Limits))
             })?
         };
         stages.run("write", || image.write_png(output))?;
@@ -1176,25 +1177,14 @@ fn check_upload_memory(name: &str, sizes: &[limits::BufferSize], device: &Backen
     )?)
 }
 
-/// A refusal of the scene's size (a device that cannot bind it, found as it is uploaded)
-/// names the input it came from; other errors say what failed as they are.
-pub(crate) fn naming_input(name: &str) -> impl Fn(gridrt::error::Error) -> gridrt::error::Error + '_ {
-    move |e| {
-        if e.kind() == gridrt::error::ErrorKind::Limits {
-            e.prefixed(name)
-        } else {
-            e
-        }
-    }
-}
-
-/// An error about the input (its contents) names the input it came from; others say what
-/// failed as they are.
-pub(crate) fn naming_input_of(name: &str) -> impl Fn(gridrt::error::Error) -> gridrt::error::Error + '_ {
-    move |e| match e.kind() {
-        gridrt::error::ErrorKind::Input => e.prefixed(name),
-        _ => e,
-    }
+/// An error of `kind` names the input it came from (a refusal of the scene's size found as
+/// it is uploaded, `Limits`; one about its contents, `Input`); others say what failed as they
+/// are.
+pub(crate) fn naming_input(
+    name: &str,
+    kind: gridrt::error::ErrorKind,
+) -> impl Fn(gridrt::error::Error) -> gridrt::error::Error + '_ {
+    move |e| if e.kind() == kind { e.prefixed(name) } else { e }
 }
 
 /// Refuses a render whose build and image would not fit in memory, before building.

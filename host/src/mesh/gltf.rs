@@ -445,20 +445,39 @@ fn load_buffers(document: &gltf::Document, bin: Option<&[u8]>, folder: Option<&P
         .collect()
 }
 
-/// The files in `folder` that a `.gltf` or `.glb` file's `bytes` name: its buffers' and its
+/// The files in its folder that the `.gltf` or `.glb` file `path` names: its buffers' and its
 /// micromaps' `uri`s (data URIs and names that cannot be read from the folder left out).
-/// Nothing is read but the document.
-pub fn files_named(bytes: &[u8], folder: Option<&Path>) -> Vec<PathBuf> {
-    let Ok((json, _)) = split_file(bytes) else {
+/// Nothing is read but the document (a GLB's binary chunk is not); a file that cannot be
+/// read names none.
+pub fn files_named(path: &Path) -> Vec<PathBuf> {
+    let Some(json) = document_bytes(path) else {
         return Vec::new();
     };
-    let Ok(raw) = serde_json::from_slice::<Value>(json) else {
+    let Ok(raw) = serde_json::from_slice::<Value>(&json) else {
         return Vec::new();
     };
+    let folder = path.parent();
     (uris_named(&raw).iter())
         .filter(|uri| !uri.starts_with("data:"))
         .filter_map(|uri| asset_file(uri, folder).ok())
         .collect()
+}
+
+/// The JSON of the glTF file `path`: the whole of a `.gltf`, the JSON chunk of a GLB (its
+/// header and chunk header read first, the binary chunk left unread).
+fn document_bytes(path: &Path) -> Option<Vec<u8>> {
+    use std::io::Read;
+    let mut file = crate::files::open_plain_file(path).ok()?;
+    let mut head = Vec::new();
+    (&mut file).take(20).read_to_end(&mut head).ok()?;
+    if !head.starts_with(b"glTF") {
+        file.read_to_end(&mut head).ok()?;
+        return Some(head);
+    }
+    let length = u32::from_le_bytes(head.get(12..16)?.try_into().ok()?);
+    let mut json = Vec::new();
+    file.take(length as u64).read_to_end(&mut json).ok()?;
+    Some(json)
 }
 
 /// The `uri`s a glTF document names: its buffers', then its micromaps' (`NV_micromaps`).

@@ -440,9 +440,7 @@ pub fn files_read(paths: &[&Path]) -> Vec<std::path::PathBuf> {
         files.push(path.to_path_buf());
         let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
         if matches!(ext.as_deref(), Some("gltf" | "glb")) {
-            if let Ok(bytes) = crate::files::read_plain_file(path) {
-                files.extend(gltf::files_named(&bytes, path.parent()));
-            }
+            files.extend(gltf::files_named(path));
         }
     }
     files
