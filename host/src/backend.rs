@@ -5,12 +5,12 @@
 use std::time::Instant;
 
 use crate::error::Result;
-use gridrt_shared::layout::{Camera, FrameParams, HitRecord, RayRecord};
+use gridrt_shared::layout::{Camera, FrameParams, HitRecord, RayRecord, SHADE_COST};
 use gridrt_shared::shade::{ao_accumulate, ao_pixel};
 use rayon::prelude::*;
 
 #[cfg(feature = "gpu")]
-use crate::gpu::{Gpu, TimedList, TimedScene, Timing};
+use crate::gpu::{Gpu, TimedList, Timing};
 use crate::heat_map::CostImage;
 use crate::limits::BufferSize;
 use crate::pipeline::{Image, RenderOptions, Shading};
@@ -24,9 +24,6 @@ pub const AO_SAMPLES_PER_PASS: u32 = 8;
 /// all of them together have run 65535 times in one invocation, silently; decoding values
 /// runs loops of its own, and a pixel of deep grids that casts eight rays can reach that.
 pub const AO_SAMPLES_PER_PASS_COMPRESSED: u32 = 2;
-
-// The two-phase schedule's finish keeps to the rays one render pass of compressed grids casts.
-const _: () = assert!(gridrt_shared::layout::FINISH_RAYS_PER_THREAD_COMPRESSED == 1 + AO_SAMPLES_PER_PASS_COMPRESSED);
 
 /// Most ambient-occlusion samples per pixel one render pass of `scene` casts.
 pub fn ao_samples_per_pass(scene: &Scene) -> u32 {
@@ -46,48 +43,12 @@ pub enum BackendChoice {
     Cpu,
 }
 
-/// How the GPU traces a list of rays through grids: one pass per ray (the top-level walk and
-/// its grid visits in one kernel), or the two-phase schedule (`crate::gpu`'s `two_phase`:
-/// rounds of a walk that queues grids, each followed by the queued visits' spheres, one grid
-/// per thread, and the leaf tests they queue, one per thread).
-/// The CPU traces every list in one pass.
-#[derive(Copy, Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Schedule {
-    /// Two-phase wherever the device runs its SIMD groups' branches in lockstep, taken or
-    /// not (a GPU adapter that is the CPU: lavapipe), the scene takes it (grid scenes walked
-    /// by their root's visit alone, bound whole) and the list holds at least
-    /// [`TWO_PHASE_MIN_RAYS`] rays; one pass elsewhere, a real GPU's included (docs/RESULTS.md,
-    /// "Schedules, in one table" and "Table 1, a real GPU").
-    #[default]
-    Auto,
-    OnePass,
-    TwoPhase,
-}
-
-/// The shortest list `Schedule::Auto` traces by the two-phase schedule: each of its rounds
-/// costs a fixed time however few rays it holds, which a short list does not win back.
-pub const TWO_PHASE_MIN_RAYS: usize = 1 << 14;
-
-impl Schedule {
-    /// The name the command line and the JSON output use.
-    pub fn name(self) -> &'static str {
-        match self {
-            Schedule::Auto => "auto",
-            Schedule::OnePass => "one-pass",
-            Schedule::TwoPhase => "two-phase",
-        }
-    }
-}
-
 /// What timing a list of rays through one scene gives ([`Backend::time_traces`]).
 pub struct TimedTrace {
     /// The hits of the last repetition.
     pub hits: Vec<HitRecord>,
     /// The seconds of each timed repetition (after the warm-up).
     pub seconds: Vec<f64>,
-    /// The schedule that ran, `Auto` resolved.
-    pub schedule: Schedule,
 }
 
 /// A CPU or a GPU, behind one interface: everything that traces takes a `&Backend`.
@@ -258,22 +219,25 @@ impl Backend {
     }
 
     /// The tests each pixel's primary ray makes, for the cost heat map (of `options`, only
-    /// the level of detail counts).
+    /// the level of detail counts). Counted on the CPU whatever the backend: the counts are the
+    /// traversal's, the same on every device, and the GPU keeps no kernels for them.
     pub fn render_costs(&self, scene: &Scene, camera: &Camera, options: &RenderOptions) -> Result<CostImage> {
         let options = RenderOptions {
             shading: Shading::Cost,
             ..*options
         };
         options.check(scene)?;
-        let packed = self.render_frame(scene, &options.frame(scene, camera))?;
+        let packed = render_cpu(scene, &options.frame(scene, camera));
         Ok(CostImage::from_packed(camera.width, camera.height, &packed))
     }
 
     /// Renders one frame as the kernels take it: packed RGBA8 (packed costs for the heat map,
     /// counts of open rays for an ambient-occlusion pass: see
-    /// [`gridrt_shared::shade::render_pixel`]), row-major, top row first.
+    /// [`gridrt_shared::shade::render_pixel`]), row-major, top row first. The heat map's
+    /// counts come from the CPU (see [`Backend::render_costs`]).
     pub fn render_frame(&self, scene: &Scene, frame: &FrameParams) -> Result<Vec<u32>> {
         match self {
+            _ if frame.shading == SHADE_COST => Ok(render_cpu(scene, frame)),
             Backend::Cpu { .. } => Ok(render_cpu(scene, frame)),
             #[cfg(feature = "gpu")]
             Backend::Gpu(gpu) => gpu.render(scene, frame),
@@ -323,80 +287,34 @@ impl Backend {
         warmup: usize,
         repeats: usize,
     ) -> Result<(Vec<HitRecord>, Vec<f64>)> {
-        let (hits, seconds, _) = self.time_trace_scheduled(scene, rays, warmup, repeats, Schedule::OnePass)?;
+        let TimedTrace { hits, seconds } = self.time_traces(&[scene], rays, warmup, repeats)?.remove(0);
         Ok((hits, seconds))
     }
 
-    /// [`Backend::time_trace`] by `schedule`, which only the GPU has a choice of (the
-    /// two-phase schedule takes grid scenes walked by their root's visit alone, bound whole);
-    /// also returns the schedule that ran, `Auto` resolved.
-    pub fn time_trace_scheduled(
-        &self,
-        scene: &Scene,
-        rays: &[RayRecord],
-        warmup: usize,
-        repeats: usize,
-        schedule: Schedule,
-    ) -> Result<(Vec<HitRecord>, Vec<f64>, Schedule)> {
-        let TimedTrace {
-            hits,
-            seconds,
-            schedule,
-        } = self.time_traces(&[(scene, schedule)], rays, warmup, repeats)?.remove(0);
-        Ok((hits, seconds, schedule))
-    }
-
-    /// Traces `rays` through each of `scenes`, by its schedule, `warmup + repeats` times; per
+    /// Traces `rays` through each of `scenes`, `warmup + repeats` times; per
     /// scene, in order, what [`TimedTrace`] holds. The scenes take turns at every repetition
     /// (the first of one is the last of the next), so that a change in the device's speed while
     /// they run (clocks, heat, other work on the machine) meets them alike: the ratio of their
     /// times, which a benchmark reports, does not depend on which ran when.
     pub fn time_traces(
         &self,
-        scenes: &[(&Scene, Schedule)],
+        scenes: &[&Scene],
         rays: &[RayRecord],
         warmup: usize,
         repeats: usize,
     ) -> Result<Vec<TimedTrace>> {
-        if scenes.iter().any(|s| s.1 == Schedule::TwoPhase) && self.kind() != "gpu" {
-            crate::error::fail!(
-                Options,
-                "the two-phase schedule runs on the GPU backend; use --backend gpu"
-            );
-        }
         match self {
             Backend::Cpu { .. } => Ok(time_traces_cpu(scenes, rays, warmup, repeats)),
             #[cfg(feature = "gpu")]
             Backend::Gpu(gpu) => {
                 let uploaded = (scenes.iter())
-                    .map(|(scene, _)| gpu.upload(scene))
+                    .map(|scene| gpu.upload(scene))
                     .collect::<Result<Vec<_>>>()?;
-                let schedules: Vec<Schedule> = (scenes.iter().zip(&uploaded))
-                    .map(|((_, schedule), up)| match schedule {
-                        Schedule::Auto
-                            if gpu.prefers_two_phase() && up.takes_two_phase() && rays.len() >= TWO_PHASE_MIN_RAYS =>
-                        {
-                            Schedule::TwoPhase
-                        }
-                        Schedule::Auto => Schedule::OnePass,
-                        &chosen => chosen,
-                    })
-                    .collect();
-                let timed: Vec<TimedScene> = (uploaded.iter().zip(&schedules))
-                    .map(|(scene, &schedule)| TimedScene {
-                        scene,
-                        two_phase: schedule == Schedule::TwoPhase,
-                    })
-                    .collect();
-                let lists = gpu.time_traces(&timed, rays, warmup + repeats)?;
-                Ok((lists.into_iter().zip(schedules))
-                    .map(|(TimedList { hits, mut seconds }, schedule)| {
+                let lists = gpu.time_traces(&uploaded, rays, warmup + repeats)?;
+                Ok((lists.into_iter())
+                    .map(|TimedList { hits, mut seconds }| {
                         seconds.drain(..warmup.min(seconds.len()));
-                        TimedTrace {
-                            hits,
-                            seconds,
-                            schedule,
-                        }
+                        TimedTrace { hits, seconds }
                     })
                     .collect())
             }
@@ -404,25 +322,19 @@ impl Backend {
     }
 }
 
-/// [`Backend::time_traces`] on the CPU, which traces every list in one pass.
-fn time_traces_cpu(
-    scenes: &[(&Scene, Schedule)],
-    rays: &[RayRecord],
-    warmup: usize,
-    repeats: usize,
-) -> Vec<TimedTrace> {
+/// [`Backend::time_traces`] on the CPU.
+fn time_traces_cpu(scenes: &[&Scene], rays: &[RayRecord], warmup: usize, repeats: usize) -> Vec<TimedTrace> {
     let mut timed: Vec<TimedTrace> = (scenes.iter())
         .map(|_| TimedTrace {
             hits: Vec::new(),
             seconds: Vec::new(),
-            schedule: Schedule::OnePass,
         })
         .collect();
     for k in 0..warmup + repeats {
         for turn in 0..scenes.len() {
             let s = in_turn(k, turn, scenes.len());
             let start = Instant::now();
-            timed[s].hits = trace_cpu(scenes[s].0, rays);
+            timed[s].hits = trace_cpu(scenes[s], rays);
             if k >= warmup {
                 timed[s].seconds.push(start.elapsed().as_secs_f64());
             }

@@ -15,7 +15,7 @@ use crate::grid_index::{
 };
 use crate::layout::{
     GridHeader, GridIds, GridParams, Hit, SplitParams, DISPLACED_COMPRESSED, GRID_HEADERS, GRID_RADII, GRID_VERTICES,
-    LEAF_TEST_CLASSES, RADII_HALF, RADII_RELATIVE,
+    RADII_HALF, RADII_RELATIVE,
 };
 use crate::lod::grid_level;
 use crate::quantize::{dequantize, halves_from_words, read_half, unit_from_exponent};
@@ -118,16 +118,6 @@ pub struct GridScratch {
     /// `1 / |dir|^2`, for the sphere tests.
     inv_dir_len2: f32,
     frame: FootprintFrame,
-}
-
-impl GridScratch {
-    /// Aims the working memory at another ray: its per-ray constants made again, the arrays
-    /// kept (every visit writes what it reads of them). Cheaper than fresh working memory for a
-    /// thread that takes one ray after another.
-    pub fn aim(&mut self, ray: &Ray) {
-        self.inv_dir_len2 = 1.0 / ray.dir.dot(ray.dir);
-        self.frame = FootprintFrame::new(ray);
-    }
 }
 
 /// Most vertices a leaf can hold: a sub-triangle subdivided `MAX_LEAF_DEPTH` times.
@@ -1143,37 +1133,6 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
 /// A window that holds no lattice point: `lo > hi` on both axes.
 pub const EMPTY_WINDOW: [u32; 4] = [1, 0, 1, 0];
 
-/// The size class of a leaf test over `window` (from [`OneVisitGrids::leaf_window`]): the
-/// lattice points it loads at the scene's finest depth, capped at [`LEAF_TEST_CLASSES`]` - 1`.
-/// Schedules that run leaf tests apart group them by class, so the tests of one SIMD group run
-/// their loops about as long.
-#[inline]
-pub fn leaf_test_class(params: &GridParams, window: [u32; 4]) -> u32 {
-    let points = window_points(window, 1 << params.lod);
-    if points < LEAF_TEST_CLASSES {
-        points
-    } else {
-        LEAF_TEST_CLASSES - 1
-    }
-}
-
-/// Lattice points of `window` in a sub-triangle `m` steps a side: how many a leaf test over
-/// it loads, and about half the cells it tests.
-#[inline]
-pub fn window_points(window: [u32; 4], m: u32) -> u32 {
-    let (la_lo, la_hi) = (window[0], window[1]);
-    let mut points = 0;
-    let mut lb = window[2];
-    while lb <= window[3] && lb <= m {
-        let row_end = window_row_end(la_hi, lb, m);
-        if row_end >= la_lo {
-            points += row_end - la_lo + 1;
-        }
-        lb += 1;
-    }
-    points
-}
-
 /// The last `la` of row `lb` of a window reaching `la_hi`, in a sub-triangle `m` steps a side
 /// (whose row `lb` ends at `m - lb`).
 #[inline]
@@ -1371,50 +1330,6 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> LeafPrimitives for GridScene<'_, H, 
 /// where they find the same hits as the [`GridScene`] they wrap, with less work on GPUs.
 pub struct OneVisitGrids<'a, H, W>(pub GridScene<'a, H, W>);
 
-/// A grid's visit in two halves, for schedules that run them apart (the two-phase schedule
-/// compacts the visits that need a leaf test before running it): together they find what
-/// [`LeafPrimitives::intersect_leaf`] finds for the grid alone.
-impl<H: Buffer<GridHeader>, W: Buffer<u32>> OneVisitGrids<'_, H, W> {
-    /// The first half: the root's sphere, its children's spheres and footprints. Returns the
-    /// window of the root's lattice the leaf test must cover for hits closer than `t`, or
-    /// [`EMPTY_WINDOW`] when the grid holds none.
-    pub fn leaf_window<T: Tally>(
-        &self,
-        grid: u32,
-        ray: &Ray,
-        t: f32,
-        scratch: &mut GridScratch,
-        tally: &mut T,
-    ) -> [u32; 4] {
-        let visit = self.0.open_visit(grid, ray);
-        if !self.0.crosses_root(&visit, ray, t, scratch, tally) {
-            return EMPTY_WINDOW;
-        }
-        let mut hit = Hit::miss(t);
-        let root = SubTriangle::ROOT;
-        let mut window = EMPTY_WINDOW;
-        self.0
-            .visit_sub_triangle::<false, false, T>(&visit, &root, 0, ray, &mut hit, scratch, tally, &mut window);
-        window
-    }
-
-    /// The second half: the leaf test over `window` (from [`Self::leaf_window`], not empty),
-    /// its closest hit closer than `hit.t` taken into `hit`.
-    pub fn test_leaf_window<T: Tally>(
-        &self,
-        grid: u32,
-        window: [u32; 4],
-        ray: &Ray,
-        hit: &mut Hit,
-        scratch: &mut GridScratch,
-        tally: &mut T,
-    ) {
-        let visit = self.0.open_visit(grid, ray);
-        self.0
-            .test_window(&visit, &SubTriangle::ROOT, window, ray, hit, scratch, tally);
-    }
-}
-
 impl<H: Buffer<GridHeader>, W: Buffer<u32>> LeafPrimitives for OneVisitGrids<'_, H, W> {
     const DISPLACED_GRIDS: bool = W::DISPLACED_GRIDS;
     type Scratch = GridScratch;
@@ -1458,31 +1373,5 @@ pub fn trace_grids<N: Hierarchy, H: Buffer<GridHeader>, W: Buffer<u32>>(
         trace(nodes, &OneVisitGrids(*scene), ray, t_max)
     } else {
         trace(nodes, scene, ray, t_max)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn window_points_counts_the_lattice_points_inside() {
-        for m in [1u32, 2, 4, 8] {
-            for la_lo in 0..=m {
-                for la_hi in la_lo..=m {
-                    for lb_lo in 0..=m {
-                        for lb_hi in lb_lo..=m {
-                            let window = [la_lo, la_hi, lb_lo, lb_hi];
-                            let inside = (lb_lo..=lb_hi)
-                                .flat_map(|lb| (la_lo..=la_hi).map(move |la| la + lb))
-                                .filter(|&s| s <= m)
-                                .count();
-                            assert_eq!(window_points(window, m), inside as u32, "{window:?} in {m}");
-                        }
-                    }
-                }
-            }
-            assert_eq!(window_points(EMPTY_WINDOW, m), 0);
-        }
     }
 }

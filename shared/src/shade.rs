@@ -264,7 +264,7 @@ fn unpack_unorm(packed: u32, bits: u32) -> f32 {
 }
 
 /// The tests pixel `(x, y)`'s primary ray makes, packed (see [`Costs::pack`]): what the cost
-/// heat map's kernels and CPU loop run instead of [`render_pixel`].
+/// heat map runs (on the CPU) instead of [`render_pixel`].
 #[inline]
 pub fn cost_pixel<N: Hierarchy, P: LeafPrimitives>(frame: &FrameParams, nodes: N, prims: &P, x: u32, y: u32) -> u32 {
     let ray = primary_ray(&frame.camera, x, y);

@@ -1,7 +1,7 @@
 //! The grids' top-level BVH in any of three forms, searched through one [`Hierarchy`]: full
 //! binary nodes (32 bytes, `f32` boxes), compact binary nodes (16 bytes) whose boxes are 15-bit
 //! fractions of the scene's box, rounded outwards, or wide nodes ([`crate::wide_nodes`]). The
-//! binary forms are also read node by node through [`Buffer`] (the two-phase schedule's walk).
+//! binary forms are also read node by node through [`Buffer`].
 //!
 //! A compact hierarchy is stored in the same `BvhNode`-typed buffer, so every kernel binds it
 //! as before: element 0 is a header (the quantization frame: origin in `min`, the step per
@@ -20,11 +20,9 @@
 use crate::buffer::Buffer;
 use crate::cost::Tally;
 use crate::glam::Vec3;
-use crate::layout::{BvhNode, Hit, HitRecord, WalkState};
+use crate::layout::{BvhNode, Hit};
 use crate::ray::Ray;
-use crate::traverse::{
-    traverse_bvh, walk_first_round, walk_round, BinaryWalk, Hierarchy, LeafPrimitives, LeafWalk, WalkStack, NO_NODE,
-};
+use crate::traverse::{traverse_bvh, BinaryWalk, Hierarchy, LeafPrimitives, LeafWalk, WalkStack, NO_NODE};
 use crate::wide_nodes::{leaf_grids, next_leaf, root_entry, Frame, WIDE};
 
 /// `count` of the header element of a compact hierarchy (never a node's count).
@@ -77,32 +75,6 @@ impl<N: Buffer<BvhNode>> TopNodes<N> {
     #[inline(always)]
     pub fn walk<const WIDE_WALK: bool>(self) -> TopWalk<N, WIDE_WALK> {
         TopWalk(self)
-    }
-
-    /// The two-phase schedule's first round (see `crate::traverse::walk_first_round`) over
-    /// these nodes in their form, as [`Self::walk`].
-    #[inline(always)]
-    pub fn first_round<const WIDE_WALK: bool, S: WalkStack>(
-        self,
-        ray: &Ray,
-        t_max: f32,
-        state: &mut WalkState,
-        stack: &mut S,
-    ) -> BvhNode {
-        walk_first_round(self.walk::<WIDE_WALK>(), ray, t_max, state, stack)
-    }
-
-    /// Every later round of the two-phase schedule (see `crate::traverse::walk_round`) over
-    /// these nodes in their form, as [`Self::walk`].
-    #[inline(always)]
-    pub fn next_round<const WIDE_WALK: bool, R: Buffer<HitRecord>, S: WalkStack>(
-        self,
-        results: R,
-        ray: &Ray,
-        state: &mut WalkState,
-        stack: &mut S,
-    ) -> BvhNode {
-        walk_round(self.walk::<WIDE_WALK>(), results, ray, state, stack)
     }
 
     /// The scene's frame, which wide nodes' frames are codes of: the compact frame's fields.

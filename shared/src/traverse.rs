@@ -6,7 +6,7 @@ use crate::aabb::intersect_aabb;
 use crate::buffer::{Buffer, Chunks, Split};
 use crate::cost::{Tally, Uncounted};
 use crate::glam::Vec3;
-use crate::layout::{BvhNode, Hit, HitRecord, SplitParams, WalkState, NO_HIT, TRIANGLE_INDICES, TRIANGLE_POSITIONS};
+use crate::layout::{BvhNode, Hit, SplitParams, TRIANGLE_INDICES, TRIANGLE_POSITIONS};
 use crate::ray::{Ray, T_FAR};
 use crate::triangle::{intersect_triangle, triangle_normal};
 
@@ -70,8 +70,7 @@ pub const ROOT: u32 = 0;
 
 /// A walk over a hierarchy's nodes down to its leaves, nearest first, the entries it passes
 /// waiting on a [`WalkStack`] with their entry distances, the root's entry being [`ROOT`]. The
-/// closest-hit loop ([`traverse_bvh`]) and the two-phase schedule's rounds
-/// ([`walk_first_round`], [`walk_round`]) drive it, so each holds one leaf test whatever form
+/// closest-hit loop ([`traverse_bvh`]) drives it, so a kernel holds one leaf test whatever form
 /// the nodes take: binary ([`BinaryWalk`]) or the grids' top level in any of its forms
 /// (`crate::top_nodes::TopWalk`).
 pub trait LeafWalk: Copy {
@@ -256,85 +255,7 @@ fn descend<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
     n
 }
 
-/// The first round of the two-phase schedule's top-level walk: the ray's state begun (no hit
-/// closer than `t_max`), then from the root down to the first leaf the ray may hit, which is
-/// returned (a node with `count` 0 when the ray misses the scene). The state and the stack are
-/// the ray's, kept by the caller for [`walk_round`]. A round of its own, because at its start
-/// there is nothing to read back: no state, no results, no stack.
-pub fn walk_first_round<W: LeafWalk, S: WalkStack>(
-    walk: W,
-    ray: &Ray,
-    t_max: f32,
-    state: &mut WalkState,
-    stack: &mut S,
-) -> BvhNode {
-    *state = WalkState::begun(t_max);
-    let t_root = walk.enter(ray, t_max, &mut Uncounted);
-    if t_root == T_FAR {
-        return BvhNode::default();
-    }
-    stack.push(0, ROOT, t_root);
-    let mut sp = 1;
-    let leaf = walk.next_leaf(ray, t_max, stack, &mut sp, &mut Uncounted);
-    state.sp = sp as u32;
-    leaf
-}
-
-/// Every later round of the two-phase schedule's top-level walk: the results of the grids
-/// queued in the last round taken (`results`), then down to the next leaf the ray may hit
-/// closer than its closest hit, which is returned (a node with `count` 0 when the walk is
-/// over). The state and the stack are the ray's, kept between rounds by the caller.
-pub fn walk_round<W: LeafWalk, R: Buffer<HitRecord>, S: WalkStack>(
-    walk: W,
-    results: R,
-    ray: &Ray,
-    state: &mut WalkState,
-    stack: &mut S,
-) -> BvhNode {
-    take_results(results, state);
-    let mut sp = state.sp as usize;
-    let leaf = walk.next_leaf(ray, state.t, stack, &mut sp, &mut Uncounted);
-    state.sp = sp as u32;
-    leaf
-}
-
-impl WalkState {
-    /// A ray's walk state before its first round: no hit closer than `t_max`, nothing
-    /// waiting, nothing queued.
-    #[inline]
-    pub fn begun(t_max: f32) -> Self {
-        WalkState {
-            t: t_max,
-            prim: NO_HIT,
-            sp: 0,
-            first_entry: 0,
-            entries: 0,
-            _pad: [0; 3],
-        }
-    }
-}
-
-/// The results of the grids a ray queued in the last round (`results`), taken into its state.
-#[inline(always)]
-fn take_results<R: Buffer<HitRecord>>(results: R, state: &mut WalkState) {
-    // In grid order, the first of equal distances kept: as the one-pass walk tests them.
-    let mut k = 0;
-    if state.entries > 0 {
-        loop {
-            let h = results.load(state.first_entry + k);
-            if h.t < state.t {
-                state.t = h.t;
-                state.prim = h.prim;
-            }
-            k += 1;
-            if k >= state.entries {
-                break;
-            }
-        }
-    }
-}
-
-/// Where a two-phase walk keeps its stack between rounds: node and entry distance per slot.
+/// Where a walk keeps the entries it passes: node and entry distance per slot.
 pub trait WalkStack {
     fn push(&mut self, at: usize, node: u32, t: f32);
     fn node(&self, at: usize) -> u32;
@@ -356,40 +277,6 @@ pub trait WalkStack {
             }
         }
         node
-    }
-}
-
-/// The stacks of `rays` rays in one buffer of `2 MAX_BVH_DEPTH` words a ray, by depth first:
-/// the slots of one depth lie side by side for consecutive rays, each a node and its distance.
-/// Why: the rays of a SIMD group push and pop at much the same depths, so their accesses fall
-/// on a few cache lines rather than one per ray.
-pub struct BufferStack<'a> {
-    pub words: &'a mut [u32],
-    pub ray: usize,
-    pub rays: usize,
-}
-
-impl BufferStack<'_> {
-    #[inline(always)]
-    fn slot(&self, at: usize) -> usize {
-        2 * (at * self.rays + self.ray)
-    }
-}
-
-impl WalkStack for BufferStack<'_> {
-    #[inline(always)]
-    fn push(&mut self, at: usize, node: u32, t: f32) {
-        let slot = self.slot(at);
-        self.words[slot] = node;
-        self.words[slot + 1] = t.to_bits();
-    }
-    #[inline(always)]
-    fn node(&self, at: usize) -> u32 {
-        self.words[self.slot(at)]
-    }
-    #[inline(always)]
-    fn t(&self, at: usize) -> f32 {
-        f32::from_bits(self.words[self.slot(at) + 1])
     }
 }
 

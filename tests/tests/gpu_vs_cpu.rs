@@ -129,7 +129,7 @@ fn teapot_gpu_equals_cpu() {
 /// The ray-list kernels the benchmark times find the same hits as the CPU.
 #[test]
 fn ray_lists_gpu_equal_cpu() {
-    let Some(mut gpu) = gpu_or_skip("ray_lists_gpu_equal_cpu") else {
+    let Some(gpu) = gpu_or_skip("ray_lists_gpu_equal_cpu") else {
         return;
     };
     use gridrt::rays::{ao_rays, primary_rays, trace_cpu};
@@ -150,14 +150,6 @@ fn ray_lists_gpu_equal_cpu() {
         for (kind, rays) in [("primary", &primary), ("ao", &ao)] {
             let cpu = trace_cpu(scene, rays);
             let gpu_hits = gpu.trace(&uploaded, rays).unwrap();
-            if name == "grids" {
-                // The two-phase schedule: the same hits as the one-pass kernel, bit for bit.
-                let (two_phase, _) = gpu.time_trace_two_phase(&uploaded, rays, 1).unwrap();
-                assert!(two_phase == gpu_hits, "{kind}: the two-phase schedule's hits differ");
-            } else {
-                let refused = gpu.time_trace_two_phase(&uploaded, rays, 1).unwrap_err().to_string();
-                assert!(refused.contains("two-phase") && !refused.contains('\n'), "{refused}");
-            }
             assert_eq!(cpu.len(), gpu_hits.len());
             let same = cpu
                 .iter()
@@ -173,83 +165,30 @@ fn ray_lists_gpu_equal_cpu() {
             assert!(fraction >= 0.999, "{name} {kind}: only {:.4}% agree", 100.0 * fraction);
         }
     }
-    // The finish in one workgroup: its threads take the list's rays in turn, so every thread
-    // takes several whatever the machine's core count.
-    gpu.limit_finish_groups(1);
-    let uploaded = gpu.upload(&pair.grids).unwrap();
-    for (kind, rays) in [("primary", &primary), ("ao", &ao)] {
-        let differ = two_phase_differences(&gpu, &uploaded, rays);
-        assert_eq!(
-            differ, 0,
-            "{kind}: the two-phase schedule's hits differ with a one-group finish"
-        );
-    }
 }
 
-/// How many rays the two-phase schedule gives another hit than the one-pass kernel (bit for
-/// bit), one trace each.
-fn two_phase_differences(
-    gpu: &gridrt::gpu::Gpu,
-    uploaded: &gridrt::gpu::GpuScene,
-    rays: &[gridrt_shared::layout::RayRecord],
-) -> usize {
-    let one_pass = gpu.trace(uploaded, rays).unwrap();
-    let (two_phase, _) = gpu.time_trace_two_phase(uploaded, rays, 1).unwrap();
-    assert_eq!(one_pass.len(), two_phase.len());
-    one_pass.iter().zip(&two_phase).filter(|(a, b)| a != b).count()
-}
-
-/// A long list through the two-phase schedule, its finish in one workgroup: every ray keeps
-/// the one-pass kernel's hit. Some drivers silently end the loops of a SIMD group that has run
-/// too many iterations in all (lavapipe: 65,535); a finish thread that took rays without end
-/// lost a few dozen of ten million here.
-#[test]
-fn two_phase_long_list_keeps_every_ray() {
-    let Some(mut gpu) = gpu_or_skip("two_phase_long_list_keeps_every_ray") else {
-        return;
-    };
-    let Some(dir) = meshes_dir_or_skip("two_phase_long_list_keeps_every_ray") else {
-        return;
-    };
-    let pair = build_pair(&load_mesh(&dir.join("teapot.obj")).unwrap(), 3, 3, Scheme::Loop);
-    let rays = gridrt::rays::primary_rays(&pair.bounds, 2, 2560, 1920);
-    gpu.limit_finish_groups(1);
-    let uploaded = gpu.upload(&pair.grids).unwrap();
-    let differ = two_phase_differences(&gpu, &uploaded, &rays);
-    assert_eq!(differ, 0, "{differ} of {} rays lost their hit", rays.len());
-}
-
-/// Scenes timed in turn (the benchmark's grids by the two-phase schedule, the baseline by one
-/// pass) keep the hits each finds alone, over a list cut into several batches.
+/// Scenes timed in turn keep the hits each finds alone, over a list cut into several
+/// batches.
 #[test]
 fn scenes_in_turn_keep_their_hits() {
     let Some(mut gpu) = gpu_or_skip("scenes_in_turn_keep_their_hits") else {
         return;
     };
-    use gridrt::gpu::TimedScene;
     let pair = build_pair(&default_scene(), 3, 3, Scheme::Loop);
-    let rays = gridrt::rays::primary_rays(&pair.bounds, 2, 96, 64);
-    // Bindings small enough that the two-phase schedule's stacks (512 bytes a ray) take
-    // several batches, large enough that the scene is still bound whole.
+    let rays = gridrt::rays::primary_rays(&pair.bounds, 2, 256, 192);
+    // Bindings small enough that the list takes several batches, large enough that the scene
+    // is still bound whole.
     gpu.limit_bindings(1 << 20).unwrap();
     let grids = gpu.upload(&pair.grids).unwrap();
     let triangles = gpu.upload(&pair.triangles).unwrap();
     assert!(
-        grids.takes_two_phase(),
+        !grids.is_split(),
         "the default scene no longer fits the test's bindings"
     );
+    let record = std::mem::size_of::<gridrt_shared::layout::RayRecord>();
+    assert!(rays.len() * record > 2 << 20, "the list fits fewer than three batches");
     let alone = [gpu.trace(&grids, &rays).unwrap(), gpu.trace(&triangles, &rays).unwrap()];
-    let scenes = [
-        TimedScene {
-            scene: &grids,
-            two_phase: true,
-        },
-        TimedScene {
-            scene: &triangles,
-            two_phase: false,
-        },
-    ];
-    let timed = gpu.time_traces(&scenes, &rays, 3).unwrap();
+    let timed = gpu.time_traces(&[grids, triangles], &rays, 3).unwrap();
     for ((list, alone), name) in timed.iter().zip(&alone).zip(["grids", "triangles"]) {
         assert_eq!(list.seconds.len(), 3, "{name}: one time per repetition");
         assert!(list.hits == *alone, "{name}: the hits taken in turn differ");

@@ -220,8 +220,8 @@ fn every_shading_mode_agrees_across_backends() {
 }
 
 /// The heat map counts what each traversal does: a ray that misses the scene's box tests one
-/// node and nothing else; grids test spheres, the baseline none; every hit tests a triangle;
-/// and the counts are the GPU's too.
+/// node and nothing else; grids test spheres, the baseline none; every hit tests a triangle.
+/// Asked of the GPU backend, it counts the same (on the CPU: the GPU keeps no kernels for it).
 #[test]
 fn the_cost_heat_map_counts_each_traversals_tests() {
     let gpu = gpu_backend("the_cost_heat_map_counts_each_traversals_tests");
@@ -256,12 +256,7 @@ fn the_cost_heat_map_counts_each_traversals_tests() {
         assert!(summary.p99_total <= summary.max_total && summary.mean_triangles > 0.0);
         if let Some(gpu) = &gpu {
             let on_gpu = gpu.render_costs(&scene, &view, &RenderOptions::default()).unwrap();
-            let same = on_gpu.costs.iter().zip(&costs.costs).filter(|(a, b)| a == b).count();
-            assert!(
-                same as f64 >= 0.99 * costs.costs.len() as f64,
-                "{representation:?}: {same} of {} pixels count alike",
-                costs.costs.len()
-            );
+            assert!(on_gpu.costs == costs.costs, "{representation:?}: the counts differ");
         }
     }
 }

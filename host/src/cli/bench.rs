@@ -9,7 +9,7 @@ use serde::Serialize;
 
 use super::stats::{self, Stats};
 use super::{BenchArgs, BuildArgs};
-use gridrt::backend::{Backend, Schedule, TimedTrace};
+use gridrt::backend::{Backend, TimedTrace};
 use gridrt::bvh::Aabb;
 use gridrt::mesh::{Input, Mesh};
 use gridrt::rays::{ao_rays, primary_rays, reorder, trace_cpu, RayOrder};
@@ -41,8 +41,6 @@ pub struct BenchResult {
     pub width: u32,
     pub height: u32,
     pub ray_order: RayOrder,
-    /// How the grids' lists were traced.
-    pub schedule: PerKind<Schedule>,
     pub rays: PerKind,
     pub mrays_per_s: PerRepresentation,
     /// `(max - min) / median` of the repetitions, per representation and ray kind.
@@ -186,9 +184,6 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
         bail!("name at least one mesh to benchmark");
     }
     check_outputs(args)?;
-    if args.schedule == super::ScheduleArg::TwoPhase && args.backend == super::BackendArg::Cpu {
-        bail!("--schedule two-phase runs on the GPU backend; use --backend gpu");
-    }
     // Every mesh loaded before the first is measured: a bad file is reported at once.
     let meshes = args
         .meshes
@@ -215,9 +210,6 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
         stats::check_work(&input.name, &input.mesh, &build_of(input, &args.build), ray_bytes)?;
     }
     let device = super::open_backend(args.backend, "benchmarking")?;
-    if args.schedule.schedule() == Schedule::TwoPhase && device.kind() != "gpu" {
-        bail!("--schedule two-phase runs on the GPU backend; use --backend gpu");
-    }
     for input in &meshes {
         check_device(
             &input.name,
@@ -287,16 +279,15 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
         let mut mrays = PerRepresentation::default();
         let mut spread = PerRepresentation::default();
         let mut agree = PerKind::default();
-        let mut grid_schedule = PerKind::<Schedule>::default();
         for (kind, rays) in [("primary", &primary), ("ao", &ao)] {
             bar.set_message(format!(
                 "{name}: {} {kind} rays through grids and triangles",
                 rays.len()
             ));
-            // The baseline by its one-pass kernel; the two take turns at every repetition.
-            let mut contenders = vec![(&grids, args.schedule.schedule()), (&tris, Schedule::OnePass)];
+            // The two take turns at every repetition.
+            let mut contenders = vec![&grids, &tris];
             if let Some((scene, _)) = &reference_scene {
-                contenders.push((scene, Schedule::OnePass));
+                contenders.push(scene);
             }
             let mut timed = (device.time_traces(&contenders, rays, args.warmup, args.repeats))
                 .map_err(super::naming_input(name, gridrt::error::ErrorKind::Limits))?;
@@ -318,12 +309,12 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
             let a = agreement(&grids, &grid.hits, &tris, &triangles.hits);
             match kind {
                 "primary" => {
-                    ((mrays.grid.primary, spread.grid.primary), grid_schedule.primary) = (g, grid.schedule);
+                    (mrays.grid.primary, spread.grid.primary) = g;
                     (mrays.triangles.primary, spread.triangles.primary) = t;
                     agree.primary = a;
                 }
                 _ => {
-                    ((mrays.grid.ao, spread.grid.ao), grid_schedule.ao) = (g, grid.schedule);
+                    (mrays.grid.ao, spread.grid.ao) = g;
                     (mrays.triangles.ao, spread.triangles.ao) = t;
                     agree.ao = a;
                 }
@@ -340,7 +331,6 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
             width: args.width,
             height: args.height,
             ray_order: args.ray_order.order(),
-            schedule: grid_schedule,
             rays: PerKind {
                 primary: primary.len() as f64,
                 ao: ao.len() as f64,
@@ -372,15 +362,6 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
     bar.finish_and_clear();
     let table = markdown(&results);
     print!("{table}");
-    if backend == "gpu" {
-        let schedules: Vec<String> = (results.iter())
-            .map(|r| {
-                let (primary, ao) = (r.schedule.primary.name(), r.schedule.ao.name());
-                format!("{} {primary} / {ao}", file_name(&r.stats.mesh))
-            })
-            .collect();
-        println!("Grid schedules (primary / AO): {}", schedules.join(", "));
-    }
     if let Some(path) = &args.json {
         std::fs::write(path, serde_json::to_string_pretty(&results)? + "\n")
             .map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", path.display()))?;

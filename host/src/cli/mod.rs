@@ -107,30 +107,6 @@ impl RayOrderArg {
     }
 }
 
-/// How the GPU traces the grids' ray lists (see `gridrt::backend::Schedule`).
-#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ScheduleArg {
-    /// Two-phase for lists of 16384 rays or more where the GPU is the CPU (lavapipe) and
-    /// takes the grids (as at --levels 3), otherwise one pass (a real GPU: one pass is faster).
-    Auto,
-    /// One kernel: each ray's top-level walk with its grid visits.
-    OnePass,
-    /// Rounds of a top-level walk that queues grids, each followed by the queued visits, one
-    /// grid per thread, then the leaf tests they queue (GPU backend; grids walked by their
-    /// root's visit alone, as at --levels 3).
-    TwoPhase,
-}
-
-impl ScheduleArg {
-    pub fn schedule(self) -> gridrt::backend::Schedule {
-        match self {
-            ScheduleArg::Auto => gridrt::backend::Schedule::Auto,
-            ScheduleArg::OnePass => gridrt::backend::Schedule::OnePass,
-            ScheduleArg::TwoPhase => gridrt::backend::Schedule::TwoPhase,
-        }
-    }
-}
-
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Mode {
     /// Grid primitives: sphere hierarchy per base triangle, BVH over grids.
@@ -741,9 +717,6 @@ pub struct BenchArgs {
     /// Order of the ray lists (both representations trace the same list).
     #[arg(long, value_enum, default_value_t = RayOrderArg::Scanline)]
     pub ray_order: RayOrderArg,
-    /// How the GPU traces the grids' lists; the baseline always takes one pass, its fastest.
-    #[arg(long, value_enum, default_value_t = ScheduleArg::Auto)]
-    pub schedule: ScheduleArg,
     /// Untimed runs before the timed ones.
     #[arg(long, default_value_t = 1)]
     pub warmup: usize,

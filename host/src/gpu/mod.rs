@@ -2,9 +2,8 @@
 //! the build script and embedded here) on whatever adapter exists, lavapipe included.
 
 mod turns;
-mod two_phase;
 
-pub use turns::{TimedList, TimedScene};
+pub use turns::TimedList;
 
 use crate::error::{error, fail, Result};
 use gridrt_shared::buffer::SPLIT_CHUNKS;
@@ -36,13 +35,11 @@ struct Kernels {
     grids_one_visit: Pipelines,
 }
 
-/// What a dispatch does: render a tile, trace a list of rays, or count a tile's tests for
-/// the cost heat map.
+/// What a dispatch does: render a tile, or trace a list of rays.
 #[derive(Copy, Clone)]
 enum Job {
     Render,
     Trace,
-    Cost,
 }
 
 pub struct Gpu {
@@ -55,16 +52,10 @@ pub struct Gpu {
     pub adapter: wgpu::AdapterInfo,
     module: wgpu::ShaderModule,
     whole: Kernels,
-    /// The kernels for split scenes, grids in displaced grids' formats or of compressed values,
-    /// and the heat map's, each made the first time it runs: the split ones bind more buffers
-    /// than some adapters allow, and all take drivers long to compile.
-    on_demand: [std::sync::OnceLock<wgpu::ComputePipeline>; 23],
-    /// The two-phase schedule's kernels, for plain grids' formats, displaced grids' and
-    /// compressed values (`two_phase::GridFormats`), each made on first use.
-    two_phase: [std::sync::OnceLock<two_phase::Kernels>; two_phase::GridFormats::COUNT],
-    /// Most workgroups the two-phase schedule's finish launches (see
-    /// `two_phase::finish_groups_for`).
-    finish_groups: u32,
+    /// The kernels for split scenes and for grids in displaced grids' formats or of compressed
+    /// values, each made the first time it runs: the split ones bind more buffers than some
+    /// adapters allow, and all take drivers long to compile.
+    on_demand: [std::sync::OnceLock<wgpu::ComputePipeline>; 16],
 }
 
 /// A scene's geometry in GPU buffers, uploaded once and traced many times.
@@ -162,8 +153,6 @@ impl Gpu {
             module,
             whole,
             on_demand: Default::default(),
-            two_phase: Default::default(),
-            finish_groups: two_phase::finish_groups_for(&adapter.get_info()),
         };
         if let Some(value) = std::env::var_os(BINDING_LIMIT_VAR) {
             let text = value.to_string_lossy();
@@ -189,14 +178,6 @@ impl Gpu {
         }
         self.binding_limit = self.binding_limit.min(bytes);
         Ok(())
-    }
-
-    /// Launches the two-phase schedule's finish in at most `groups` workgroups (at least one),
-    /// below what the adapter gets by default: each thread then takes more rays in turn, up to
-    /// its limit (`FINISH_RAYS_PER_THREAD`, fewer for compressed values; past it, more
-    /// workgroups).
-    pub fn limit_finish_groups(&mut self, groups: u32) {
-        self.finish_groups = self.finish_groups.min(groups.max(1));
     }
 
     /// One line naming the adapter, e.g. `llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan, Cpu)`.
@@ -238,8 +219,8 @@ impl Gpu {
         Ok(())
     }
 
-    /// A kernel made on first use: any for a split scene, grids in displaced grids' formats or
-    /// of compressed values, or the heat map's.
+    /// A kernel made on first use: any for a split scene, or for grids in displaced grids'
+    /// formats or of compressed values.
     fn on_demand_pipeline(&self, scene: &Scene, job: Job, split: bool) -> Result<&wgpu::ComputePipeline> {
         let one_visit = matches!(scene, Scene::Grids(s) if s.params.one_visit());
         let displaced = !split && scene.uses_displaced_formats();
@@ -247,31 +228,22 @@ impl Gpu {
         let split_displaced = split && scene.splits_as_displaced();
         let (index, entry) = match (scene, job, split) {
             // One kernel per job for split scenes of what displaced grids alone hold.
-            (Scene::Grids(_), Job::Render, _) if split_displaced => (20, "render_grids_displaced_split"),
-            (Scene::Grids(_), Job::Trace, _) if split_displaced => (21, "trace_grids_rays_displaced_split"),
-            (Scene::Grids(_), Job::Cost, _) if split_displaced => (22, "cost_grids_displaced_split"),
-            (Scene::Grids(_), Job::Render, _) if compressed && one_visit => (10, "render_grids_one_visit_compressed"),
-            (Scene::Grids(_), Job::Trace, _) if compressed && one_visit => {
-                (11, "trace_grids_rays_one_visit_compressed")
-            }
-            (Scene::Grids(_), Job::Render, _) if compressed => (12, "render_grids_compressed"),
-            (Scene::Grids(_), Job::Trace, _) if compressed => (13, "trace_grids_rays_compressed"),
-            (Scene::Grids(_), Job::Cost, _) if compressed => (14, "cost_grids_compressed"),
-            (Scene::Grids(_), Job::Render, _) if displaced && one_visit => (15, "render_grids_one_visit_displaced"),
-            (Scene::Grids(_), Job::Trace, _) if displaced && one_visit => (16, "trace_grids_rays_one_visit_displaced"),
-            (Scene::Grids(_), Job::Render, _) if displaced => (17, "render_grids_displaced"),
-            (Scene::Grids(_), Job::Trace, _) if displaced => (18, "trace_grids_rays_displaced"),
-            (Scene::Grids(_), Job::Cost, _) if displaced => (19, "cost_grids_displaced"),
+            (Scene::Grids(_), Job::Render, _) if split_displaced => (14, "render_grids_displaced_split"),
+            (Scene::Grids(_), Job::Trace, _) if split_displaced => (15, "trace_grids_rays_displaced_split"),
+            (Scene::Grids(_), Job::Render, _) if compressed && one_visit => (6, "render_grids_one_visit_compressed"),
+            (Scene::Grids(_), Job::Trace, _) if compressed && one_visit => (7, "trace_grids_rays_one_visit_compressed"),
+            (Scene::Grids(_), Job::Render, _) if compressed => (8, "render_grids_compressed"),
+            (Scene::Grids(_), Job::Trace, _) if compressed => (9, "trace_grids_rays_compressed"),
+            (Scene::Grids(_), Job::Render, _) if displaced && one_visit => (10, "render_grids_one_visit_displaced"),
+            (Scene::Grids(_), Job::Trace, _) if displaced && one_visit => (11, "trace_grids_rays_one_visit_displaced"),
+            (Scene::Grids(_), Job::Render, _) if displaced => (12, "render_grids_displaced"),
+            (Scene::Grids(_), Job::Trace, _) if displaced => (13, "trace_grids_rays_displaced"),
             (Scene::Triangles(_), Job::Render, _) => (0, "render_triangles_split"),
             (Scene::Triangles(_), Job::Trace, _) => (1, "trace_triangles_rays_split"),
-            (Scene::Grids(_), Job::Render, _) if one_visit => (8, "render_grids_one_visit_split"),
-            (Scene::Grids(_), Job::Trace, _) if one_visit => (9, "trace_grids_rays_one_visit_split"),
+            (Scene::Grids(_), Job::Render, _) if one_visit => (4, "render_grids_one_visit_split"),
+            (Scene::Grids(_), Job::Trace, _) if one_visit => (5, "trace_grids_rays_one_visit_split"),
             (Scene::Grids(_), Job::Render, _) => (2, "render_grids_split"),
             (Scene::Grids(_), Job::Trace, _) => (3, "trace_grids_rays_split"),
-            (Scene::Triangles(_), Job::Cost, true) => (4, "cost_triangles_split"),
-            (Scene::Grids(_), Job::Cost, true) => (5, "cost_grids_split"),
-            (Scene::Triangles(_), Job::Cost, false) => (6, "cost_triangles"),
-            (Scene::Grids(_), Job::Cost, false) => (7, "cost_grids"),
         };
         if let Some(p) = self.on_demand[index].get() {
             return Ok(p);
@@ -399,7 +371,6 @@ impl Gpu {
             _ if scene.scene.uses_displaced_formats() => self.on_demand_pipeline(scene.scene, job, false)?,
             Job::Render => &kernels.render,
             Job::Trace => &kernels.trace,
-            Job::Cost => self.on_demand_pipeline(scene.scene, job, false)?,
         })
     }
 
@@ -494,12 +465,13 @@ impl Gpu {
             mapped_at_creation: false,
         });
         let (tile, readback) = self.output("image tile", tile_bytes);
-        let job = if frame.shading == SHADE_COST {
-            Job::Cost
-        } else {
-            Job::Render
-        };
-        let pipeline = self.pipeline(scene, job)?;
+        if frame.shading == SHADE_COST {
+            fail!(
+                Options,
+                "the cost heat map is counted on the CPU (Backend::render_costs), not by a GPU kernel"
+            );
+        }
+        let pipeline = self.pipeline(scene, Job::Render)?;
         let bind_groups = self.bind(pipeline, &[&params, &tile], scene);
         let mut image = vec![0u32; width as usize * height as usize];
         for y in (0..height).step_by(tile_h as usize) {
@@ -573,11 +545,7 @@ impl Gpu {
         rays: &[RayRecord],
         repeats: usize,
     ) -> Result<(Vec<HitRecord>, Vec<f64>)> {
-        let timed = TimedScene {
-            scene,
-            two_phase: false,
-        };
-        let TimedList { hits, seconds } = self.time_traces(&[timed], rays, repeats)?.remove(0);
+        let TimedList { hits, seconds } = self.time_traces(std::slice::from_ref(scene), rays, repeats)?.remove(0);
         Ok((hits, seconds))
     }
 
@@ -673,16 +641,9 @@ fn kernels(device: &wgpu::Device, module: &wgpu::ShaderModule) -> Kernels {
     }
 }
 
-/// wgpu's instance flags for this build, without the validation of indirect dispatches.
-/// That validation runs a compute pass of its own before every indirect dispatch, clamping its
-/// group counts to the device's limit: a pass and a barrier more for each of the two-phase
-/// schedule's four indirect dispatches a round, a fixed cost the rounds pay however few rays
-/// they hold. gridrt's indirect dispatches read group counts its own kernels write, each at most
-/// one per 64 queue entries, and a batch's queue is sized so that they stay within the limit
-/// (`two_phase_batch`); nor do those kernels read the `num_workgroups` built-in, which D3D12
-/// gives only through the validation. `WGPU_VALIDATION_INDIRECT_CALL=1` turns it back on.
+/// wgpu's instance flags for this build, as the environment adjusts them.
 fn instance_flags() -> wgpu::InstanceFlags {
-    (wgpu::InstanceFlags::from_build_config() - wgpu::InstanceFlags::VALIDATION_INDIRECT_CALL).with_env()
+    wgpu::InstanceFlags::from_build_config().with_env()
 }
 
 /// Mesa's device-select Vulkan layer, on by default wherever Mesa's drivers are installed,

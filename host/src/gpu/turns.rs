@@ -1,6 +1,6 @@
 //! Timing ray lists: a batch of rays made ready once (its buffers made and bound) and traced
-//! as often as a benchmark asks, by either schedule; several scenes traced on one list take
-//! turns at every repetition.
+//! as often as a benchmark asks; several scenes traced on one list take turns at every
+//! repetition.
 //!
 //! Why turns: a benchmark's figure is a ratio between two scenes (grids and their triangles),
 //! and a device's speed changes while it runs (clocks, heat, other work on the machine). Timed
@@ -10,27 +10,12 @@
 use gridrt_shared::layout::{HitRecord, RayRecord};
 use std::time::Instant;
 
-use super::two_phase::Batch;
 use super::{Dispatch, Gpu, GpuScene, Job, Queries};
 use crate::error::Result;
 use crate::rays::in_turn;
 
-/// A scene to time and the schedule to trace it by.
-#[derive(Copy, Clone)]
-pub struct TimedScene<'s, 'a> {
-    pub scene: &'s GpuScene<'a>,
-    /// The two-phase schedule (`two_phase`) rather than one pass per ray.
-    pub two_phase: bool,
-}
-
-/// One batch of a list, ready to trace through one scene.
-enum ReadyBatch<'p> {
-    OnePass(OnePassBatch<'p>),
-    TwoPhase(Box<Batch>),
-}
-
-/// A one-pass batch: a thread per ray, one dispatch.
-struct OnePassBatch<'p> {
+/// A batch of a list, ready to trace through one scene: a thread per ray, one dispatch.
+struct ReadyBatch<'p> {
     pipeline: &'p wgpu::ComputePipeline,
     bind_groups: Vec<wgpu::BindGroup>,
     groups: (u32, u32),
@@ -50,12 +35,9 @@ impl Gpu {
     /// Traces `rays` through each of `scenes` `repeats` times, the scenes taking turns at every
     /// repetition (the first of one is the last of the next); per scene, in order, the hits and
     /// the seconds of each repetition (all its batches), measured as [`Gpu::timing`] says.
-    pub fn time_traces(&self, scenes: &[TimedScene], rays: &[RayRecord], repeats: usize) -> Result<Vec<TimedList>> {
+    pub fn time_traces(&self, scenes: &[GpuScene], rays: &[RayRecord], repeats: usize) -> Result<Vec<TimedList>> {
         let repeats = repeats.max(1);
-        let mut batch = usize::MAX;
-        for s in scenes {
-            batch = batch.min(self.batch_rays(s)?);
-        }
+        let batch = self.ray_batch();
         let mut timed: Vec<TimedList> = (scenes.iter())
             .map(|_| TimedList {
                 hits: Vec::with_capacity(rays.len()),
@@ -79,29 +61,14 @@ impl Gpu {
         Ok(timed)
     }
 
-    /// Most rays one batch of `s` holds.
-    fn batch_rays(&self, s: &TimedScene) -> Result<usize> {
-        Ok(match s.two_phase {
-            true => self.two_phase_batch(s.scene)?,
-            false => self.ray_batch(),
-        })
-    }
-
-    fn ready_batch<'p>(&'p self, s: &TimedScene, rays: &[RayRecord]) -> Result<ReadyBatch<'p>> {
-        Ok(match s.two_phase {
-            true => ReadyBatch::TwoPhase(Box::new(self.two_phase_batch_buffers(s.scene, rays)?)),
-            false => ReadyBatch::OnePass(self.one_pass_batch(s.scene, rays)?),
-        })
-    }
-
-    fn one_pass_batch<'p>(&'p self, scene: &GpuScene, rays: &[RayRecord]) -> Result<OnePassBatch<'p>> {
+    fn ready_batch<'p>(&'p self, scene: &GpuScene, rays: &[RayRecord]) -> Result<ReadyBatch<'p>> {
         let pipeline = self.pipeline(scene, Job::Trace)?;
         let (groups, params) = self.trace_params(scene, rays.len() as u32);
         let params = self.buffer("trace parameters", bytemuck::bytes_of(&params));
         let ray_buffer = self.buffer("ray", bytemuck::cast_slice(rays));
         let (hits, readback) = self.output("hit", hit_bytes(rays.len()));
         let bind_groups = self.bind(pipeline, &[&params, &ray_buffer, &hits], scene);
-        Ok(OnePassBatch {
+        Ok(ReadyBatch {
             pipeline,
             bind_groups,
             groups,
@@ -113,28 +80,20 @@ impl Gpu {
 
     /// Traces a ready batch once; returns its seconds.
     fn run_batch(&self, batch: &ReadyBatch) -> Result<f64> {
-        match batch {
-            ReadyBatch::TwoPhase(b) => self.run_rounds(b),
-            ReadyBatch::OnePass(b) => {
-                let start = Instant::now();
-                self.dispatch(&Dispatch {
-                    pipeline: b.pipeline,
-                    bind_groups: &b.bind_groups,
-                    groups: b.groups,
-                    copy: None,
-                    queries: b.queries.as_ref(),
-                })?;
-                self.seconds(b.queries.as_ref(), start.elapsed().as_secs_f64())
-            }
-        }
+        let start = Instant::now();
+        self.dispatch(&Dispatch {
+            pipeline: batch.pipeline,
+            bind_groups: &batch.bind_groups,
+            groups: batch.groups,
+            copy: None,
+            queries: batch.queries.as_ref(),
+        })?;
+        self.seconds(batch.queries.as_ref(), start.elapsed().as_secs_f64())
     }
 
     /// The hits of a ready batch of `rays` rays, as its last run left them.
     fn batch_hits(&self, batch: &ReadyBatch, rays: usize) -> Result<Vec<HitRecord>> {
-        let (hits, readback) = match batch {
-            ReadyBatch::OnePass(b) => (&b.hits, &b.readback),
-            ReadyBatch::TwoPhase(b) => b.hit_buffers(),
-        };
+        let (hits, readback) = (&batch.hits, &batch.readback);
         let bytes = hit_bytes(rays);
         let mut encoder = self.device.create_command_encoder(&Default::default());
         encoder.copy_buffer_to_buffer(hits, 0, readback, 0, bytes);

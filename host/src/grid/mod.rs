@@ -142,8 +142,7 @@ impl GridScene {
         }
     }
 
-    /// Whether the top-level BVH is wide (see [`wide_top`]), which the two-phase schedule's
-    /// binary walk cannot read.
+    /// Whether the top-level BVH is wide (see [`wide_top`]).
     pub fn has_wide_top(&self) -> bool {
         self.nodes.first().is_some_and(|header| header.count == WIDE)
     }
