@@ -1,12 +1,10 @@
 //! A scene ready to trace, in either representation, and how to trace it on the CPU.
 
-use gridrt_shared::buffer::Buffer;
 use gridrt_shared::glam::Vec3;
-use gridrt_shared::grid_traverse::{self, trace_grids, OneVisitGrids};
-use gridrt_shared::layout::{Camera, FrameParams, GridHeader, GridParams, Hit, DISPLACED_COMPRESSED, SHADE_COST};
+use gridrt_shared::layout::{Camera, FrameParams, GridParams, Hit, DISPLACED_COMPRESSED, SHADE_COST};
 use gridrt_shared::ray::{Ray, T_FAR};
 use gridrt_shared::shade::{cost_pixel, render_pixel};
-use gridrt_shared::traverse::trace_triangles;
+use gridrt_shared::traverse::{trace, trace_triangles};
 use gridrt_shared::traverse::{Hierarchy, LeafPrimitives};
 use gridrt_shared::triangle::{intersect_triangle, triangle_normal};
 use rayon::prelude::*;
@@ -25,7 +23,7 @@ impl Scene {
     pub fn trace(&self, ray: &Ray, t_max: f32) -> Hit {
         match self {
             Scene::Triangles(s) => trace_triangles(s.nodes.as_slice(), &s.view(), ray, t_max),
-            Scene::Grids(s) => trace_grids(s.top(), &s.view(), ray, t_max),
+            Scene::Grids(s) => trace(s.top(), &s.view(), ray, t_max),
         }
     }
 
@@ -192,21 +190,7 @@ pub fn render_cpu(scene: &Scene, frame: &FrameParams) -> Vec<u32> {
     match scene {
         Scene::Triangles(s) => render_pixels(frame, s.nodes.as_slice(), &s.view()),
         // Read as the frame says (its level of detail), as the kernels do.
-        Scene::Grids(s) => render_grid_pixels(frame, s.top(), s.view_as(frame.grid)),
-    }
-}
-
-/// [`render_pixels`] for grids, each walked as the kernels walk it: by one visit where the
-/// scene allows (see `GridParams::one_visit`), with the stack otherwise.
-pub(crate) fn render_grid_pixels<N: Hierarchy + Sync, H: Buffer<GridHeader> + Sync, W: Buffer<u32> + Sync>(
-    frame: &FrameParams,
-    nodes: N,
-    grids: grid_traverse::GridScene<H, W>,
-) -> Vec<u32> {
-    if grids.params.one_visit() {
-        render_pixels(frame, nodes, &OneVisitGrids(grids))
-    } else {
-        render_pixels(frame, nodes, &grids)
+        Scene::Grids(s) => render_pixels(frame, s.top(), &s.view_as(frame.grid)),
     }
 }
 

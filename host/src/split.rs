@@ -13,7 +13,7 @@ use gridrt_shared::top_nodes::TopNodes;
 use gridrt_shared::traverse::TriangleMesh;
 
 use crate::limits::BufferSize;
-use crate::scene::{render_grid_pixels, render_pixels, Scene};
+use crate::scene::{render_pixels, Scene};
 
 /// One of a scene's large buffers, as words.
 pub struct SceneBuffer<'a> {
@@ -161,7 +161,7 @@ pub fn render_cpu_split(scene: &Scene, split: &SplitScene, frame: &FrameParams) 
         }
         Scene::Grids(_) => {
             let grids = grid_traverse::GridScene::split(&chunks, &split.params, &MICRO_TRIANGLES, frame.grid);
-            render_grid_pixels(frame, TopNodes::new(nodes(GRID_NODES)), grids)
+            render_pixels(frame, TopNodes::new(nodes(GRID_NODES)), &grids)
         }
     }
 }

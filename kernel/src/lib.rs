@@ -1,19 +1,18 @@
 //! The GPU entry points, each a thin wrapper around `gridrt_shared`: one thread per pixel of a
 //! tile, or per ray of a list.
 //!
-//! Every kernel exists twice: reading each scene buffer from one binding, and reading a scene
-//! split into chunks (descriptor set 1, see `gridrt_shared::buffer`) when a buffer is larger
-//! than one binding may be. Both run the same traversal. Grids in the formats made for
-//! displaced grids have whole-buffer kernels of their own, the only ones that carry those
-//! formats, and grids of compressed values others again, the only ones that carry their
-//! decoder (see `Buffer::DISPLACED_FORMATS`); split scenes of either have one kernel per job
-//! for both.
+//! Every job has a kernel reading each scene buffer from one binding, and kernels reading a
+//! scene split into chunks (descriptor set 1, see `gridrt_shared::buffer`) when a buffer is
+//! larger than one binding may be. All run the same traversal. A grid kernel's module carries
+//! the formats and walks of its family, and each pipeline made from it keeps those its
+//! specialisation constant 0 names (`gridrt_shared::buffer::carries`): the driver folds the
+//! others away, so a scene pays for its own format and walk alone.
 #![cfg_attr(target_arch = "spirv", no_std)]
 
-use gridrt_shared::buffer::{AnyDisplacedWords, Buffer, Chunks, CompressedWords, DisplacedWords, Split};
+use gridrt_shared::buffer::{carries, Chunks, KernelWords, Split};
 use gridrt_shared::cost::Uncounted;
 use gridrt_shared::glam::{UVec3, Vec3};
-use gridrt_shared::grid_traverse::{GridScene, OneVisitGrids};
+use gridrt_shared::grid_traverse::GridScene;
 use gridrt_shared::layout::{
     BvhNode, FrameParams, GridHeader, GridParams, Hit, HitRecord, RayRecord, SplitParams, TraceParams, GRID_HEADERS,
     GRID_NODES, GRID_RADII, GRID_VERTICES, TRACE_WORKGROUP_SIZE, TRIANGLE_NODES, WORKGROUP_SIZE,
@@ -178,120 +177,105 @@ macro_rules! triangle_image_kernels {
     };
 }
 
-/// Declares a kernel that colours a frame's pixels of grid primitives by `$pixel`, each grid
-/// walked as `$walk` wraps the scene (see [`stacked`]), its words read as `$words` wraps them
-/// (see [`whole`]), each buffer from one binding.
-macro_rules! grid_image_kernel {
-    ($pixel:path, $walk:path, $words:path: $name:ident) => {
-        /// Grid primitives: top-level BVH over grids, sphere hierarchy inside each.
-        #[allow(clippy::too_many_arguments)] // one per binding
-        #[spirv(compute(threads(8, 8, 1)))]
-        pub fn $name(
-            #[spirv(global_invocation_id)] id: UVec3,
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] image: &mut [u32],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] micro_triangles: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[BvhNode],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] headers: &[GridHeader],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] vertices: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] radii: &[u32],
-        ) {
-            if let Some(i) = tile_index(id, frame) {
-                let scene = GridScene {
-                    headers,
-                    vertices: $words(vertices),
-                    radii: $words(radii),
-                    micro_triangles,
-                    params: frame.grid,
-                };
-                image[i] = $pixel(
-                    frame,
-                    TopNodes::new(nodes),
-                    &$walk(scene),
-                    frame.tile_x + id.x,
-                    frame.tile_y + id.y,
-                );
-            }
-        }
+triangle_image_kernels!(render_pixel: render_triangles, render_triangles_split);
+
+/// What each family of grid kernels carries in its module (see
+/// `gridrt_shared::buffer::carries`), of which a pipeline keeps what its specialisation
+/// constant 0 says: on whole buffers, everything (a pipeline per format and walk); over split
+/// scenes of plain grids, the formats plain grids may ask for, both walks; over split scenes of
+/// displaced grids, every format of theirs, walked with the stack (which finds what the root's
+/// visit alone does), in the first `FEW_CHUNKS` chunks: every read of a split scene is a branch
+/// per chunk, and each split kernel takes lavapipe minutes to compile.
+const WHOLE: u32 = carries::ALL | carries::ONLY_COMPRESSED;
+const SPLIT_PLAIN: u32 = carries::DISPLACED_FORMATS | carries::STACK | carries::ONE_VISIT;
+const SPLIT_DISPLACED: u32 = carries::DISPLACED_FORMATS | carries::DISPLACED_GRIDS | carries::DECODER | carries::STACK;
+
+/// The grids of a split scene, their words carrying `MOST & carried`; `FEW` as for `Split`.
+fn split_grids<'a, const MOST: u32, const FEW: bool>(
+    chunks: &Chunks<'a>,
+    split: &SplitParams,
+    micro_triangles: &'a [u32],
+    params: GridParams,
+    carried: u32,
+) -> GridScene<'a, Split<'a, GridHeader, FEW>, KernelWords<Split<'a, u32, FEW>, MOST>> {
+    let words = |area| KernelWords {
+        words: Split::new(chunks, split, area),
+        carries: carried,
     };
+    GridScene {
+        headers: Split::new(chunks, split, GRID_HEADERS),
+        vertices: words(GRID_VERTICES),
+        radii: words(GRID_RADII),
+        micro_triangles,
+        params,
+    }
 }
 
-/// Declares a kernel that colours a frame's pixels of grid primitives by `$pixel` over a split
-/// scene, each grid walked as `$walk` wraps the scene, its words read as `$words` wraps them.
+/// Grid primitives on whole buffers: top-level BVH over grids, sphere hierarchy inside each;
+/// any format and walk, as the pipeline's specialisation constant says.
+#[allow(clippy::too_many_arguments)] // one per binding
+#[spirv(compute(threads(8, 8, 1)))]
+pub fn render_grids(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(spec_constant(id = 0, default = 0))] carried: u32,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] image: &mut [u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] micro_triangles: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] nodes: &[BvhNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] headers: &[GridHeader],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] vertices: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] radii: &[u32],
+) {
+    if let Some(i) = tile_index(id, frame) {
+        let words = |words| KernelWords::<_, WHOLE> {
+            words,
+            carries: carried,
+        };
+        let scene = GridScene {
+            headers,
+            vertices: words(vertices),
+            radii: words(radii),
+            micro_triangles,
+            params: frame.grid,
+        };
+        image[i] = render_pixel(
+            frame,
+            TopNodes::new(nodes),
+            &scene,
+            frame.tile_x + id.x,
+            frame.tile_y + id.y,
+        );
+    }
+}
+
+/// Declares a kernel that colours a frame's pixels of grid primitives over a split scene, its
+/// module carrying `$most` (`few`: of the first `FEW_CHUNKS` chunks).
 macro_rules! grid_image_split_kernel {
-    ($pixel:path, $walk:path, $words:path, $few:literal $(, $kind:ident)?: $split:ident) => {
+    ($most:expr, $few:literal $(, $kind:ident)?: $split:ident) => {
         split_kernel! {
             $($kind)?
             /// Grid primitives over a split scene.
             #[spirv(compute(threads(8, 8, 1)))]
             fn $split(
                 #[spirv(global_invocation_id)] id: UVec3,
+                #[spirv(spec_constant(id = 0, default = 0))] carried: u32,
                 #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
                 #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] image: &mut [u32],
                 #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] micro_triangles: &[u32],
             ) |chunks| {
                 if let Some(i) = tile_index(id, frame) {
                     let nodes = TopNodes::new(Split::<BvhNode, $few>::new(&chunks, &frame.split, GRID_NODES));
-                    let scene = split_grids::<_, $few>(&chunks, &frame.split, micro_triangles, frame.grid, $words);
-                    image[i] = $pixel(frame, nodes, &$walk(scene), frame.tile_x + id.x, frame.tile_y + id.y);
+                    let scene =
+                        split_grids::<{ $most }, $few>(&chunks, &frame.split, micro_triangles, frame.grid, carried);
+                    image[i] = render_pixel(frame, nodes, &scene, frame.tile_x + id.x, frame.tile_y + id.y);
                 }
             }
         }
     };
 }
 
-/// Declares the two kernels that colour a frame's pixels of grid primitives by `$pixel`, each
-/// grid walked as `$walk` wraps the scene, reading whole buffers and a split scene.
-macro_rules! grid_image_kernels {
-    ($pixel:path, $walk:path: $name:ident, $split:ident) => {
-        grid_image_kernel!($pixel, $walk, whole: $name);
-        grid_image_split_kernel!($pixel, $walk, whole, false: $split);
-    };
-}
-
-/// Grids walked with a stack of sub-triangles: any hierarchy depth.
-fn stacked<S>(scene: S) -> S {
-    scene
-}
-
-/// A scene's words read as they are: plain grids' formats only. Kernels for the formats of
-/// displaced grids read them as [`DisplacedWords`], those for compressed values as
-/// [`CompressedWords`], and split kernels for either as [`AnyDisplacedWords`].
-fn whole<W>(words: W) -> W {
-    words
-}
-
-/// The grids of a split scene, their words read as `words` wraps them; `FEW` as for `Split`.
-fn split_grids<'a, W: Buffer<u32>, const FEW: bool>(
-    chunks: &Chunks<'a>,
-    split: &SplitParams,
-    micro_triangles: &'a [u32],
-    params: GridParams,
-    words: impl Fn(Split<'a, u32, FEW>) -> W,
-) -> GridScene<'a, Split<'a, GridHeader, FEW>, W> {
-    GridScene {
-        headers: Split::new(chunks, split, GRID_HEADERS),
-        vertices: words(Split::new(chunks, split, GRID_VERTICES)),
-        radii: words(Split::new(chunks, split, GRID_RADII)),
-        micro_triangles,
-        params,
-    }
-}
-
-// Pictures. (The cost heat map's counts are the traversal's, the same on every device: the
-// host counts them on the CPU.) Grids whose hierarchies one visit walks
-// (`GridParams::one_visit`) have kernels of their own, without the stack.
-triangle_image_kernels!(render_pixel: render_triangles, render_triangles_split);
-grid_image_kernels!(render_pixel, stacked: render_grids, render_grids_split);
-grid_image_kernels!(render_pixel, OneVisitGrids: render_grids_one_visit, render_grids_one_visit_split);
-grid_image_kernel!(render_pixel, stacked, DisplacedWords: render_grids_displaced);
-grid_image_kernel!(render_pixel, OneVisitGrids, DisplacedWords: render_grids_one_visit_displaced);
-grid_image_kernel!(render_pixel, stacked, CompressedWords: render_grids_compressed);
-grid_image_kernel!(render_pixel, OneVisitGrids, CompressedWords: render_grids_one_visit_compressed);
-// Split scenes of displaced grids: one kernel per job for every format, walked with the stack
-// (which finds what the root's visit alone does), in the first `FEW_CHUNKS` chunks: each split
-// kernel takes lavapipe minutes to compile.
-grid_image_split_kernel!(render_pixel, stacked, AnyDisplacedWords, true, few: render_grids_displaced_split);
+grid_image_split_kernel!(SPLIT_PLAIN, false: render_grids_split);
+grid_image_split_kernel!(SPLIT_DISPLACED, true, few: render_grids_displaced_split);
 
 /// A list of rays against the baseline (benchmarks, and anything that brings its own rays).
 #[spirv(compute(threads(64, 1, 1)))]
@@ -327,48 +311,49 @@ split_kernel! {
     }
 }
 
-/// Declares a kernel that traces a list of rays against grid primitives, each grid walked as
-/// `$walk` wraps the scene, its words read as `$words` wraps them, each buffer from one binding.
-macro_rules! grid_ray_kernel {
-    ($walk:path, $words:path: $name:ident) => {
-        /// A list of rays against grid primitives.
-        #[allow(clippy::too_many_arguments)] // one per binding
-        #[spirv(compute(threads(64, 1, 1)))]
-        pub fn $name(
-            #[spirv(global_invocation_id)] id: UVec3,
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[RayRecord],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] hits: &mut [HitRecord],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] micro_triangles: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] nodes: &[BvhNode],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] headers: &[GridHeader],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] vertices: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] radii: &[u32],
-        ) {
-            if let Some(i) = ray_index(id, params) {
-                let scene = GridScene {
-                    headers,
-                    vertices: $words(vertices),
-                    radii: $words(radii),
-                    micro_triangles,
-                    params: params.grid,
-                };
-                hits[i] = trace_record(TopNodes::new(nodes), &$walk(scene), &rays[i]);
-            }
-        }
-    };
+/// A list of rays against grid primitives on whole buffers, any format and walk (see
+/// [`render_grids`]).
+#[allow(clippy::too_many_arguments)] // one per binding
+#[spirv(compute(threads(64, 1, 1)))]
+pub fn trace_grids_rays(
+    #[spirv(global_invocation_id)] id: UVec3,
+    #[spirv(spec_constant(id = 0, default = 0))] carried: u32,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[RayRecord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] hits: &mut [HitRecord],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] micro_triangles: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 4)] nodes: &[BvhNode],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 5)] headers: &[GridHeader],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] vertices: &[u32],
+    #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] radii: &[u32],
+) {
+    if let Some(i) = ray_index(id, params) {
+        let words = |words| KernelWords::<_, WHOLE> {
+            words,
+            carries: carried,
+        };
+        let scene = GridScene {
+            headers,
+            vertices: words(vertices),
+            radii: words(radii),
+            micro_triangles,
+            params: params.grid,
+        };
+        hits[i] = trace_record(TopNodes::new(nodes), &scene, &rays[i]);
+    }
 }
 
 /// Declares a kernel that traces a list of rays against grid primitives over a split scene,
-/// each grid walked as `$walk` wraps the scene, its words read as `$words` wraps them.
+/// its module carrying `$most` (`few`: of the first `FEW_CHUNKS` chunks).
 macro_rules! grid_ray_split_kernel {
-    ($walk:path, $words:path, $few:literal $(, $kind:ident)?: $split:ident) => {
+    ($most:expr, $few:literal $(, $kind:ident)?: $split:ident) => {
         split_kernel! {
             $($kind)?
             /// A list of rays against grid primitives over a split scene.
             #[spirv(compute(threads(64, 1, 1)))]
             fn $split(
                 #[spirv(global_invocation_id)] id: UVec3,
+                #[spirv(spec_constant(id = 0, default = 0))] carried: u32,
                 #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
                 #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[RayRecord],
                 #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] hits: &mut [HitRecord],
@@ -376,30 +361,17 @@ macro_rules! grid_ray_split_kernel {
             ) |chunks| {
                 if let Some(i) = ray_index(id, params) {
                     let nodes = TopNodes::new(Split::<BvhNode, $few>::new(&chunks, &params.split, GRID_NODES));
-                    let scene = split_grids::<_, $few>(&chunks, &params.split, micro_triangles, params.grid, $words);
-                    hits[i] = trace_record(nodes, &$walk(scene), &rays[i]);
+                    let scene =
+                        split_grids::<{ $most }, $few>(&chunks, &params.split, micro_triangles, params.grid, carried);
+                    hits[i] = trace_record(nodes, &scene, &rays[i]);
                 }
             }
         }
     };
 }
 
-/// Declares the two kernels that trace a list of rays against grid primitives, each grid
-/// walked as `$walk` wraps the scene, reading whole buffers and a split scene.
-macro_rules! grid_ray_kernels {
-    ($walk:path: $name:ident, $split:ident) => {
-        grid_ray_kernel!($walk, whole: $name);
-        grid_ray_split_kernel!($walk, whole, false: $split);
-    };
-}
-
-grid_ray_kernels!(stacked: trace_grids_rays, trace_grids_rays_split);
-grid_ray_kernels!(OneVisitGrids: trace_grids_rays_one_visit, trace_grids_rays_one_visit_split);
-grid_ray_kernel!(stacked, DisplacedWords: trace_grids_rays_displaced);
-grid_ray_kernel!(OneVisitGrids, DisplacedWords: trace_grids_rays_one_visit_displaced);
-grid_ray_kernel!(stacked, CompressedWords: trace_grids_rays_compressed);
-grid_ray_kernel!(OneVisitGrids, CompressedWords: trace_grids_rays_one_visit_compressed);
-grid_ray_split_kernel!(stacked, AnyDisplacedWords, true, few: trace_grids_rays_displaced_split);
+grid_ray_split_kernel!(SPLIT_PLAIN, false: trace_grids_rays_split);
+grid_ray_split_kernel!(SPLIT_DISPLACED, true, few: trace_grids_rays_displaced_split);
 
 // The workgroup sizes are literals because attribute arguments cannot name constants.
 const _: () = assert!(WORKGROUP_SIZE == 8 && TRACE_WORKGROUP_SIZE == 64);

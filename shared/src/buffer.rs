@@ -13,34 +13,43 @@ use core::marker::PhantomData;
 
 use crate::layout::{BvhNode, GridHeader, SplitParams};
 
+/// What code that reads a scene carries, one bit per part of the traversal (see
+/// [`Buffer::carries`]). Natively every part; a GPU kernel carries what its words say (see
+/// [`KernelWords`]), and the code of the parts it leaves out is folded away: a shader
+/// compiler keeps a part's registers and scratch memory even where no ray takes it.
+pub mod carries {
+    /// The formats made for displaced grids that plain grids may ask for too: tight headers
+    /// and relative radii.
+    pub const DISPLACED_FORMATS: u32 = 1;
+    /// What displaced grids alone hold: their values, spheres at each grid's own level, leaf
+    /// radius pairs and the wide top level's walk.
+    pub const DISPLACED_GRIDS: u32 = 2;
+    /// The decoder of compressed displacement values (see `crate::compressed_values`).
+    pub const DECODER: u32 = 4;
+    /// Only grids of compressed values: every other vertex format left out, so that a shader
+    /// inlines far less at each vertex read.
+    pub const ONLY_COMPRESSED: u32 = 8;
+    /// The walk down a grid's sphere hierarchy with a stack of sub-triangles (any depth).
+    pub const STACK: u32 = 16;
+    /// The root's visit alone, without a stack, for grids whose stored leaves are the root's
+    /// children or the root (`GridParams::one_visit`), which it walks where both are carried.
+    pub const ONE_VISIT: u32 = 32;
+    /// Everything but [`ONLY_COMPRESSED`]: what the CPU carries.
+    pub const ALL: u32 = DISPLACED_FORMATS | DISPLACED_GRIDS | DECODER | STACK | ONE_VISIT;
+}
+
 /// Random read access to the elements of a buffer.
 pub trait Buffer<T>: Copy {
-    /// Whether code reading this buffer carries the decoder of compressed displacement values
-    /// (see `crate::compressed_values`). Natively always; a GPU kernel only when it reads its
-    /// words as [`CompressedWords`], since a decoder that no ray of a kernel runs still costs
-    /// SIMD hardware that runs both sides of a branch.
-    const DECODES_COMPRESSED: bool = !cfg!(target_arch = "spirv");
+    /// The most that code reading these words may carry, a constant: the parts outside it are
+    /// left out of a kernel's module (see [`KernelWords`]).
+    const MOST: u32 = carries::ALL;
 
-    /// Whether code reading this buffer carries the formats made for displaced grids (see
-    /// `GridParams::uses_displaced_formats`): natively always; a GPU kernel over whole buffers
-    /// only when it reads its words through one of the wrappers below. Plain grids' kernels
-    /// leave them out: lavapipe runs the code of branches that none of a group's lanes takes,
-    /// and spills the registers they need. Split buffers keep the formats plain grids may ask
-    /// for (tight headers, relative radii), and leave out the others by
-    /// [`Self::DISPLACED_GRIDS`].
-    const DISPLACED_FORMATS: bool = !cfg!(target_arch = "spirv");
-
-    /// Whether code reading this buffer carries what displaced grids alone hold: their values,
-    /// spheres at each grid's own level, leaf radius pairs and the wide top level's walk.
-    /// Natively always; a GPU kernel only when it reads its words through one of the wrappers
-    /// below, whole or split. The split kernels of plain grids leave it out: every read of a
-    /// split buffer is a branch per chunk, and this code would make them far larger.
-    const DISPLACED_GRIDS: bool = !cfg!(target_arch = "spirv");
-
-    /// Whether every scene read through this buffer holds compressed displacement values: a
-    /// GPU kernel of them, which the host runs for no other grids, then leaves out the code of
-    /// every other vertex format, and a shader inlines far less at each vertex read.
-    const ONLY_COMPRESSED: bool = false;
+    /// What code reading these words carries: bits of [`carries`], within [`Self::MOST`].
+    /// Natively [`carries::ALL`]; a GPU kernel's words say it through [`KernelWords`].
+    #[inline(always)]
+    fn carries(self) -> u32 {
+        carries::ALL
+    }
 
     fn load(self, index: u32) -> T;
     fn is_empty(self) -> bool;
@@ -103,67 +112,39 @@ impl<T: Copy, const N: usize> Buffer<T> for &[T; N] {
     }
 }
 
-/// Declares a wrapper of a scene's words (whole, or a [`Split`] buffer) through which a GPU
-/// kernel reads them with the formats its constants say it carries.
-macro_rules! scene_words {
-    (
-        $(#[$attr:meta])* $name:ident,
-        compressed: $compressed:expr,
-        only_compressed: $only_compressed:expr
-    ) => {
-        $(#[$attr])*
-        #[derive(Copy, Clone)]
-        pub struct $name<B>(pub B);
-
-        impl<B: Buffer<u32>> Buffer<u32> for $name<B> {
-            const DISPLACED_FORMATS: bool = true;
-            const DISPLACED_GRIDS: bool = true;
-            const DECODES_COMPRESSED: bool = $compressed;
-            const ONLY_COMPRESSED: bool = $only_compressed;
-
-            #[inline(always)]
-            fn load(self, index: u32) -> u32 {
-                self.0.load(index)
-            }
-
-            #[inline(always)]
-            fn load3(self, first: u32) -> [u32; 3] {
-                self.0.load3(first)
-            }
-
-            #[inline(always)]
-            fn is_empty(self) -> bool {
-                self.0.is_empty()
-            }
-        }
-    };
+/// A scene's words as a GPU kernel reads them: what its code carries is `MOST &
+/// carries` (see [`carries`]). `MOST`, a constant of the kernel's own, leaves parts out of the
+/// module itself; `carries`, from the kernel's specialisation constants, leaves parts out of
+/// each pipeline the driver makes from it, the host choosing them for the scene.
+#[derive(Copy, Clone)]
+pub struct KernelWords<B, const MOST: u32> {
+    pub words: B,
+    pub carries: u32,
 }
 
-scene_words!(
-    /// The words of a scene in the formats made for displaced grids, other than compressed
-    /// values (see [`Buffer::DISPLACED_FORMATS`]).
-    DisplacedWords,
-    compressed: false,
-    only_compressed: false
-);
+impl<B: Buffer<u32>, const MOST: u32> Buffer<u32> for KernelWords<B, MOST> {
+    const MOST: u32 = MOST;
 
-scene_words!(
-    /// The words of a scene of compressed displacement values: a GPU kernel that reads its
-    /// scene through this type decodes them (see [`Buffer::DECODES_COMPRESSED`]), and reads
-    /// no other grids (see [`Buffer::ONLY_COMPRESSED`]).
-    CompressedWords,
-    compressed: true,
-    only_compressed: true
-);
+    #[inline(always)]
+    fn carries(self) -> u32 {
+        MOST & self.carries
+    }
 
-scene_words!(
-    /// The words of a scene in any format of displaced grids, compressed values included: the
-    /// split kernels' one family for them, so that lavapipe compiles one large kernel per job
-    /// rather than one per format.
-    AnyDisplacedWords,
-    compressed: true,
-    only_compressed: false
-);
+    #[inline(always)]
+    fn load(self, index: u32) -> u32 {
+        self.words.load(index)
+    }
+
+    #[inline(always)]
+    fn load3(self, first: u32) -> [u32; 3] {
+        self.words.load3(first)
+    }
+
+    #[inline(always)]
+    fn is_empty(self) -> bool {
+        self.words.is_empty()
+    }
+}
 
 /// Most chunks a split scene of displaced grids' formats may use (see [`Split`]): the first
 /// of the bindings, the rest left unbound.
@@ -323,8 +304,6 @@ impl<'a, T, const FEW: bool> Split<'a, T, FEW> {
 }
 
 impl<const FEW: bool> Buffer<u32> for Split<'_, u32, FEW> {
-    const DISPLACED_FORMATS: bool = true;
-
     #[inline(always)]
     fn load(self, index: u32) -> u32 {
         self.word(index, 0)

@@ -3,7 +3,7 @@
 //! top-level BVH of [`crate::traverse`].
 
 use crate::bit_fields::read_bits;
-use crate::buffer::{element, Buffer, Chunks, Split};
+use crate::buffer::{carries, element, Buffer, Chunks, Split};
 use crate::compressed_values::{CodedGrid, CodedScene, SubLattice, ValueCode};
 use crate::cost::Tally;
 use crate::displacement::{decimated_grid_point, displaced_point, unorm11_displacement, DisplacedTriangle};
@@ -24,7 +24,7 @@ use crate::sphere::{
     byte_thickness, decode_radius, intersect_sphere_scaled, leaf_radius, leaf_thickness, relative_radius,
     relative_radius_at, relative_radius_words,
 };
-use crate::traverse::{load_vec3_bits, record_hit, trace, Hierarchy, LeafPrimitives};
+use crate::traverse::{load_vec3_bits, record_hit, LeafPrimitives};
 use crate::triangle::{intersect_sheared, shear};
 use crate::value_tables::{block_bit, leveled_edge, LeveledEdge};
 
@@ -151,10 +151,30 @@ impl<'a> GridScene<'a, Split<'a, GridHeader>, Split<'a, u32>> {
 }
 
 impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
+    /// Whether the code reading this scene carries `PART` (bits of [`carries`]): always
+    /// natively, as the kernel's words say on the GPU. A part outside the words' `MOST` is a
+    /// constant `false`, so its code never reaches the module.
+    #[inline(always)]
+    pub fn carries<const PART: u32>(&self) -> bool {
+        if const { W::MOST & PART != 0 } {
+            self.vertices.carries() & PART != 0
+        } else {
+            false
+        }
+    }
+
+    /// Whether a grid is walked with the stack of sub-triangles, rather than by the root's
+    /// visit alone: where only the stack's walk is carried, or the grids' stored leaves lie
+    /// deeper than the root's children (see [`GridParams::one_visit`]).
+    #[inline(always)]
+    fn walks_with_stack(&self) -> bool {
+        self.carries::<{ carries::STACK }>() && !(self.carries::<{ carries::ONE_VISIT }>() && self.params.one_visit())
+    }
+
     /// The base edge and corner ids of grid `grid`, from its packed or wide header.
     #[inline]
     pub fn ids(&self, grid: u32) -> GridIds {
-        if W::DISPLACED_FORMATS && self.params.header_bits != 0 {
+        if self.carries::<{ carries::DISPLACED_FORMATS }>() && self.params.header_bits != 0 {
             return self.tight_ids(grid);
         }
         // The same two reads either way (the second is the first again for packed headers):
@@ -387,22 +407,22 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         self.stored_vertex(grid, p)
     }
 
-    /// Whether the grids hold displacement values, plain or compressed. Never in kernels built
-    /// for plain grids (see `Buffer::DISPLACED_GRIDS`).
+    /// Whether the grids hold displacement values, plain or compressed. Never in kernels that
+    /// leave displaced grids out (see [`carries::DISPLACED_GRIDS`]).
     #[inline(always)]
     fn displaced(&self) -> bool {
-        W::DISPLACED_GRIDS && (W::ONLY_COMPRESSED || self.params.displaced != 0)
+        self.carries::<{ carries::DISPLACED_GRIDS }>()
+            && (self.carries::<{ carries::ONLY_COMPRESSED }>() || self.params.displaced != 0)
     }
 
     /// Whether the grids hold compressed values, which the traversal decodes a sub-triangle
-    /// at a time rather than a point at a time. Only kernels built for them carry the decoder
-    /// (see `Buffer::DECODES_COMPRESSED`): lavapipe runs the code of a branch that none of its
-    /// rays takes, so the decoder's loops at every vertex read slowed every grid kernel.
+    /// at a time rather than a point at a time. Only kernels that carry the decoder read them
+    /// (see [`carries::DECODER`]): a decoder no ray runs still costs a kernel its registers.
     #[inline(always)]
     fn compressed(&self) -> bool {
         self.displaced()
-            && W::DECODES_COMPRESSED
-            && (W::ONLY_COMPRESSED || self.params.displaced == DISPLACED_COMPRESSED)
+            && self.carries::<{ carries::DECODER }>()
+            && (self.carries::<{ carries::ONLY_COMPRESSED }>() || self.params.displaced == DISPLACED_COMPRESSED)
     }
 
     /// Position of lattice point `p` of an opened grid whose vertices or values are stored
@@ -478,25 +498,25 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     }
 
     /// Whether the leaves of `room` hold their radii in their bytes
-    /// ([`GridParams::leaf_pairs_at`]). Never in kernels built for plain grids (see
-    /// `Buffer::DISPLACED_GRIDS`): relative radii are a format of displaced grids' kernels.
+    /// ([`GridParams::leaf_pairs_at`]). Never in kernels that leave displaced grids out (see
+    /// [`carries::DISPLACED_GRIDS`]).
     #[inline(always)]
     fn leaf_pairs(&self, room: &SphereRoom) -> bool {
-        W::DISPLACED_GRIDS && self.params.leaf_pairs_at(room.leaf_level)
+        self.carries::<{ carries::DISPLACED_GRIDS }>() && self.params.leaf_pairs_at(room.leaf_level)
     }
 
     /// Whether the radii are bytes relative to each grid's root ([`RADII_RELATIVE`]), a
-    /// format of displaced grids' kernels (see `Buffer::DISPLACED_FORMATS`).
+    /// format made for displaced grids (see [`carries::DISPLACED_FORMATS`]).
     #[inline(always)]
     fn relative_radii(&self) -> bool {
-        W::DISPLACED_FORMATS && self.params.radius_format == RADII_RELATIVE
+        self.carries::<{ carries::DISPLACED_FORMATS }>() && self.params.radius_format == RADII_RELATIVE
     }
 
     /// Whether each grid's spheres are at its own level (see `GridParams::own_rooms`): only
     /// for displaced grids.
     #[inline(always)]
     fn own_rooms(&self) -> bool {
-        W::DISPLACED_GRIDS && self.params.own_rooms != 0
+        self.carries::<{ carries::DISPLACED_GRIDS }>() && self.params.own_rooms != 0
     }
 
     /// Where the spheres of `grid`, whose own level is `own`, lie in the radius buffer.
@@ -514,7 +534,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             };
         }
         let first_radius = if self.relative_radii() {
-            let stored = g.spheres_in_radius_area(W::DISPLACED_GRIDS && g.leaf_pairs());
+            let stored = g.spheres_in_radius_area(self.carries::<{ carries::DISPLACED_GRIDS }>() && g.leaf_pairs());
             grid * relative_radius_words(stored)
         } else {
             grid * g.sphere_count
@@ -816,13 +836,12 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
 
     /// The bottom level: depth-first, nearest sphere first, over the grid's 4-ary hierarchy.
     ///
-    /// `STACK` says how: with a stack of pending sub-triangles, which takes any depth; or, for
-    /// hierarchies whose stored leaves are the root's children or the root itself
-    /// ([`GridParams::one_visit`]), by the root's visit alone, which tests its children as
-    /// one leaf and so never pushes. The second is the same walk with the stack
-    /// compiled out: lavapipe keeps a private array written at a varying height in memory,
-    /// and pays for the pushes in every visit, taken or not.
-    pub fn intersect_grid<const STACK: bool, T: Tally>(
+    /// With a stack of pending sub-triangles, which takes any depth; or, for hierarchies whose
+    /// stored leaves are the root's children or the root itself ([`GridParams::one_visit`]),
+    /// by the root's visit alone, which tests its children as one leaf and so never pushes
+    /// (see [`Self::walks_with_stack`]). One visit call site serves both: a shader inlines
+    /// each, and a kernel specialised to the root's visit leaves the stack out.
+    pub fn intersect_grid<T: Tally>(
         &self,
         grid: u32,
         ray: &Ray,
@@ -834,55 +853,52 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         if !self.crosses_root(&visit, ray, hit.t, scratch, tally) {
             return;
         }
-        let root = SubTriangle::ROOT;
-        if !STACK {
-            self.visit_sub_triangle::<false, true, T>(&visit, &root, 0, ray, hit, scratch, tally, &mut [0; 4]);
+        let stack = self.walks_with_stack();
+        let mut sub = SubTriangle::ROOT;
+        let mut sp = 0usize;
+        if sub.t >= hit.t {
             return;
         }
-        let mut sp = 1usize;
-        scratch.stack[0] = 0;
-        scratch.stack_corner[0] = pack_corner(root.corner, root.inverted);
-        scratch.stack_t[0] = root.t;
-        // Tested at the bottom (see `traverse_bvh`): the root is always there to pop, and a
-        // pass more would cost every group a sub-triangle's whole work.
+        // Tested at the bottom (see `traverse_bvh`): the root is always visited, and a pass
+        // more would cost every group a sub-triangle's whole work.
         loop {
-            sp -= 1;
-            if scratch.stack_t[sp] < hit.t {
-                let packed = scratch.stack_corner[sp];
-                let popped = SubTriangle {
-                    level: scratch.stack[sp] & 0xf,
-                    index: scratch.stack[sp] >> 4,
-                    corner: [(packed & 0xff) as i32, ((packed >> 8) & 0xff) as i32],
-                    inverted: packed >> 16 != 0,
-                    t: scratch.stack_t[sp],
-                    radius: scratch.stack_radius[sp],
-                };
-                sp = self.visit_sub_triangle::<true, true, T>(
-                    &visit,
-                    &popped,
-                    sp,
-                    ray,
-                    hit,
-                    scratch,
-                    tally,
-                    &mut [0; 4],
-                );
+            sp = self.visit_sub_triangle(stack, &visit, &sub, sp, ray, hit, scratch, tally);
+            if !stack {
+                break;
             }
-            if sp == 0 {
+            // The nearest waiting sub-triangle that may still hold a closer hit.
+            let mut popped = false;
+            while sp > 0 {
+                sp -= 1;
+                if scratch.stack_t[sp] < hit.t {
+                    let packed = scratch.stack_corner[sp];
+                    sub = SubTriangle {
+                        level: scratch.stack[sp] & 0xf,
+                        index: scratch.stack[sp] >> 4,
+                        corner: [(packed & 0xff) as i32, ((packed >> 8) & 0xff) as i32],
+                        inverted: packed >> 16 != 0,
+                        t: scratch.stack_t[sp],
+                        radius: scratch.stack_radius[sp],
+                    };
+                    popped = true;
+                    break;
+                }
+            }
+            if !popped {
                 break;
             }
         }
     }
 
     /// Sub-triangle `sub`, just popped (the stack is `sp` high without it): its children's
-    /// spheres are tested and the hit ones pushed, nearest on top; or, when they are leaves,
-    /// tested here as one leaf of `sub`, over the lattice points the ray may touch in any of
-    /// them; or `sub` is tested, when it is a leaf. Returns the stack's new height. Without
-    /// `TEST` the leaf test is left to the caller ([`GridScene::test_window`]): the window of
-    /// `sub`'s lattice it must cover is left in `untested` (empty when none).
+    /// spheres are tested and, with the `stack`, the hit ones pushed, nearest on top; or, when
+    /// they are leaves, tested here as one leaf of `sub`, over the lattice points the ray may
+    /// touch in any of them; or `sub` is tested, when it is a leaf. Returns the stack's new
+    /// height.
     #[allow(clippy::too_many_arguments)]
-    fn visit_sub_triangle<const STACK: bool, const TEST: bool, T: Tally>(
+    fn visit_sub_triangle<T: Tally>(
         &self,
+        stack: bool,
         visit: &GridVisit,
         sub: &SubTriangle,
         mut sp: usize,
@@ -890,7 +906,6 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         hit: &mut Hit,
         scratch: &mut GridScratch,
         tally: &mut T,
-        untested: &mut [u32; 4],
     ) -> usize {
         let GridVisit {
             open,
@@ -983,7 +998,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                         if t < T_FAR && frame.overlaps(ca, cb, cc, thickness, slack) {
                             frame.leaf_window(ca, cb, cc, m, thickness, slack)
                         } else {
-                            [1, 0, 1, 0]
+                            EMPTY_WINDOW
                         }
                     };
                     let first_leaf = 4 * index;
@@ -999,7 +1014,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                 window = add_child_window(window, e2.t, 2, w2, m);
                 window = add_child_window(window, e3.t, 3, w3, m);
                 tested = window[0] <= window[1];
-            } else if STACK {
+            } else if stack {
                 // Push the hit children farthest first so the nearest is popped next, sorted
                 // with a fixed network (no dynamically indexed arrays: those are slow on GPUs).
                 sort_descending(&mut e0, &mut e1);
@@ -1025,12 +1040,8 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                 push(&e3);
             }
         }
-        if TEST {
-            if tested {
-                self.test_window(visit, sub, window, ray, hit, scratch, tally);
-            }
-        } else {
-            *untested = if tested { window } else { EMPTY_WINDOW };
+        if tested {
+            self.test_window(visit, sub, window, ray, hit, scratch, tally);
         }
         sp
     }
@@ -1271,8 +1282,8 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         }
     }
 
-    /// Grids `first .. first + count`, each walked as `STACK` says (see `intersect_grid`).
-    fn intersect_grids<const STACK: bool, T: Tally>(
+    /// Grids `first .. first + count`.
+    fn intersect_grids<T: Tally>(
         &self,
         first: u32,
         count: u32,
@@ -1285,7 +1296,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         // Tested at the bottom (see `traverse_bvh`): a pass more would be a whole grid visit.
         // The builder makes no empty leaves.
         loop {
-            self.intersect_grid::<STACK, T>(grid, ray, hit, scratch, tally);
+            self.intersect_grid(grid, ray, hit, scratch, tally);
             grid += 1;
             if grid >= first + count {
                 break;
@@ -1294,10 +1305,16 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     }
 }
 
-/// Grid primitives of any hierarchy depth: each grid walked with a stack of sub-triangles.
+/// Grid primitives: each grid walked down its sphere hierarchy (see
+/// [`GridScene::intersect_grid`]).
 impl<H: Buffer<GridHeader>, W: Buffer<u32>> LeafPrimitives for GridScene<'_, H, W> {
-    const DISPLACED_GRIDS: bool = W::DISPLACED_GRIDS;
+    const WIDE_WALK: bool = W::MOST & carries::DISPLACED_GRIDS != 0;
     type Scratch = GridScratch;
+
+    #[inline(always)]
+    fn displaced_grids(&self) -> bool {
+        self.carries::<{ carries::DISPLACED_GRIDS }>()
+    }
 
     fn scratch(&self, ray: &Ray) -> GridScratch {
         Self::new_scratch(ray)
@@ -1312,7 +1329,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> LeafPrimitives for GridScene<'_, H, 
         scratch: &mut GridScratch,
         tally: &mut T,
     ) {
-        self.intersect_grids::<true, T>(first, count, ray, hit, scratch, tally);
+        self.intersect_grids(first, count, ray, hit, scratch, tally);
     }
 
     #[inline]
@@ -1322,56 +1339,5 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> LeafPrimitives for GridScene<'_, H, 
 
     fn smooth_normal(&self, hit: &Hit) -> Vec3 {
         GridScene::smooth_normal(self, hit)
-    }
-}
-
-/// Grid primitives whose hierarchies are walked by the root's visit alone, without a stack:
-/// only for scenes whose [`GridParams::one_visit`] holds (the default `L = 3` among them),
-/// where they find the same hits as the [`GridScene`] they wrap, with less work on GPUs.
-pub struct OneVisitGrids<'a, H, W>(pub GridScene<'a, H, W>);
-
-impl<H: Buffer<GridHeader>, W: Buffer<u32>> LeafPrimitives for OneVisitGrids<'_, H, W> {
-    const DISPLACED_GRIDS: bool = W::DISPLACED_GRIDS;
-    type Scratch = GridScratch;
-
-    fn scratch(&self, ray: &Ray) -> GridScratch {
-        GridScene::<H, W>::new_scratch(ray)
-    }
-
-    fn intersect_leaf<T: Tally>(
-        &self,
-        first: u32,
-        count: u32,
-        ray: &Ray,
-        hit: &mut Hit,
-        scratch: &mut GridScratch,
-        tally: &mut T,
-    ) {
-        self.0
-            .intersect_grids::<false, T>(first, count, ray, hit, scratch, tally);
-    }
-
-    #[inline]
-    fn triangle(&self, prim: u32, level: u32) -> [Vec3; 3] {
-        self.0.micro_triangle(prim, level)
-    }
-
-    fn smooth_normal(&self, hit: &Hit) -> Vec3 {
-        self.0.smooth_normal(hit)
-    }
-}
-
-/// Closest hit among grid primitives under a top-level BVH, each grid walked the cheapest way
-/// its hierarchy allows.
-pub fn trace_grids<N: Hierarchy, H: Buffer<GridHeader>, W: Buffer<u32>>(
-    nodes: N,
-    scene: &GridScene<H, W>,
-    ray: &Ray,
-    t_max: f32,
-) -> Hit {
-    if scene.params.one_visit() {
-        trace(nodes, &OneVisitGrids(*scene), ray, t_max)
-    } else {
-        trace(nodes, scene, ray, t_max)
     }
 }

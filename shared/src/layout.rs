@@ -374,7 +374,7 @@ impl GridParams {
     /// Whether the grids use a format made for displaced grids: displacement values, tight
     /// headers or radii relative to each grid's root. (The wide top level is the other one;
     /// the nodes say whether they are wide.) Only kernels that carry these formats read such
-    /// scenes (see `crate::buffer::Buffer::DISPLACED_FORMATS`).
+    /// scenes (see `crate::buffer::carries::DISPLACED_FORMATS`).
     #[inline]
     pub fn uses_displaced_formats(&self) -> bool {
         self.displaced != 0 || self.header_bits != 0 || self.radius_format == RADII_RELATIVE
@@ -382,7 +382,7 @@ impl GridParams {
 
     /// Whether every grid's hierarchy is walked by its root's visit alone: its stored leaves
     /// are the root's children or the root itself, as at the default depth `L = 3`. Such
-    /// scenes may be traced as `OneVisitGrids` (see `crate::grid_traverse`), without a stack.
+    /// scenes are walked without a stack (see `GridScene::intersect_grid`).
     pub fn one_visit(&self) -> bool {
         self.leaf_level <= 1
     }

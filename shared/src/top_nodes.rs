@@ -70,11 +70,15 @@ impl<N: Buffer<BvhNode>> TopNodes<N> {
         self.wide
     }
 
-    /// The walk over these nodes in their form. `WIDE_WALK`: whether the kernel carries the
-    /// wide walk (see [`TopWalk`]).
+    /// The walk over these nodes in their form; wide nodes are walked only where `WIDE_WALK`
+    /// (the code carries the wide walk) and `wide_walk` (the pipeline keeps it) say so (see
+    /// [`TopWalk`]).
     #[inline(always)]
-    pub fn walk<const WIDE_WALK: bool>(self) -> TopWalk<N, WIDE_WALK> {
-        TopWalk(self)
+    pub fn walk<const WIDE_WALK: bool>(self, wide_walk: bool) -> TopWalk<N, WIDE_WALK> {
+        TopWalk {
+            wide: wide_walk && self.wide,
+            top: self,
+        }
     }
 
     /// The scene's frame, which wide nodes' frames are codes of: the compact frame's fields.
@@ -90,11 +94,12 @@ impl<N: Buffer<BvhNode>> TopNodes<N> {
 impl<N: Buffer<BvhNode>> Hierarchy for TopNodes<N> {
     #[inline(always)]
     fn search<P: LeafPrimitives, T: Tally>(self, prims: &P, ray: &Ray, hit: &mut Hit, tally: &mut T) {
-        // A constant condition: each kernel holds one of the two walks' instances.
-        if P::DISPLACED_GRIDS {
-            traverse_bvh(self.walk::<true>(), prims, ray, hit, tally)
+        // Constants in a kernel: its module (`WIDE_WALK`) or its pipeline
+        // (`displaced_grids`) leaves the wide walk out where it carries no displaced grids.
+        if P::WIDE_WALK {
+            traverse_bvh(self.walk::<true>(prims.displaced_grids()), prims, ray, hit, tally)
         } else {
-            traverse_bvh(self.walk::<false>(), prims, ray, hit, tally)
+            traverse_bvh(self.walk::<false>(false), prims, ray, hit, tally)
         }
     }
 }
@@ -103,16 +108,20 @@ impl<N: Buffer<BvhNode>> Hierarchy for TopNodes<N> {
 /// one by one, or wide nodes as `crate::wide_nodes` walks them, every entry on the stack, nodes
 /// and leaves alike, sorted nearest on top.
 ///
-/// `WIDE_WALK`: whether the walk may meet wide nodes. Kernels of plain grids, whole or split,
-/// leave the wide walk out (see `LeafPrimitives::DISPLACED_GRIDS`).
+/// `wide`: whether the nodes are wide and the pipeline keeps the wide walk; `WIDE_WALK`: whether
+/// the code carries it at all. Kernels that leave displaced grids out leave the wide walk out
+/// (see `LeafPrimitives::WIDE_WALK` and `LeafPrimitives::displaced_grids`).
 #[derive(Copy, Clone)]
-pub struct TopWalk<N, const WIDE_WALK: bool>(TopNodes<N>);
+pub struct TopWalk<N, const WIDE_WALK: bool> {
+    top: TopNodes<N>,
+    wide: bool,
+}
 
 impl<N: Buffer<BvhNode>, const WIDE_WALK: bool> LeafWalk for TopWalk<N, WIDE_WALK> {
     #[inline(always)]
     fn enter<T: Tally>(self, ray: &Ray, t: f32, tally: &mut T) -> f32 {
-        let top = self.0;
-        if WIDE_WALK && top.wide {
+        let top = self.top;
+        if WIDE_WALK && self.wide {
             root_entry(top.nodes, &top.scene_frame(), ray, t, tally)
         } else {
             BinaryWalk(top).enter(ray, t, tally)
@@ -128,8 +137,8 @@ impl<N: Buffer<BvhNode>, const WIDE_WALK: bool> LeafWalk for TopWalk<N, WIDE_WAL
         sp: &mut usize,
         tally: &mut T,
     ) -> BvhNode {
-        let top = self.0;
-        if WIDE_WALK && top.wide {
+        let top = self.top;
+        if WIDE_WALK && self.wide {
             let entry = next_leaf(top.nodes, &top.scene_frame(), ray, t, stack, sp, tally);
             if entry == NO_NODE {
                 BvhNode::default()

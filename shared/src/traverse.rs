@@ -15,9 +15,16 @@ pub const MAX_BVH_DEPTH: usize = 64;
 
 /// What a BVH leaf refers to.
 pub trait LeafPrimitives {
-    /// Whether the kernel reading these primitives carries what displaced grids alone hold
-    /// (see `Buffer::DISPLACED_GRIDS`), the wide top level's walk among them.
-    const DISPLACED_GRIDS: bool = !cfg!(target_arch = "spirv");
+    /// Whether the code reading these primitives may carry the wide top level's walk, a
+    /// constant: kernels whose module leaves displaced grids out leave it out.
+    const WIDE_WALK: bool = true;
+
+    /// Whether the code reading these primitives carries what displaced grids alone hold
+    /// (see `crate::buffer::carries::DISPLACED_GRIDS`), the wide top level's walk among them.
+    #[inline(always)]
+    fn displaced_grids(&self) -> bool {
+        true
+    }
 
     /// Working memory of the leaf tests and the per-ray constants they need, made once per
     /// ray rather than once per leaf: on GPUs every fresh local array costs a store per element.

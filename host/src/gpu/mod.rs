@@ -1,6 +1,7 @@
 //! The GPU backend: headless wgpu compute running the rust-gpu kernels (built from `kernel/` by
 //! the build script and embedded here) on whatever adapter exists, lavapipe included.
 
+mod kernels;
 mod turns;
 
 pub use turns::TimedList;
@@ -21,26 +22,7 @@ use crate::split::{check_chunks, chunk_words, most_chunks, scene_buffers, split}
 /// The SPIR-V module of the `kernel` crate.
 pub const KERNEL_SPV: &[u8] = include_bytes!(env!("kernel.spv"));
 
-/// One representation's pipelines: an image renderer and a ray-list tracer.
-struct Pipelines {
-    render: wgpu::ComputePipeline,
-    trace: wgpu::ComputePipeline,
-}
-
-/// The pipelines of both representations, grids in both walks (see
-/// `gridrt_shared::grid_traverse::OneVisitGrids`).
-struct Kernels {
-    triangles: Pipelines,
-    grids: Pipelines,
-    grids_one_visit: Pipelines,
-}
-
-/// What a dispatch does: render a tile, or trace a list of rays.
-#[derive(Copy, Clone)]
-enum Job {
-    Render,
-    Trace,
-}
+use kernels::{Job, Kernel, PIPELINES};
 
 pub struct Gpu {
     device: wgpu::Device,
@@ -51,11 +33,10 @@ pub struct Gpu {
     timestamps: bool,
     pub adapter: wgpu::AdapterInfo,
     module: wgpu::ShaderModule,
-    whole: Kernels,
-    /// The kernels for split scenes and for grids in displaced grids' formats or of compressed
-    /// values, each made the first time it runs: the split ones bind more buffers than some
-    /// adapters allow, and all take drivers long to compile.
-    on_demand: [std::sync::OnceLock<wgpu::ComputePipeline>; 16],
+    /// The pipelines (see [`Kernel`]), each made the first time it runs but the plain scenes'
+    /// on whole buffers, made when the device opens: the split ones bind more buffers than
+    /// some adapters allow, and all take drivers long to compile.
+    pipelines: [std::sync::OnceLock<wgpu::ComputePipeline>; PIPELINES],
 }
 
 /// A scene's geometry in GPU buffers, uploaded once and traced many times.
@@ -139,7 +120,10 @@ impl Gpu {
             label: Some("kernel"),
             source: wgpu::util::make_spirv(KERNEL_SPV),
         });
-        let whole = kernels(&device, &module);
+        let pipelines: [std::sync::OnceLock<wgpu::ComputePipeline>; PIPELINES] = Default::default();
+        for kernel in kernels::made_at_start() {
+            let _ = pipelines[kernel.slot].set(compute_pipeline(&device, &module, &kernel));
+        }
         if let Some(e) = pollster::block_on(device.pop_error_scope()) {
             fail!(Gpu, "the GPU driver rejected the gridrt kernels: {}", error_chain(&e));
         }
@@ -151,8 +135,7 @@ impl Gpu {
             limits,
             timestamps,
             module,
-            whole,
-            on_demand: Default::default(),
+            pipelines,
         };
         if let Some(value) = std::env::var_os(BINDING_LIMIT_VAR) {
             let text = value.to_string_lossy();
@@ -219,48 +202,26 @@ impl Gpu {
         Ok(())
     }
 
-    /// A kernel made on first use: any for a split scene, or for grids in displaced grids'
-    /// formats or of compressed values.
-    fn on_demand_pipeline(&self, scene: &Scene, job: Job, split: bool) -> Result<&wgpu::ComputePipeline> {
-        let one_visit = matches!(scene, Scene::Grids(s) if s.params.one_visit());
-        let displaced = !split && scene.uses_displaced_formats();
-        let compressed = !split && scene.has_compressed_values();
-        let split_displaced = split && scene.splits_as_displaced();
-        let (index, entry) = match (scene, job, split) {
-            // One kernel per job for split scenes of what displaced grids alone hold.
-            (Scene::Grids(_), Job::Render, _) if split_displaced => (14, "render_grids_displaced_split"),
-            (Scene::Grids(_), Job::Trace, _) if split_displaced => (15, "trace_grids_rays_displaced_split"),
-            (Scene::Grids(_), Job::Render, _) if compressed && one_visit => (6, "render_grids_one_visit_compressed"),
-            (Scene::Grids(_), Job::Trace, _) if compressed && one_visit => (7, "trace_grids_rays_one_visit_compressed"),
-            (Scene::Grids(_), Job::Render, _) if compressed => (8, "render_grids_compressed"),
-            (Scene::Grids(_), Job::Trace, _) if compressed => (9, "trace_grids_rays_compressed"),
-            (Scene::Grids(_), Job::Render, _) if displaced && one_visit => (10, "render_grids_one_visit_displaced"),
-            (Scene::Grids(_), Job::Trace, _) if displaced && one_visit => (11, "trace_grids_rays_one_visit_displaced"),
-            (Scene::Grids(_), Job::Render, _) if displaced => (12, "render_grids_displaced"),
-            (Scene::Grids(_), Job::Trace, _) if displaced => (13, "trace_grids_rays_displaced"),
-            (Scene::Triangles(_), Job::Render, _) => (0, "render_triangles_split"),
-            (Scene::Triangles(_), Job::Trace, _) => (1, "trace_triangles_rays_split"),
-            (Scene::Grids(_), Job::Render, _) if one_visit => (4, "render_grids_one_visit_split"),
-            (Scene::Grids(_), Job::Trace, _) if one_visit => (5, "trace_grids_rays_one_visit_split"),
-            (Scene::Grids(_), Job::Render, _) => (2, "render_grids_split"),
-            (Scene::Grids(_), Job::Trace, _) => (3, "trace_grids_rays_split"),
-        };
-        if let Some(p) = self.on_demand[index].get() {
+    /// The pipeline that runs `job` on `scene` (see [`Kernel::of`]), made on first use.
+    fn pipeline(&self, scene: &GpuScene, job: Job) -> Result<&wgpu::ComputePipeline> {
+        let kernel = Kernel::of(scene.scene, job, scene.is_split());
+        if let Some(p) = self.pipelines[kernel.slot].get() {
             return Ok(p);
         }
-        if split {
+        if scene.is_split() {
             self.check_split_bindings()?;
         }
         self.device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let pipeline = compute_pipeline(&self.device, &self.module, entry);
+        let pipeline = compute_pipeline(&self.device, &self.module, &kernel);
         if let Some(e) = pollster::block_on(self.device.pop_error_scope()) {
             fail!(
                 Gpu,
-                "the GPU driver rejected the gridrt kernel {entry}: {}",
+                "the GPU driver rejected the gridrt kernel {}: {}",
+                kernel.entry,
                 error_chain(&e)
             );
         }
-        Ok(self.on_demand[index].get_or_init(|| pipeline))
+        Ok(self.pipelines[kernel.slot].get_or_init(|| pipeline))
     }
 
     fn buffer(&self, name: &str, contents: &[u8]) -> wgpu::Buffer {
@@ -357,20 +318,6 @@ impl Gpu {
             scene,
             buffers: statics,
             chunks: Some((chunks, split.params)),
-        })
-    }
-
-    fn pipeline(&self, scene: &GpuScene, job: Job) -> Result<&wgpu::ComputePipeline> {
-        let kernels = match scene.scene {
-            Scene::Triangles(_) => &self.whole.triangles,
-            Scene::Grids(s) if s.params.one_visit() => &self.whole.grids_one_visit,
-            Scene::Grids(_) => &self.whole.grids,
-        };
-        Ok(match job {
-            _ if scene.is_split() => self.on_demand_pipeline(scene.scene, job, true)?,
-            _ if scene.scene.uses_displaced_formats() => self.on_demand_pipeline(scene.scene, job, false)?,
-            Job::Render => &kernels.render,
-            Job::Trace => &kernels.trace,
         })
     }
 
@@ -610,35 +557,20 @@ struct Queries {
     readback: wgpu::Buffer,
 }
 
-/// The pipeline of kernel `entry`, its layout taken from the shader.
-fn compute_pipeline(device: &wgpu::Device, module: &wgpu::ShaderModule, entry: &str) -> wgpu::ComputePipeline {
+/// The pipeline of `kernel`, its layout taken from the shader.
+fn compute_pipeline(device: &wgpu::Device, module: &wgpu::ShaderModule, kernel: &Kernel) -> wgpu::ComputePipeline {
+    let carries = kernel.carries.map(|c| [("0", c as f64)]);
     device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some(entry),
+        label: Some(kernel.entry),
         layout: None,
         module,
-        entry_point: Some(entry),
-        compilation_options: Default::default(),
+        entry_point: Some(kernel.entry),
+        compilation_options: wgpu::PipelineCompilationOptions {
+            constants: carries.as_ref().map_or(&[], |c| &c[..]),
+            ..Default::default()
+        },
         cache: None,
     })
-}
-
-/// The pipelines of the kernels that read each scene buffer from one binding.
-fn kernels(device: &wgpu::Device, module: &wgpu::ShaderModule) -> Kernels {
-    let pipeline = |entry| compute_pipeline(device, module, entry);
-    Kernels {
-        triangles: Pipelines {
-            render: pipeline("render_triangles"),
-            trace: pipeline("trace_triangles_rays"),
-        },
-        grids: Pipelines {
-            render: pipeline("render_grids"),
-            trace: pipeline("trace_grids_rays"),
-        },
-        grids_one_visit: Pipelines {
-            render: pipeline("render_grids_one_visit"),
-            trace: pipeline("trace_grids_rays_one_visit"),
-        },
-    }
 }
 
 /// wgpu's instance flags for this build, as the environment adjusts them.

@@ -1,0 +1,132 @@
+//! Which kernel runs a job on a scene, and what its pipeline carries.
+//!
+//! The module has a kernel per job (render a tile, trace a list of rays) and representation,
+//! reading whole buffers or a split scene, and split scenes of displaced grids have kernels of
+//! their own. A grid kernel is made into a pipeline per format and walk: its specialisation
+//! constant 0 says what the pipeline carries (`gridrt_shared::buffer::carries`), and the
+//! driver folds the rest away, so a scene pays for its own format and walk alone.
+//!
+//! Guarantees: every scene and job has one kernel, and the bits it is given are within what
+//! its module carries (see the `kernel` crate's families) and include the walk the scene's
+//! hierarchies need.
+
+use gridrt_shared::buffer::carries;
+
+use crate::scene::Scene;
+
+/// What a dispatch does: render a tile, or trace a list of rays.
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub(super) enum Job {
+    Render,
+    Trace,
+}
+
+/// A pipeline as it is made: the kernel's entry point and what it carries (its specialisation
+/// constant 0; `None` for the triangle kernels, which have none).
+#[derive(Copy, Clone, Debug, PartialEq, Eq)]
+pub(super) struct Kernel {
+    pub entry: &'static str,
+    pub carries: Option<u32>,
+    /// Where the pipeline is kept among [`PIPELINES`].
+    pub slot: usize,
+}
+
+/// How many pipelines can be made: triangles 4, split displaced grids 2, split plain grids 2
+/// jobs x 2 walks, grids on whole buffers 2 jobs x 3 formats x 2 walks.
+pub(super) const PIPELINES: usize = 4 + 2 + 4 + 12;
+
+/// What the formats of displaced grids add, by format of the grids on whole buffers: plain
+/// grids', displaced grids' with plain values, and with compressed ones.
+const FORMATS: [u32; 3] = [
+    0,
+    carries::DISPLACED_FORMATS | carries::DISPLACED_GRIDS,
+    carries::DISPLACED_FORMATS | carries::DISPLACED_GRIDS | carries::DECODER | carries::ONLY_COMPRESSED,
+];
+
+impl Kernel {
+    /// The kernel and specialisation that run `job` on `scene`, bound whole or `split`.
+    pub fn of(scene: &Scene, job: Job, split: bool) -> Kernel {
+        let job = (job == Job::Trace) as usize;
+        let grids = match scene {
+            Scene::Triangles(_) => return Kernel::triangles(job, split),
+            Scene::Grids(grids) => grids,
+        };
+        let one_visit = grids.params.one_visit();
+        if !split {
+            let format = match (scene.has_compressed_values(), scene.uses_displaced_formats()) {
+                (true, _) => 2,
+                (false, true) => 1,
+                (false, false) => 0,
+            };
+            return Kernel::grids(job, format, one_visit);
+        }
+        if scene.splits_as_displaced() {
+            // Walked with the stack, every format of displaced grids.
+            return Kernel {
+                entry: pick(job, "render_grids_displaced_split", "trace_grids_rays_displaced_split"),
+                carries: Some(
+                    carries::DISPLACED_FORMATS | carries::DISPLACED_GRIDS | carries::DECODER | carries::STACK,
+                ),
+                slot: 4 + job,
+            };
+        }
+        Kernel {
+            entry: pick(job, "render_grids_split", "trace_grids_rays_split"),
+            carries: Some(carries::DISPLACED_FORMATS | walk(one_visit)),
+            slot: 6 + 2 * one_visit as usize + job,
+        }
+    }
+
+    /// The triangle kernel of `job` (0 render, 1 trace).
+    fn triangles(job: usize, split: bool) -> Kernel {
+        Kernel {
+            entry: match split {
+                false => pick(job, "render_triangles", "trace_triangles_rays"),
+                true => pick(job, "render_triangles_split", "trace_triangles_rays_split"),
+            },
+            carries: None,
+            slot: 2 * split as usize + job,
+        }
+    }
+
+    /// The grid kernel of `job` (0 render, 1 trace) on whole buffers, for grids of
+    /// [`FORMATS`]`[format]`, walked by one visit or with the stack.
+    fn grids(job: usize, format: usize, one_visit: bool) -> Kernel {
+        Kernel {
+            entry: pick(job, "render_grids", "trace_grids_rays"),
+            carries: Some(FORMATS[format] | walk(one_visit)),
+            slot: 10 + 4 * format + 2 * one_visit as usize + job,
+        }
+    }
+}
+
+/// The kernels made when the device opens: plain scenes on whole buffers (a driver that
+/// rejects the module says so at once).
+pub(super) fn made_at_start() -> [Kernel; 6] {
+    [
+        Kernel::triangles(0, false),
+        Kernel::triangles(1, false),
+        Kernel::grids(0, 0, true),
+        Kernel::grids(1, 0, true),
+        Kernel::grids(0, 0, false),
+        Kernel::grids(1, 0, false),
+    ]
+}
+
+/// The entry point of `job` (0 render, 1 trace).
+fn pick(job: usize, render: &'static str, trace: &'static str) -> &'static str {
+    if job == 0 {
+        render
+    } else {
+        trace
+    }
+}
+
+/// The walk bit of grids walked by one visit or with the stack.
+fn walk(one_visit: bool) -> u32 {
+    if one_visit {
+        carries::ONE_VISIT
+    } else {
+        carries::STACK
+    }
+}
