@@ -190,6 +190,28 @@ const WHOLE: u32 = carries::ALL | carries::ONLY_COMPRESSED;
 const SPLIT_PLAIN: u32 = carries::DISPLACED_FORMATS | carries::STACK | carries::ONE_VISIT;
 const SPLIT_DISPLACED: u32 = carries::DISPLACED_FORMATS | carries::DISPLACED_GRIDS | carries::DECODER | carries::STACK;
 
+/// The grids of a scene bound whole, their words carrying `WHOLE & carried`.
+fn whole_grids<'a>(
+    headers: &'a [GridHeader],
+    vertices: &'a [u32],
+    radii: &'a [u32],
+    micro_triangles: &'a [u32],
+    params: GridParams,
+    carried: u32,
+) -> GridScene<'a, &'a [GridHeader], KernelWords<&'a [u32], WHOLE>> {
+    let words = |words| KernelWords {
+        words,
+        carries: carried,
+    };
+    GridScene {
+        headers,
+        vertices: words(vertices),
+        radii: words(radii),
+        micro_triangles,
+        params,
+    }
+}
+
 /// The grids of a split scene, their words carrying `MOST & carried`; `FEW` as for `Split`.
 fn split_grids<'a, const MOST: u32, const FEW: bool>(
     chunks: &Chunks<'a>,
@@ -227,17 +249,7 @@ pub fn render_grids(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 6)] radii: &[u32],
 ) {
     if let Some(i) = tile_index(id, frame) {
-        let words = |words| KernelWords::<_, WHOLE> {
-            words,
-            carries: carried,
-        };
-        let scene = GridScene {
-            headers,
-            vertices: words(vertices),
-            radii: words(radii),
-            micro_triangles,
-            params: frame.grid,
-        };
+        let scene = whole_grids(headers, vertices, radii, micro_triangles, frame.grid, carried);
         image[i] = render_pixel(
             frame,
             TopNodes::new(nodes),
@@ -328,17 +340,7 @@ pub fn trace_grids_rays(
     #[spirv(storage_buffer, descriptor_set = 0, binding = 7)] radii: &[u32],
 ) {
     if let Some(i) = ray_index(id, params) {
-        let words = |words| KernelWords::<_, WHOLE> {
-            words,
-            carries: carried,
-        };
-        let scene = GridScene {
-            headers,
-            vertices: words(vertices),
-            radii: words(radii),
-            micro_triangles,
-            params: params.grid,
-        };
+        let scene = whole_grids(headers, vertices, radii, micro_triangles, params.grid, carried);
         hits[i] = trace_record(TopNodes::new(nodes), &scene, &rays[i]);
     }
 }
