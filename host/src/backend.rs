@@ -5,7 +5,7 @@
 use std::time::Instant;
 
 use crate::error::Result;
-use gridrt_shared::layout::{Camera, FrameParams, HitRecord, RayRecord, SHADE_COST};
+use gridrt_shared::layout::{Camera, FrameParams, HitRecord, RayRecord};
 use gridrt_shared::shade::{ao_accumulate, ao_pixel};
 use rayon::prelude::*;
 
@@ -227,7 +227,7 @@ impl Backend {
             ..*options
         };
         options.check(scene)?;
-        let packed = render_cpu(scene, &options.frame(scene, camera));
+        let packed = self.render_frame(scene, &options.frame(scene, camera))?;
         Ok(CostImage::from_packed(camera.width, camera.height, &packed))
     }
 
@@ -237,8 +237,9 @@ impl Backend {
     /// counts come from the CPU (see [`Backend::render_costs`]).
     pub fn render_frame(&self, scene: &Scene, frame: &FrameParams) -> Result<Vec<u32>> {
         match self {
-            _ if frame.shading == SHADE_COST => Ok(render_cpu(scene, frame)),
             Backend::Cpu { .. } => Ok(render_cpu(scene, frame)),
+            #[cfg(feature = "gpu")]
+            Backend::Gpu(_) if frame.shading == gridrt_shared::layout::SHADE_COST => Ok(render_cpu(scene, frame)),
             #[cfg(feature = "gpu")]
             Backend::Gpu(gpu) => gpu.render(scene, frame),
         }
