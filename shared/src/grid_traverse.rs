@@ -110,11 +110,9 @@ pub struct GridScratch {
     /// The pending spheres' radii, written only where leaf radii are stored relative to their
     /// parents' (see `GridScene::leaf_pairs`).
     stack_radius: [f32; GRID_STACK],
-    /// A leaf's vertices in the ray's sheared frame.
-    sheared: [Vec3; LEAF_VERTICES],
-    /// Which sides of the ray each sheared vertex lies strictly on: bits for `x > 0`, `x < 0`,
-    /// `y > 0`, `y < 0`.
-    sides: [u32; LEAF_VERTICES],
+    /// A compressed leaf's values, decoded at their lattice slots (see
+    /// [`GridScene::decode_leaf`]); never read by kernels without the decoder.
+    values: [u32; LEAF_VERTICES],
     /// `1 / |dir|^2`, for the sphere tests.
     inv_dir_len2: f32,
     frame: FootprintFrame,
@@ -635,10 +633,19 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
 
     /// Tests the `4^k` micro-triangles of a leaf sub-triangle: its first corner is `corner`,
     /// and one step of its own lattice (`2^k` a side) is `step` grid-lattice units along both
-    /// axes (negative for an inverted sub-triangle). Only its lattice points inside `window`
-    /// (`[la_lo, la_hi, lb_lo, lb_hi]`, see [`FootprintFrame::leaf_window`]) are loaded, once
-    /// each, and only the cells between them are tested: the static list's cell table names
-    /// each cell's triangle and its three points. A hit is numbered by `ids`.
+    /// axes (negative for an inverted sub-triangle). Only the cells whose points lie inside
+    /// `window` (`[la_lo, la_hi, lb_lo, lb_hi]`, see [`FootprintFrame::leaf_window`]) are
+    /// tested, the static list's cell table naming each cell's triangle and the order of its
+    /// corners. A hit is numbered by `ids`.
+    ///
+    /// The cells are walked two lattice rows at a time, column by column: each step reads one
+    /// point (alternately of the lower and the upper row) into four named registers, the last
+    /// two columns of both rows, and tests the one cell that point completes (the upright cell
+    /// after a lower point, the inverted one after an upper point). No array is indexed at run
+    /// time, so a GPU keeps the leaf's points in registers; the price is that a point inside
+    /// the window is read once for each of the two row pairs it belongs to. The cells come in
+    /// the order of the rows, and in each row upright before inverted, as the static list
+    /// numbers them: ties between cells resolve alike on every backend.
     #[allow(clippy::too_many_arguments)]
     fn intersect_leaf_triangles<T: Tally>(
         &self,
@@ -650,60 +657,16 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         ids: LeafIds,
         ray: &Ray,
         hit: &mut Hit,
-        scratch: &mut GridScratch,
+        scratch: &GridScratch,
         tally: &mut T,
     ) {
         let m = 1u32 << k;
-        // Compressed values come decoded in `sides` (see `test_window`), where each point's
-        // side bits replace its value once its position is made.
-        let compressed = self.compressed();
-        // In the sheared frame the ray is the z axis; triangles whose vertices all lie strictly
-        // on one side of it (right, left, above or below: one bit each) cannot be crossed. A
-        // leaf whose loaded vertices all agree is done before any triangle test.
-        let mut one_side = 0xfu32;
-        // Each loop walks its points or cells row by row as one flat loop rather than a loop
-        // per row: in SIMD groups a nested loop runs every row as long as the group's longest,
-        // and each inner loop costs a pass even where no ray of the group has a row left.
         let (la_lo, la_hi, lb_lo, lb_hi) = (window[0], window[1], window[2], window[3]);
         let row_end = |lb: u32| window_row_end(la_hi, lb, m);
-        // Both loops test their condition at the bottom, behind a test that they have a first
-        // pass (see `traverse_bvh`).
-        let mut la = la_lo;
-        let mut lb = lb_lo;
-        if lb_lo <= lb_hi {
-            loop {
-                let la_end = row_end(lb);
-                if la <= la_end {
-                    let p = [
-                        (corner[0] + la as i32 * step) as u32,
-                        (corner[1] + lb as i32 * step) as u32,
-                    ];
-                    let slot = lattice_index(la, lb, m) as usize;
-                    let v = if compressed {
-                        self.displaced_at(open, self.snapped(open, p), scratch.sides[slot])
-                    } else {
-                        self.stored_vertex(open, p)
-                    };
-                    let sv = shear(v, ray);
-                    scratch.sheared[slot] = sv;
-                    let side = (sv.x > 0.0) as u32
-                        | ((sv.x < 0.0) as u32) << 1
-                        | ((sv.y > 0.0) as u32) << 2
-                        | ((sv.y < 0.0) as u32) << 3;
-                    scratch.sides[slot] = side;
-                    one_side &= side;
-                }
-                la += 1;
-                if la > la_end {
-                    la = la_lo;
-                    lb += 1;
-                }
-                if lb > lb_hi {
-                    break;
-                }
-            }
-        }
-        if one_side != 0 {
+        // A row pair has cells where its lower row holds two points of the window; rows end
+        // sooner the higher they lie, so the first pair without any ends the walk.
+        let has_cells = |lb: u32| lb < lb_hi && la_lo < row_end(lb);
+        if !has_cells(lb_lo) {
             return;
         }
         let cells = micro_cell_offset(k);
@@ -712,49 +675,68 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         // a branch costs at every cell.
         let mut closest = (hit.t, 0.0, 0.0);
         let mut closest_entry = 0;
-        // Cells anchored at `(la, lb)` with all their points loaded: the upright one (`second`
-        // 0) needs `la + 1 <= la_hi`, `lb + 1 <= lb_hi` and `la + lb + 1 <= m`, the inverted
-        // one (`second` 1) also `la + lb + 2 <= m`.
-        let mut la = la_lo;
-        let mut lb = lb_lo;
-        let mut second = 0;
-        if lb_lo < lb_hi {
-            loop {
-                let la_end = row_end(lb);
-                let in_row = la < la_end;
-                let has_inverted = la + lb + 2 <= m;
-                if in_row {
-                    let entry = element(
-                        self.micro_triangles,
-                        (cells + 2 * lattice_index(la, lb, m) + second) as usize,
-                    );
-                    let i0 = corner_slot(entry, 0);
-                    let i1 = corner_slot(entry, 1);
-                    let i2 = corner_slot(entry, 2);
-                    // The same side test per triangle: many fail it, for three loads instead of
-                    // nine and no edge functions.
-                    if scratch.sides[i0] & scratch.sides[i1] & scratch.sides[i2] == 0 {
-                        tally.triangles(1);
-                        if let Some(found) =
-                            intersect_sheared(scratch.sheared[i0], scratch.sheared[i1], scratch.sheared[i2], closest.0)
-                        {
-                            closest = found;
-                            closest_entry = entry;
-                        }
-                    }
-                }
-                if in_row && second == 0 && has_inverted {
-                    second = 1;
+        // Columns `la - 1` and `la` of rows `lb` (lower) and `lb + 1` (upper), sheared, with
+        // their side bits (see `LeafPoint`).
+        let mut lower = [LeafPoint::NONE; 2];
+        let mut upper = [LeafPoint::NONE; 2];
+        let (mut la, mut lb, mut up) = (la_lo, lb_lo, false);
+        // Tested at the bottom, behind the test above that there is a first pass (see
+        // `traverse_bvh`); one flat loop rather than a loop per row (see `snap_leaf_values`).
+        loop {
+            let point = self.leaf_point(open, corner, step, k, [la, lb + up as u32], ray, scratch);
+            if up {
+                upper = [upper[1], point];
+            } else {
+                lower = [lower[1], point];
+            }
+            if la > la_lo {
+                // The cell anchored at `(la - 1, lb)` this point completes: upright after a
+                // lower point, `(la - 1, lb), (la, lb), (la - 1, lb + 1)`; inverted after an
+                // upper one, `(la, lb), (la - 1, lb + 1), (la, lb + 1)`.
+                let first_lower = lattice_index(la - 1, lb, m);
+                let first_upper = lattice_index(la - 1, lb + 1, m);
+                let (cell, slots) = if up {
+                    ([lower[1], upper[0], upper[1]], [first_lower + 1, first_upper])
                 } else {
-                    second = 0;
-                    la += 1;
-                    if la >= la_end {
-                        la = la_lo;
-                        lb += 1;
+                    ([lower[0], lower[1], upper[1]], [first_lower, first_lower + 1])
+                };
+                // In the sheared frame the ray is the z axis; a triangle whose vertices all
+                // lie strictly on one side of it cannot be crossed: many fail this, at no
+                // edge function and no read of the cell table.
+                if cell[0].sides & cell[1].sides & cell[2].sides == 0 {
+                    tally.triangles(1);
+                    // The corners in the order the static list gives them, which the
+                    // barycentrics follow.
+                    let entry = element(self.micro_triangles, (cells + 2 * first_lower + up as u32) as usize);
+                    let pick = |v: u32| {
+                        let slot = corner_slot(entry, v) as u32;
+                        if slot == slots[0] {
+                            cell[0].at
+                        } else if slot == slots[1] {
+                            cell[1].at
+                        } else {
+                            cell[2].at
+                        }
+                    };
+                    if let Some(found) = intersect_sheared(pick(0), pick(1), pick(2), closest.0) {
+                        closest = found;
+                        closest_entry = entry;
                     }
                 }
-                if lb >= lb_hi {
-                    break;
+            }
+            // Next: the upper point of this column where the upper row reaches it, else the
+            // lower point of the next column, else the next row pair's first column.
+            if !up && la + lb < m {
+                up = true;
+            } else {
+                up = false;
+                la += 1;
+                if la > row_end(lb) {
+                    la = la_lo;
+                    lb += 1;
+                    if !has_cells(lb) {
+                        break;
+                    }
                 }
             }
         }
@@ -762,6 +744,34 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             record_hit(hit, closest, ids.first + ((closest_entry >> 24) << ids.shift));
             hit.level = ids.level;
         }
+    }
+
+    /// Point `(la, lb)` of a leaf's lattice `k` deep (first corner `corner`, one step `step`
+    /// grid units), sheared into `ray`'s frame. Compressed values come decoded in
+    /// `scratch.values` (see [`Self::test_window`]).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn leaf_point(
+        &self,
+        open: &OpenGrid,
+        corner: [i32; 2],
+        step: i32,
+        k: u32,
+        l: Lattice,
+        ray: &Ray,
+        scratch: &GridScratch,
+    ) -> LeafPoint {
+        let p = [
+            (corner[0] + l[0] as i32 * step) as u32,
+            (corner[1] + l[1] as i32 * step) as u32,
+        ];
+        let v = if self.compressed() {
+            let q = scratch.values[lattice_index(l[0], l[1], 1 << k) as usize];
+            self.displaced_at(open, self.snapped(open, p), q)
+        } else {
+            self.stored_vertex(open, p)
+        };
+        LeafPoint::new(shear(v, ray))
     }
 
     /// Corners of the micro-triangle a hit at depth `level` names `prim` (see [`Hit`]): its
@@ -1073,7 +1083,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         };
         let step = d * (size >> k);
         if self.compressed() {
-            self.decode_leaf(&visit.open, sub, step, k, window, &mut scratch.sides);
+            self.decode_leaf(&visit.open, sub, step, k, window, &mut scratch.values);
         }
         self.intersect_leaf_triangles(&visit.open, sub.corner, step, k, window, ids, ray, hit, scratch, tally);
     }
@@ -1138,6 +1148,29 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             }
             lb += 1;
         }
+    }
+}
+
+/// A leaf's lattice point in the ray's sheared frame, and which sides of the ray it lies
+/// strictly on: bits for `x > 0`, `x < 0`, `y > 0`, `y < 0`.
+#[derive(Copy, Clone)]
+struct LeafPoint {
+    at: Vec3,
+    sides: u32,
+}
+
+impl LeafPoint {
+    /// A register not yet holding a point: never one of a tested cell's corners.
+    const NONE: LeafPoint = LeafPoint {
+        at: Vec3::ZERO,
+        sides: 0,
+    };
+
+    #[inline(always)]
+    fn new(at: Vec3) -> LeafPoint {
+        let sides =
+            (at.x > 0.0) as u32 | ((at.x < 0.0) as u32) << 1 | ((at.y > 0.0) as u32) << 2 | ((at.y < 0.0) as u32) << 3;
+        LeafPoint { at, sides }
     }
 }
 
@@ -1275,8 +1308,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             stack_corner: [0; GRID_STACK],
             stack_t: [0.0; GRID_STACK],
             stack_radius: [0.0; GRID_STACK],
-            sheared: [Vec3::ZERO; LEAF_VERTICES],
-            sides: [0; LEAF_VERTICES],
+            values: [0; LEAF_VERTICES],
             inv_dir_len2: 1.0 / ray.dir.dot(ray.dir),
             frame: FootprintFrame::new(ray),
         }
