@@ -30,8 +30,6 @@ use crate::value_tables::{block_bit, leveled_edge, LeveledEdge};
 
 /// Most spheres a grid hierarchy may be deep: levels `0 ..= MAX_SPHERE_LEVEL`.
 pub const MAX_SPHERE_LEVEL: u32 = 6;
-/// A 4-ary depth-first search pushes at most three siblings per level plus one.
-const GRID_STACK: usize = 3 * MAX_SPHERE_LEVEL as usize + 4;
 
 /// Grid primitives: headers, the three vertex areas in one buffer, and the sphere radii;
 /// plain slices, or split buffers (see [`crate::buffer`]).
@@ -102,14 +100,6 @@ const INNER_CODES: u32 = 1 << 31;
 
 /// Working memory of the grid traversal, one per ray.
 pub struct GridScratch {
-    /// Pending sub-triangles: `index << 4 | level`, the corner `a` packed by [`pack_corner`],
-    /// the sphere's entry distance and its radius.
-    stack: [u32; GRID_STACK],
-    stack_corner: [u32; GRID_STACK],
-    stack_t: [f32; GRID_STACK],
-    /// The pending spheres' radii, written only where leaf radii are stored relative to their
-    /// parents' (see `GridScene::leaf_pairs`).
-    stack_radius: [f32; GRID_STACK],
     /// A compressed leaf's values, decoded at their lattice slots (see
     /// [`GridScene::decode_leaf`]); never read by kernels without the decoder.
     values: [u32; LEAF_VERTICES],
@@ -864,59 +854,42 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             return;
         }
         let stack = self.walks_with_stack();
+        let n = 1u32 << self.params.levels;
         let mut sub = SubTriangle::ROOT;
-        let mut sp = 0usize;
-        if sub.t >= hit.t {
-            return;
-        }
+        let mut pending = PendingChildren::NONE;
         // Tested at the bottom (see `traverse_bvh`): the root is always visited, and a pass
         // more would cost every group a sub-triangle's whole work.
         loop {
-            sp = self.visit_sub_triangle(stack, &visit, &sub, sp, ray, hit, scratch, tally);
-            if !stack {
+            self.visit_sub_triangle(stack, &visit, &sub, &mut pending, ray, hit, scratch, tally);
+            if !stack || pending.is_empty() {
                 break;
             }
-            // The nearest waiting sub-triangle that may still hold a closer hit.
-            let mut popped = false;
-            while sp > 0 {
-                sp -= 1;
-                if scratch.stack_t[sp] < hit.t {
-                    let packed = scratch.stack_corner[sp];
-                    sub = SubTriangle {
-                        level: scratch.stack[sp] & 0xf,
-                        index: scratch.stack[sp] >> 4,
-                        corner: [(packed & 0xff) as i32, ((packed >> 8) & 0xff) as i32],
-                        inverted: packed >> 16 != 0,
-                        t: scratch.stack_t[sp],
-                        radius: scratch.stack_radius[sp],
-                    };
-                    popped = true;
-                    break;
-                }
-            }
-            if !popped {
-                break;
-            }
+            // The nearest child waiting at the deepest level: a child of `sub`'s ancestor one
+            // level up, since everything below that ancestor's other children waits above it.
+            let level = pending.deepest_level();
+            let child = pending.pop(level);
+            let parent = sub.index >> (2 * (sub.level + 1 - level));
+            sub = SubTriangle::at(n, level, 4 * parent + child);
         }
     }
 
-    /// Sub-triangle `sub`, just popped (the stack is `sp` high without it): its children's
-    /// spheres are tested and, with the `stack`, the hit ones pushed, nearest on top; or, when
-    /// they are leaves, tested here as one leaf of `sub`, over the lattice points the ray may
-    /// touch in any of them; or `sub` is tested, when it is a leaf. Returns the stack's new
-    /// height.
+    /// Sub-triangle `sub`, the root or a child just taken from `pending` (whose sphere is
+    /// tested again first: a closer hit may have been found since it was put there): its
+    /// children's spheres are tested and, with the `stack`, the hit ones put in `pending`,
+    /// nearest on top; or, when they are leaves, tested here as one leaf of `sub`, over the
+    /// lattice points the ray may touch in any of them; or `sub` is tested, when it is a leaf.
     #[allow(clippy::too_many_arguments)]
     fn visit_sub_triangle<T: Tally>(
         &self,
         stack: bool,
         visit: &GridVisit,
         sub: &SubTriangle,
-        mut sp: usize,
+        pending: &mut PendingChildren,
         ray: &Ray,
         hit: &mut Hit,
         scratch: &mut GridScratch,
         tally: &mut T,
-    ) -> usize {
+    ) {
         let GridVisit {
             open,
             lod,
@@ -967,10 +940,23 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                     self.stored_vertex(&open, at(0, h)),
                 )
             };
+            // A waiting child (never a leaf: leaves are tested with their parent) is visited only
+            // if its sphere is still entered before the closest hit: the test its parent made,
+            // made again on the same corners and radius.
+            let radius = if level == 0 || !stack {
+                visit.root_radius
+            } else {
+                self.radius(&open, level_start(level) + index)
+            };
+            if stack && level > 0 {
+                tally.spheres(1);
+                if intersect_sphere_scaled(sphere_center(pa, pb, pc), radius, ray, inv_dir_len2, hit.t) >= hit.t {
+                    return;
+                }
+            }
             // Children 0, 1, 2 at corners a, b, c, and the inverted middle child 3; their radii
             // are adjacent in BFS order.
             let first_child = level_start(level + 1) + 4 * index;
-            let radius = if level == 0 { visit.root_radius } else { sub.radius };
             let r = self.child_radii(&open, first_child, level + 1, radius, visit.root_radius);
             let entry = |center: Vec3, child: u32| {
                 Entry::new(
@@ -1032,16 +1018,9 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                 sort_descending(&mut e0, &mut e2);
                 sort_descending(&mut e1, &mut e3);
                 sort_descending(&mut e1, &mut e2);
-                let child_corner = |c: u32| pack_corner(child_first_corner(a, h, c), inverted != (c == 3));
                 let mut push = |e: &Entry| {
                     if e.t < T_FAR {
-                        scratch.stack[sp] = ((4 * index + e.child) << 4) | (level + 1);
-                        scratch.stack_corner[sp] = child_corner(e.child);
-                        scratch.stack_t[sp] = e.t;
-                        if self.leaf_pairs(&open.spheres) {
-                            scratch.stack_radius[sp] = e.radius;
-                        }
-                        sp += 1;
+                        pending.push(level + 1, e.child);
                     }
                 };
                 push(&e0);
@@ -1053,7 +1032,6 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         if tested {
             self.test_window(visit, sub, window, ray, hit, scratch, tally);
         }
-        sp
     }
 
     /// The leaf test of sub-triangle `sub`'s visit, over `window` of its lattice.
@@ -1223,12 +1201,6 @@ fn child_first_corner(a: [i32; 2], h: i32, child: u32) -> [i32; 2] {
     }
 }
 
-/// A sub-triangle's first corner and orientation as one word (coordinates below 256).
-#[inline]
-fn pack_corner(a: [i32; 2], inverted: bool) -> u32 {
-    a[0] as u32 | ((a[1] as u32) << 8) | ((inverted as u32) << 16)
-}
-
 /// How a leaf's hits are numbered (see [`Hit`]): the id of its first triangle, the shift of
 /// each triangle's index within the leaf, and the depth to record.
 #[repr(C)]
@@ -1251,18 +1223,14 @@ struct GridVisit {
     slack: f32,
 }
 
-/// A sub-triangle of a grid's hierarchy to visit: its depth, its index at that depth, its first
-/// corner and orientation (see [`GridScene::visit_sub_triangle`]), and its sphere's entry
-/// distance.
+/// A sub-triangle of a grid's hierarchy to visit: its depth, its index at that depth, and its
+/// first corner and orientation (see [`GridScene::visit_sub_triangle`]).
 #[derive(Copy, Clone)]
 struct SubTriangle {
     level: u32,
     index: u32,
     corner: [i32; 2],
     inverted: bool,
-    t: f32,
-    /// Its sphere's radius where leaves hold radius pairs (the root's is the visit's).
-    radius: f32,
 }
 
 impl SubTriangle {
@@ -1271,10 +1239,78 @@ impl SubTriangle {
         index: 0,
         corner: [0, 0],
         inverted: false,
-        t: 0.0,
-        radius: 0.0,
     };
+
+    /// Sub-triangle `index` at depth `level` of a grid `n` steps a side: its first corner and
+    /// orientation followed down its index's digits, two bits per level, the root's first.
+    #[inline]
+    fn at(n: u32, level: u32, index: u32) -> SubTriangle {
+        let mut sub = SubTriangle { level, ..Self::ROOT };
+        let mut l = 0;
+        while l < level {
+            let child = (index >> (2 * (level - 1 - l))) & 3;
+            let d = if sub.inverted { -1 } else { 1 };
+            let h = d * ((n >> l) as i32) / 2;
+            sub.corner = child_first_corner(sub.corner, h, child);
+            sub.inverted = sub.inverted != (child == 3);
+            l += 1;
+        }
+        sub.index = index;
+        sub
+    }
 }
+
+/// The children a grid's depth-first walk has yet to visit, as a stack of their child numbers
+/// (two bits each, the top in the lowest bits) and a count per level (three bits each): a
+/// visit puts a sub-triangle's hit children on top, farthest first, and the walk takes the
+/// nearest next, then its siblings once everything below it is done. Two words in place of
+/// an array indexed at run time, which a GPU keeps in its slow private memory.
+///
+/// A visit that puts children there takes one off at once, so at most three wait at each
+/// level; they wait at levels `1 ..= MAX_SPHERE_LEVEL - 1` (children at the leaf level are
+/// tested with their parent): fifteen, thirty bits.
+#[derive(Copy, Clone)]
+struct PendingChildren {
+    children: u32,
+    counts: u32,
+}
+
+impl PendingChildren {
+    const NONE: PendingChildren = PendingChildren { children: 0, counts: 0 };
+
+    #[inline]
+    fn is_empty(&self) -> bool {
+        self.counts == 0
+    }
+
+    /// Child `child` of a sub-triangle one level above `level`, put on top.
+    #[inline]
+    fn push(&mut self, level: u32, child: u32) {
+        self.children = (self.children << 2) | child;
+        self.counts += 1 << (3 * level);
+    }
+
+    /// The deepest level with a child waiting: the level of the top one.
+    #[inline]
+    fn deepest_level(&self) -> u32 {
+        // Each level's count folded into its lowest bit.
+        let c = self.counts;
+        let any = (c | (c >> 1) | (c >> 2)) & LOWEST_COUNT_BITS;
+        (31 - any.leading_zeros()) / 3
+    }
+
+    /// The top child, which waits at `level`, taken off.
+    #[inline]
+    fn pop(&mut self, level: u32) -> u32 {
+        let child = self.children & 3;
+        self.children >>= 2;
+        self.counts -= 1 << (3 * level);
+        child
+    }
+}
+
+/// The lowest bit of each level's count in [`PendingChildren::counts`].
+const LOWEST_COUNT_BITS: u32 = 0o1111111111;
 
 /// A child sphere's entry distance, which child it is, and its radius.
 #[repr(C)]
@@ -1304,10 +1340,6 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     /// Working memory of one ray's grid visits.
     fn new_scratch(ray: &Ray) -> GridScratch {
         GridScratch {
-            stack: [0; GRID_STACK],
-            stack_corner: [0; GRID_STACK],
-            stack_t: [0.0; GRID_STACK],
-            stack_radius: [0.0; GRID_STACK],
             values: [0; LEAF_VERTICES],
             inv_dir_len2: 1.0 / ray.dir.dot(ray.dir),
             frame: FootprintFrame::new(ray),
