@@ -348,13 +348,18 @@ impl CodedGrid {
                     code.width(level),
                 )
             };
-            (
-                self.edge_bit[edge as usize],
-                self.edge_shifts[edge as usize],
-                level,
-                place,
-                width,
-            )
+            // Chosen by comparisons: an array indexed at run time stays in a GPU's slow
+            // private memory.
+            let pick = |v: [u32; 3]| {
+                if edge == 0 {
+                    v[0]
+                } else if edge == 1 {
+                    v[1]
+                } else {
+                    v[2]
+                }
+            };
+            (pick(self.edge_bit), pick(self.edge_shifts), level, place, width)
         } else {
             let inner = self.inner_code();
             let tz = (i | j).trailing_zeros();

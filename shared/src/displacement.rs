@@ -102,48 +102,48 @@ pub fn displaced_point(triangle: &DisplacedTriangle, p: Lattice, n: u32, d: f32)
 
 /// The position and direction interpolated at lattice point `p` (see the module docs for the
 /// order of operations on edges).
+///
+/// Corners and weights are chosen by comparisons, not array indices computed at run time (a
+/// GPU keeps an array indexed so in slow private memory), and the barycentrics are steps
+/// times `1 / n`, which for the power-of-two lattices of grids is exactly the quotient, at no
+/// division per point.
 #[inline]
 pub fn interpolated(triangle: &DisplacedTriangle, p: Lattice, n: u32) -> (Vec3, Vec3) {
     let [i, j] = p;
-    let weights = [n - i - j, i, j];
-    let t = &triangle;
+    let k = n - i - j;
+    let [p0, p1, p2] = triangle.positions;
+    let [d0, d1, d2] = triangle.directions;
+    let [id0, id1, id2] = triangle.ids;
     // A corner is its own position and direction, exactly.
-    let corner = if weights[0] == n {
-        0
+    if k == n {
+        return (p0, d0);
     } else if i == n {
-        1
+        return (p1, d1);
     } else if j == n {
-        2
-    } else {
-        3
-    };
-    if corner < 3 {
-        return (t.positions[corner], t.directions[corner]);
+        return (p2, d2);
     }
-    // The corners this point lies between: on an edge exactly two weights are non-zero.
-    let zero = if weights[0] == 0 {
-        0
-    } else if weights[1] == 0 {
-        1
-    } else if weights[2] == 0 {
-        2
-    } else {
-        3
-    };
-    if zero == 3 {
-        let (u, v) = (i as f32 / n as f32, j as f32 / n as f32);
-        let [p0, p1, p2] = t.positions;
-        let [d0, d1, d2] = t.directions;
+    let inv_n = 1.0 / n as f32;
+    if i != 0 && j != 0 && k != 0 {
+        let (u, v) = (i as f32 * inv_n, j as f32 * inv_n);
         return (p0 + (p1 - p0) * u + (p2 - p0) * v, d0 + (d1 - d0) * u + (d2 - d0) * v);
     }
-    // The edge's two corners, from the smaller vertex id.
-    let (a, b) = ((zero + 1) % 3, (zero + 2) % 3);
-    let (from, to) = if t.ids[a] <= t.ids[b] { (a, b) } else { (b, a) };
-    let s = weights[to] as f32 / n as f32;
-    (
-        t.positions[from] + (t.positions[to] - t.positions[from]) * s,
-        t.directions[from] + (t.directions[to] - t.directions[from]) * s,
-    )
+    // On an edge exactly one weight is zero: the edge joins the other two corners, each
+    // given with its id and weight (`k`, `i`, `j` for corners 0, 1, 2).
+    let ((pa, da, ida, wa), (pb, db, idb, wb)) = if k == 0 {
+        ((p1, d1, id1, i), (p2, d2, id2, j))
+    } else if i == 0 {
+        ((p2, d2, id2, j), (p0, d0, id0, k))
+    } else {
+        ((p0, d0, id0, k), (p1, d1, id1, i))
+    };
+    // From the corner with the smaller id towards the other, by the other's weight.
+    let ((from_p, from_d), (to_p, to_d), s) = if ida <= idb {
+        ((pa, da), (pb, db), wb)
+    } else {
+        ((pb, db), (pa, da), wa)
+    };
+    let s = s as f32 * inv_n;
+    (from_p + (to_p - from_p) * s, from_d + (to_d - from_d) * s)
 }
 
 #[cfg(test)]

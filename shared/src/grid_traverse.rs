@@ -179,14 +179,14 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
 
     /// The ids of a tight header (see `GridParams::header_bits`). A grid's six fields span
     /// at most 126 bits, so they lie in the element holding their first bit and the next
-    /// one: two loads, then shifts.
+    /// one: two loads, then the five words from the one holding the first bit, taken in
+    /// order (see [`BitQueue`]).
     #[inline]
     fn tight_ids(&self, grid: u32) -> GridIds {
         let (edge_bits, corner_bits) = (self.params.header_bits & 0xff, self.params.header_bits >> 8);
         let first = 3 * grid * (edge_bits + corner_bits);
         let (a, b) = (self.headers.load(first >> 7), self.headers.load((first >> 7) + 1));
-        // The last word pads: `read_bits` also loads the word after a field's first.
-        let words = [
+        let w = [
             a.edges[0],
             a.edges[1],
             a.corners[0],
@@ -195,22 +195,23 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             b.edges[1],
             b.corners[0],
             b.corners[1],
-            0,
         ];
         let bit = first & 127;
-        let corner = bit + 3 * edge_bits;
-        GridIds {
-            edges: [
-                read_bits(&words, bit, edge_bits),
-                read_bits(&words, bit + edge_bits, edge_bits),
-                read_bits(&words, bit + 2 * edge_bits, edge_bits),
-            ],
-            corners: [
-                read_bits(&words, corner, corner_bits),
-                read_bits(&words, corner + corner_bits, corner_bits),
-                read_bits(&words, corner + 2 * corner_bits, corner_bits),
-            ],
-        }
+        // Fields of at most 126 bits from bit 31 of the first word at most: five words.
+        let q = bit >> 5;
+        let mut bits = BitQueue(if q == 0 {
+            [w[0], w[1], w[2], w[3], w[4]]
+        } else if q == 1 {
+            [w[1], w[2], w[3], w[4], w[5]]
+        } else if q == 2 {
+            [w[2], w[3], w[4], w[5], w[6]]
+        } else {
+            [w[3], w[4], w[5], w[6], w[7]]
+        });
+        bits.drop(bit & 31);
+        let edges = [bits.take(edge_bits), bits.take(edge_bits), bits.take(edge_bits)];
+        let corners = [bits.take(corner_bits), bits.take(corner_bits), bits.take(corner_bits)];
+        GridIds { edges, corners }
     }
 
     /// Grid `grid` resolved for reading, once per visit: where its vertices live, and the
@@ -1129,6 +1130,36 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     }
 }
 
+/// Bit fields read in order from five words in registers, least significant bit first: each
+/// read takes the lowest bits and shifts the rest down, so no word is picked by an index
+/// computed at run time (which a GPU keeps in slow private memory).
+#[derive(Copy, Clone)]
+struct BitQueue([u32; 5]);
+
+impl BitQueue {
+    /// Drops the lowest `n` bits (`n < 32`).
+    #[inline(always)]
+    fn drop(&mut self, n: u32) {
+        let w = &mut self.0;
+        // The bits moved down from the next word, shifted in two steps so that `n = 0`
+        // moves none rather than shifting by 32.
+        let next = |x: u32| (x << 1) << (31 - n);
+        w[0] = (w[0] >> n) | next(w[1]);
+        w[1] = (w[1] >> n) | next(w[2]);
+        w[2] = (w[2] >> n) | next(w[3]);
+        w[3] = (w[3] >> n) | next(w[4]);
+        w[4] >>= n;
+    }
+
+    /// The lowest `width` bits (`width < 32`), taken off.
+    #[inline(always)]
+    fn take(&mut self, width: u32) -> u32 {
+        let field = self.0[0] & ((1 << width) - 1);
+        self.drop(width);
+        field
+    }
+}
+
 /// A leaf's lattice point in the ray's sheared frame, and which sides of the ray it lies
 /// strictly on: bits for `x > 0`, `x < 0`, `y > 0`, `y < 0`.
 #[derive(Copy, Clone)]
@@ -1403,5 +1434,69 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> LeafPrimitives for GridScene<'_, H, 
 
     fn smooth_normal(&self, hit: &Hit) -> Vec3 {
         GridScene::smooth_normal(self, hit)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use std::vec::Vec;
+
+    /// A sub-triangle found from its index has the corners the hierarchy gives it: `a`, then
+    /// `b` and `c` one edge along each axis, backwards when inverted.
+    #[test]
+    fn sub_triangles_follow_their_index() {
+        let n = 1 << MAX_SPHERE_LEVEL;
+        for level in 0..=MAX_SPHERE_LEVEL {
+            for index in 0..triangle_count(level) {
+                let sub = SubTriangle::at(n, level, index);
+                let s = (n >> level) as i32 * if sub.inverted { -1 } else { 1 };
+                let a = sub.corner;
+                let at = |x: i32, y: i32| [(a[0] + x) as u32, (a[1] + y) as u32];
+                assert_eq!(
+                    [at(0, 0), at(s, 0), at(0, s)],
+                    sub_triangle(n, level, index),
+                    "{level} {index}"
+                );
+            }
+        }
+    }
+
+    /// The pending children come off as a stack of (level, child) pairs would give them, over
+    /// every walk a grid can take: each visit puts up to four children one level down and the
+    /// nearest is taken at once.
+    #[test]
+    fn pending_children_are_a_stack() {
+        // A small generator, so each case is the same on every run.
+        let mut state = 0x2545_f491u32;
+        let mut next = move |bound: u32| {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            state % bound
+        };
+        for _ in 0..2000 {
+            let mut pending = PendingChildren::NONE;
+            let mut expected: Vec<(u32, u32)> = Vec::new();
+            let mut level = 0;
+            loop {
+                // Children are put only above the leaf level's parent.
+                if level + 1 < MAX_SPHERE_LEVEL {
+                    for _ in 0..next(5) {
+                        let child = next(4);
+                        pending.push(level + 1, child);
+                        expected.push((level + 1, child));
+                    }
+                }
+                assert_eq!(pending.is_empty(), expected.is_empty());
+                let Some((l, child)) = expected.pop() else {
+                    break;
+                };
+                assert_eq!(pending.deepest_level(), l);
+                assert_eq!(pending.pop(l), child);
+                level = l;
+            }
+        }
     }
 }
