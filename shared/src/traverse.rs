@@ -121,7 +121,7 @@ impl<N: Buffer<BvhNode>> LeafWalk for BinaryWalk<N> {
         sp: &mut usize,
         tally: &mut T,
     ) -> BvhNode {
-        let node = stack.pop_closer(sp, t);
+        let node = pop_entered(self.0, ray, t, stack, sp, tally);
         if node == NO_NODE {
             return BvhNode::default();
         }
@@ -200,6 +200,7 @@ pub fn traverse_bvh<W: LeafWalk, P: LeafPrimitives, T: Tally>(
         return;
     }
     let mut stack = LocalStack::new();
+    // The root's entry distance is kept for the walks that read it (see `WalkStack`).
     stack.push(0, ROOT, t_root);
     let mut sp = 1usize;
     let mut scratch = prims.scratch(ray);
@@ -237,7 +238,7 @@ fn descend<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
             let tl = intersect_aabb(Vec3::from(left.min), Vec3::from(left.max), ray, t);
             let tr = intersect_aabb(Vec3::from(right.min), Vec3::from(right.max), ray, t);
             let next = if tl == T_FAR && tr == T_FAR {
-                stack.pop_closer(sp, t)
+                pop_entered(nodes, ray, t, stack, sp, tally)
             } else {
                 let (near, far, t_far) = if tl <= tr {
                     (n.first, n.first + 1, tr)
@@ -245,7 +246,7 @@ fn descend<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
                     (n.first + 1, n.first, tl)
                 };
                 if t_far < T_FAR && *sp < MAX_BVH_DEPTH {
-                    stack.push(*sp, far, t_far);
+                    stack.push_node(*sp, far);
                     *sp += 1;
                 }
                 near
@@ -262,9 +263,45 @@ fn descend<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
     n
 }
 
-/// Where a walk keeps the entries it passes: node and entry distance per slot.
+/// The nearest node waiting on a binary walk's `stack` (`sp` high) that the ray still enters
+/// closer than `t`, its box tested again (a closer hit may have come since it was put there),
+/// or [`NO_NODE`]. A binary walk keeps no entry distances: a stack of nodes alone takes half
+/// the registers on a GPU, and a node's box is in the node the walk loads next anyway.
+#[inline(always)]
+fn pop_entered<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
+    nodes: N,
+    ray: &Ray,
+    t: f32,
+    stack: &mut S,
+    sp: &mut usize,
+    tally: &mut T,
+) -> u32 {
+    let mut entered = NO_NODE;
+    if *sp > 0 {
+        // Tested at the bottom (see `traverse_bvh`).
+        loop {
+            *sp -= 1;
+            let node = stack.node(*sp);
+            let n = nodes.load(node);
+            tally.nodes(1);
+            if intersect_aabb(Vec3::from(n.min), Vec3::from(n.max), ray, t) < t {
+                entered = node;
+                break;
+            }
+            if *sp == 0 {
+                break;
+            }
+        }
+    }
+    entered
+}
+
+/// Where a walk keeps the entries it passes: a node per slot, and the entry distance where
+/// the walk keeps it (the wide walk, whose leaf entries have no box of their own).
 pub trait WalkStack {
     fn push(&mut self, at: usize, node: u32, t: f32);
+    /// A node alone: its distance is never read.
+    fn push_node(&mut self, at: usize, node: u32);
     fn node(&self, at: usize) -> u32;
     fn t(&self, at: usize) -> f32;
     /// The nearest waiting node that can still hold a hit closer than `t`, or [`NO_NODE`].
@@ -314,6 +351,10 @@ impl WalkStack for LocalStack {
     fn push(&mut self, at: usize, node: u32, t: f32) {
         self.nodes[at] = node;
         self.t[at] = t;
+    }
+    #[inline(always)]
+    fn push_node(&mut self, at: usize, node: u32) {
+        self.nodes[at] = node;
     }
     #[inline(always)]
     fn node(&self, at: usize) -> u32 {
