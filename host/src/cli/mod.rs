@@ -196,7 +196,7 @@ pub struct BuildArgs {
     #[arg(long)]
     pub tight_headers: bool,
     /// Store no leaf thicknesses and cull leaves by their spheres alone (smaller, faster to
-    /// build, slower to trace; see README).
+    /// build, slower to trace; see docs/usage.md).
     #[arg(long)]
     pub no_leaf_footprint: bool,
     /// How each grid stores its inner vertices: 16-bit codes around the grid's centre (a
