@@ -867,8 +867,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             }
             // The nearest child waiting at the deepest level: a child of `sub`'s ancestor one
             // level up, since everything below that ancestor's other children waits above it.
-            let level = pending.deepest_level();
-            let child = pending.pop(level);
+            let (level, child) = pending.pop();
             let parent = sub.index >> (2 * (sub.level + 1 - level));
             sub = SubTriangle::at(n, level, 4 * parent + child);
         }
@@ -963,7 +962,6 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                 Entry::new(
                     intersect_sphere_scaled(center, r[child as usize], ray, inv_dir_len2, hit.t),
                     child,
-                    r[child as usize],
                 )
             };
             tally.spheres(4);
@@ -1321,22 +1319,17 @@ impl PendingChildren {
         self.counts += 1 << (3 * level);
     }
 
-    /// The deepest level with a child waiting: the level of the top one.
+    /// The top child taken off, and its level: the deepest with a child waiting.
     #[inline]
-    fn deepest_level(&self) -> u32 {
+    fn pop(&mut self) -> (u32, u32) {
         // Each level's count folded into its lowest bit.
         let c = self.counts;
         let any = (c | (c >> 1) | (c >> 2)) & LOWEST_COUNT_BITS;
-        (31 - any.leading_zeros()) / 3
-    }
-
-    /// The top child, which waits at `level`, taken off.
-    #[inline]
-    fn pop(&mut self, level: u32) -> u32 {
+        let level = (31 - any.leading_zeros()) / 3;
         let child = self.children & 3;
         self.children >>= 2;
         self.counts -= 1 << (3 * level);
-        child
+        (level, child)
     }
 }
 
@@ -1349,13 +1342,12 @@ const LOWEST_COUNT_BITS: u32 = 0o1111111111;
 struct Entry {
     t: f32,
     child: u32,
-    radius: f32,
 }
 
 impl Entry {
     #[inline]
-    fn new(t: f32, child: u32, radius: f32) -> Entry {
-        Entry { t, child, radius }
+    fn new(t: f32, child: u32) -> Entry {
+        Entry { t, child }
     }
 }
 
@@ -1493,8 +1485,7 @@ mod tests {
                 let Some((l, child)) = expected.pop() else {
                     break;
                 };
-                assert_eq!(pending.deepest_level(), l);
-                assert_eq!(pending.pop(l), child);
+                assert_eq!(pending.pop(), (l, child));
                 level = l;
             }
         }

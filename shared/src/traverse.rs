@@ -121,12 +121,11 @@ impl<N: Buffer<BvhNode>> LeafWalk for BinaryWalk<N> {
         sp: &mut usize,
         tally: &mut T,
     ) -> BvhNode {
-        let node = pop_entered(self.0, ray, t, stack, sp, tally);
-        if node == NO_NODE {
-            return BvhNode::default();
+        match pop_entered(self.0, ray, t, stack, sp, tally) {
+            Some(node) => descend(self.0, ray, t, node, stack, sp, tally),
+            // An inner node where nothing is left to pop: its `count` is 0.
+            None => BvhNode::default(),
         }
-        // An inner node where nothing is left to pop: its `count` is 0.
-        descend(self.0, ray, t, self.0.load(node), stack, sp, tally)
     }
 }
 
@@ -237,8 +236,11 @@ fn descend<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
             tally.nodes(2);
             let tl = intersect_aabb(Vec3::from(left.min), Vec3::from(left.max), ray, t);
             let tr = intersect_aabb(Vec3::from(right.min), Vec3::from(right.max), ray, t);
-            let next = if tl == T_FAR && tr == T_FAR {
-                pop_entered(nodes, ray, t, stack, sp, tally)
+            if tl == T_FAR && tr == T_FAR {
+                match pop_entered(nodes, ray, t, stack, sp, tally) {
+                    Some(popped) => n = popped,
+                    None => break,
+                }
             } else {
                 let (near, far, t_far) = if tl <= tr {
                     (n.first, n.first + 1, tr)
@@ -249,12 +251,8 @@ fn descend<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
                     stack.push_node(*sp, far);
                     *sp += 1;
                 }
-                near
-            };
-            if next == NO_NODE {
-                break;
+                n = nodes.load(near);
             }
-            n = nodes.load(next);
             if n.is_leaf() {
                 break;
             }
@@ -264,9 +262,9 @@ fn descend<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
 }
 
 /// The nearest node waiting on a binary walk's `stack` (`sp` high) that the ray still enters
-/// closer than `t`, its box tested again (a closer hit may have come since it was put there),
-/// or [`NO_NODE`]. A binary walk keeps no entry distances: a stack of nodes alone takes half
-/// the registers on a GPU, and a node's box is in the node the walk loads next anyway.
+/// closer than `t`, loaded and its box tested again (a closer hit may have come since it was
+/// put there), or `None`. A binary walk keeps no entry distances: a stack of nodes alone takes
+/// half the registers on a GPU, and a node's box is in the node the walk loads next anyway.
 #[inline(always)]
 fn pop_entered<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
     nodes: N,
@@ -275,17 +273,31 @@ fn pop_entered<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
     stack: &mut S,
     sp: &mut usize,
     tally: &mut T,
-) -> u32 {
-    let mut entered = NO_NODE;
+) -> Option<BvhNode> {
+    let mut entered = BvhNode::default();
+    let found = pop_until(sp, |at| {
+        entered = nodes.load(stack.node(at));
+        tally.nodes(1);
+        intersect_aabb(Vec3::from(entered.min), Vec3::from(entered.max), ray, t) < t
+    });
+    if found {
+        Some(entered)
+    } else {
+        None
+    }
+}
+
+/// Pops a stack `sp` high down to the first slot that `takes` (asked from the top down), which
+/// is left popped with `sp` at it; whether one was taken.
+#[inline(always)]
+fn pop_until(sp: &mut usize, mut takes: impl FnMut(usize) -> bool) -> bool {
+    let mut taken = false;
     if *sp > 0 {
         // Tested at the bottom (see `traverse_bvh`).
         loop {
             *sp -= 1;
-            let node = stack.node(*sp);
-            let n = nodes.load(node);
-            tally.nodes(1);
-            if intersect_aabb(Vec3::from(n.min), Vec3::from(n.max), ray, t) < t {
-                entered = node;
+            if takes(*sp) {
+                taken = true;
                 break;
             }
             if *sp == 0 {
@@ -293,7 +305,7 @@ fn pop_entered<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
             }
         }
     }
-    entered
+    taken
 }
 
 /// Where a walk keeps the entries it passes: a node per slot, and the entry distance where
@@ -307,20 +319,11 @@ pub trait WalkStack {
     /// The nearest waiting node that can still hold a hit closer than `t`, or [`NO_NODE`].
     #[inline(always)]
     fn pop_closer(&self, sp: &mut usize, t: f32) -> u32 {
-        let mut node = NO_NODE;
-        if *sp > 0 {
-            loop {
-                *sp -= 1;
-                if self.t(*sp) < t {
-                    node = self.node(*sp);
-                    break;
-                }
-                if *sp == 0 {
-                    break;
-                }
-            }
+        if pop_until(sp, |at| self.t(at) < t) {
+            self.node(*sp)
+        } else {
+            NO_NODE
         }
-        node
     }
 }
 
