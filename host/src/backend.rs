@@ -141,15 +141,16 @@ impl Backend {
     }
 
     /// Refuses, before it is built, a scene whose buffers will be at least `sizes` and cannot
-    /// be bound on this device (the CPU takes any).
-    pub fn check_fits(&self, sizes: &[BufferSize]) -> Result<()> {
+    /// be bound on this device (the CPU takes any); `whole_only`: displaced grids, which the GPU
+    /// reads from whole bindings alone.
+    pub fn check_fits(&self, sizes: &[BufferSize], whole_only: bool) -> Result<()> {
         match self {
             Backend::Cpu { .. } => {
-                let _ = sizes;
+                let _ = (sizes, whole_only);
                 Ok(())
             }
             #[cfg(feature = "gpu")]
-            Backend::Gpu(gpu) => gpu.check_fits(sizes),
+            Backend::Gpu(gpu) => gpu.check_fits(sizes, whole_only),
         }
     }
 

@@ -56,10 +56,10 @@ impl Scene {
     }
 
     /// Whether the scene holds what displaced grids alone do (their values, a wide top level,
-    /// leaf radius pairs): split, only the split kernels of displaced grids read it, and those
-    /// bind fewer chunks (see `gridrt_shared::buffer::Split`). Tight headers and relative radii
-    /// without leaf pairs are read by the plain grids' split kernels too.
-    pub fn splits_as_displaced(&self) -> bool {
+    /// leaf radius pairs), which the GPU reads from whole bindings only: split into chunks, a
+    /// scene is read by plain grids' kernels, which leave those out. Tight headers and relative
+    /// radii without leaf pairs they read.
+    pub fn needs_whole_bindings(&self) -> bool {
         matches!(self, Scene::Grids(g) if g.params.displaced != 0 || g.has_wide_top() || g.params.leaf_pairs())
     }
 

@@ -5,7 +5,7 @@
 //! them through the same shared code to check it.
 
 use crate::error::{fail, Result};
-use gridrt_shared::buffer::{Chunks, Split, FEW_CHUNKS, SPLIT_CHUNKS};
+use gridrt_shared::buffer::{Chunks, Split, SPLIT_CHUNKS};
 use gridrt_shared::grid_index::MICRO_TRIANGLES;
 use gridrt_shared::grid_traverse;
 use gridrt_shared::layout::{BvhNode, FrameParams, SplitParams, GRID_NODES, TRIANGLE_NODES};
@@ -58,17 +58,6 @@ pub fn scene_buffers(scene: &Scene) -> Vec<SceneBuffer<'_>> {
     }
 }
 
-/// Most chunks `scene` may be split into: [`FEW_CHUNKS`] for what only the split kernels of
-/// displaced grids read ([`Scene::splits_as_displaced`]), which bind no more, else
-/// [`SPLIT_CHUNKS`].
-pub fn most_chunks(scene: &Scene) -> u32 {
-    if scene.splits_as_displaced() {
-        FEW_CHUNKS
-    } else {
-        SPLIT_CHUNKS
-    }
-}
-
 /// Chunks of `chunk_words` words the buffers take (one at least each, so that every buffer
 /// has a binding).
 pub fn chunks_needed(sizes: &[BufferSize], chunk_words: u32) -> u64 {
@@ -114,7 +103,7 @@ pub fn chunk_words(limit: u64) -> u32 {
 
 /// Cuts `scene`'s buffers into chunks of `chunk_words` words (a power of two, at least 8, so
 /// that no node or header straddles two). Fails, naming every buffer and its size, when they
-/// need more than [`most_chunks`]; `device` names where that limit comes from.
+/// need more than [`SPLIT_CHUNKS`]; `device` names where that limit comes from.
 pub fn split<'a>(scene: &'a Scene, chunk_words: u32, device: &str) -> Result<SplitScene<'a>> {
     assert!(
         chunk_words.is_power_of_two() && chunk_words >= 8,
@@ -122,7 +111,7 @@ pub fn split<'a>(scene: &'a Scene, chunk_words: u32, device: &str) -> Result<Spl
     );
     let buffers = scene_buffers(scene);
     let sizes: Vec<BufferSize> = buffers.iter().map(SceneBuffer::size).collect();
-    check_chunks(&sizes, chunk_words, most_chunks(scene), device)?;
+    check_chunks(&sizes, chunk_words, SPLIT_CHUNKS, device)?;
     let mut params = SplitParams {
         chunk_shift: chunk_words.trailing_zeros(),
         ..Default::default()

@@ -3,7 +3,8 @@
 //!
 //! Every job has a kernel reading each scene buffer from one binding, and kernels reading a
 //! scene split into chunks (descriptor set 1, see `gridrt_shared::buffer`) when a buffer is
-//! larger than one binding may be. All run the same traversal. A grid kernel's module carries
+//! larger than one binding may be (plain grids and the baseline: displaced grids' formats are
+//! read from whole buffers alone). All run the same traversal. A grid kernel's module carries
 //! the formats and walks of its family, and each pipeline made from it keeps those its
 //! specialisation constant 0 names (`gridrt_shared::buffer::carries`): the driver folds the
 //! others away, so a scene pays for its own format and walk alone.
@@ -62,36 +63,8 @@ fn trace_record<N: Hierarchy, P: LeafPrimitives>(nodes: N, prims: &P, r: &RayRec
 }
 
 /// Declares a kernel whose scene is split into chunks: its own bindings in set 0, then one
-/// binding per chunk in set 1, gathered into `Chunks` named `$chunks` for the body. With
-/// `few`, the first `FEW_CHUNKS` chunks alone (the body reads them as `Split<_, true>`); the
-/// other fields of `Chunks` repeat the last, never read.
+/// binding per chunk in set 1, gathered into `Chunks` named `$chunks` for the body.
 macro_rules! split_kernel {
-    (
-        few
-        $(#[$attr:meta])*
-        fn $name:ident($($arg:tt)*) |$chunks:ident| $body:block
-    ) => {
-        $(#[$attr])*
-        #[allow(clippy::too_many_arguments)] // one per binding
-        pub fn $name(
-            $($arg)*
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 0)] c0: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 1)] c1: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 2)] c2: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 3)] c3: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 4)] c4: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 5)] c5: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 6)] c6: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 7)] c7: &[u32],
-        ) {
-            let $chunks = Chunks {
-                c0, c1, c2, c3, c4, c5, c6, c7, c8: c7, c9: c7, c10: c7, c11: c7, c12: c7, c13: c7, c14: c7,
-                c15: c7, c16: c7, c17: c7, c18: c7, c19: c7, c20: c7, c21: c7, c22: c7, c23: c7, c24: c7,
-                c25: c7, c26: c7, c27: c7,
-            };
-            $body
-        }
-    };
     (
         $(#[$attr:meta])*
         fn $name:ident($($arg:tt)*) |$chunks:ident| $body:block
@@ -182,13 +155,12 @@ triangle_image_kernels!(render_pixel: render_triangles, render_triangles_split);
 /// What each family of grid kernels carries in its module (see
 /// `gridrt_shared::buffer::carries`), of which a pipeline keeps what its specialisation
 /// constant 0 says: on whole buffers, everything (a pipeline per format and walk); over split
-/// scenes of plain grids, the formats plain grids may ask for, both walks; over split scenes of
-/// displaced grids, every format of theirs, walked with the stack (which finds what the root's
-/// visit alone does), in the first `FEW_CHUNKS` chunks: every read of a split scene is a branch
-/// per chunk, and each split kernel takes lavapipe minutes to compile.
+/// scenes, the formats plain grids may ask for, both walks. Displaced grids' values, wide top
+/// levels and leaf radius pairs are read from whole buffers alone: every read of a split scene
+/// is a branch per chunk, and their decoders read at so many places that such a kernel was
+/// the largest of the module.
 const WHOLE: u32 = carries::ALL | carries::ONLY_COMPRESSED;
 const SPLIT_PLAIN: u32 = carries::DISPLACED_FORMATS | carries::STACK | carries::ONE_VISIT;
-const SPLIT_DISPLACED: u32 = carries::DISPLACED_FORMATS | carries::DISPLACED_GRIDS | carries::DECODER | carries::STACK;
 
 /// The grids of a scene bound whole, their words carrying `WHOLE & carried`.
 fn whole_grids<'a>(
@@ -212,14 +184,14 @@ fn whole_grids<'a>(
     }
 }
 
-/// The grids of a split scene, their words carrying `MOST & carried`; `FEW` as for `Split`.
-fn split_grids<'a, const MOST: u32, const FEW: bool>(
+/// The grids of a split scene, their words carrying `SPLIT_PLAIN & carried`.
+fn split_grids<'a>(
     chunks: &Chunks<'a>,
     split: &SplitParams,
     micro_triangles: &'a [u32],
     params: GridParams,
     carried: u32,
-) -> GridScene<'a, Split<'a, GridHeader, FEW>, KernelWords<Split<'a, u32, FEW>, MOST>> {
+) -> GridScene<'a, Split<'a, GridHeader>, KernelWords<Split<'a, u32>, SPLIT_PLAIN>> {
     let words = |area| KernelWords {
         words: Split::new(chunks, split, area),
         carries: carried,
@@ -260,34 +232,23 @@ pub fn render_grids(
     }
 }
 
-/// Declares a kernel that colours a frame's pixels of grid primitives over a split scene, its
-/// module carrying `$most` (`few`: of the first `FEW_CHUNKS` chunks).
-macro_rules! grid_image_split_kernel {
-    ($most:expr, $few:literal $(, $kind:ident)?: $split:ident) => {
-        split_kernel! {
-            $($kind)?
-            /// Grid primitives over a split scene.
-            #[spirv(compute(threads(8, 8, 1)))]
-            fn $split(
-                #[spirv(global_invocation_id)] id: UVec3,
-                #[spirv(spec_constant(id = 0, default = 0))] carried: u32,
-                #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
-                #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] image: &mut [u32],
-                #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] micro_triangles: &[u32],
-            ) |chunks| {
-                if let Some(i) = tile_index(id, frame) {
-                    let nodes = TopNodes::new(Split::<BvhNode, $few>::new(&chunks, &frame.split, GRID_NODES));
-                    let scene =
-                        split_grids::<{ $most }, $few>(&chunks, &frame.split, micro_triangles, frame.grid, carried);
-                    image[i] = render_pixel(frame, nodes, &scene, frame.tile_x + id.x, frame.tile_y + id.y);
-                }
-            }
+split_kernel! {
+    /// Grid primitives over a split scene.
+    #[spirv(compute(threads(8, 8, 1)))]
+    fn render_grids_split(
+        #[spirv(global_invocation_id)] id: UVec3,
+        #[spirv(spec_constant(id = 0, default = 0))] carried: u32,
+        #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
+        #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] image: &mut [u32],
+        #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] micro_triangles: &[u32],
+    ) |chunks| {
+        if let Some(i) = tile_index(id, frame) {
+            let nodes = TopNodes::new(Split::<BvhNode>::new(&chunks, &frame.split, GRID_NODES));
+            let scene = split_grids(&chunks, &frame.split, micro_triangles, frame.grid, carried);
+            image[i] = render_pixel(frame, nodes, &scene, frame.tile_x + id.x, frame.tile_y + id.y);
         }
-    };
+    }
 }
-
-grid_image_split_kernel!(SPLIT_PLAIN, false: render_grids_split);
-grid_image_split_kernel!(SPLIT_DISPLACED, true, few: render_grids_displaced_split);
 
 /// A list of rays against the baseline (benchmarks, and anything that brings its own rays).
 #[spirv(compute(threads(64, 1, 1)))]
@@ -345,35 +306,24 @@ pub fn trace_grids_rays(
     }
 }
 
-/// Declares a kernel that traces a list of rays against grid primitives over a split scene,
-/// its module carrying `$most` (`few`: of the first `FEW_CHUNKS` chunks).
-macro_rules! grid_ray_split_kernel {
-    ($most:expr, $few:literal $(, $kind:ident)?: $split:ident) => {
-        split_kernel! {
-            $($kind)?
-            /// A list of rays against grid primitives over a split scene.
-            #[spirv(compute(threads(64, 1, 1)))]
-            fn $split(
-                #[spirv(global_invocation_id)] id: UVec3,
-                #[spirv(spec_constant(id = 0, default = 0))] carried: u32,
-                #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
-                #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[RayRecord],
-                #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] hits: &mut [HitRecord],
-                #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] micro_triangles: &[u32],
-            ) |chunks| {
-                if let Some(i) = ray_index(id, params) {
-                    let nodes = TopNodes::new(Split::<BvhNode, $few>::new(&chunks, &params.split, GRID_NODES));
-                    let scene =
-                        split_grids::<{ $most }, $few>(&chunks, &params.split, micro_triangles, params.grid, carried);
-                    hits[i] = trace_record(nodes, &scene, &rays[i]);
-                }
-            }
+split_kernel! {
+    /// A list of rays against grid primitives over a split scene.
+    #[spirv(compute(threads(64, 1, 1)))]
+    fn trace_grids_rays_split(
+        #[spirv(global_invocation_id)] id: UVec3,
+        #[spirv(spec_constant(id = 0, default = 0))] carried: u32,
+        #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
+        #[spirv(storage_buffer, descriptor_set = 0, binding = 1)] rays: &[RayRecord],
+        #[spirv(storage_buffer, descriptor_set = 0, binding = 2)] hits: &mut [HitRecord],
+        #[spirv(storage_buffer, descriptor_set = 0, binding = 3)] micro_triangles: &[u32],
+    ) |chunks| {
+        if let Some(i) = ray_index(id, params) {
+            let nodes = TopNodes::new(Split::<BvhNode>::new(&chunks, &params.split, GRID_NODES));
+            let scene = split_grids(&chunks, &params.split, micro_triangles, params.grid, carried);
+            hits[i] = trace_record(nodes, &scene, &rays[i]);
         }
-    };
+    }
 }
-
-grid_ray_split_kernel!(SPLIT_PLAIN, false: trace_grids_rays_split);
-grid_ray_split_kernel!(SPLIT_DISPLACED, true, few: trace_grids_rays_displaced_split);
 
 // The workgroup sizes are literals because attribute arguments cannot name constants.
 const _: () = assert!(WORKGROUP_SIZE == 8 && TRACE_WORKGROUP_SIZE == 64);

@@ -146,10 +146,6 @@ impl<B: Buffer<u32>, const MOST: u32> Buffer<u32> for KernelWords<B, MOST> {
     }
 }
 
-/// Most chunks a split scene of displaced grids' formats may use (see [`Split`]): the first
-/// of the bindings, the rest left unbound.
-pub const FEW_CHUNKS: u32 = 8;
-
 /// Most chunks a split scene may use. Their bindings come after a kernel's own (parameters,
 /// static list, rays and hits, or image), in a set of their own: lavapipe allows 32 storage
 /// buffers per stage, and a ray-list kernel over grids binds four others.
@@ -193,41 +189,6 @@ macro_rules! declare_chunks {
                 }
             }
 
-            /// [`Self::word`] among the first [`FEW_CHUNKS`] chunks alone.
-            #[inline(always)]
-            pub fn word_of_few(&self, chunk: u32, offset: u32) -> u32 {
-                let o = offset as usize;
-                match chunk {
-                    0 => element(self.c0, o),
-                    1 => element(self.c1, o),
-                    2 => element(self.c2, o),
-                    3 => element(self.c3, o),
-                    4 => element(self.c4, o),
-                    5 => element(self.c5, o),
-                    6 => element(self.c6, o),
-                    _ => element(self.c7, o),
-                }
-            }
-
-            /// [`Self::word4`] among the first [`FEW_CHUNKS`] chunks alone.
-            #[inline(always)]
-            pub fn word4_of_few(&self, chunk: u32, offset: u32) -> [u32; 4] {
-                let o = offset as usize;
-                let four = |words: &[u32]| {
-                    [element(words, o), element(words, o + 1), element(words, o + 2), element(words, o + 3)]
-                };
-                match chunk {
-                    0 => four(self.c0),
-                    1 => four(self.c1),
-                    2 => four(self.c2),
-                    3 => four(self.c3),
-                    4 => four(self.c4),
-                    5 => four(self.c5),
-                    6 => four(self.c6),
-                    _ => four(self.c7),
-                }
-            }
-
             /// Chunks from a list of at most [`SPLIT_CHUNKS`] slices; the rest are empty.
             #[cfg(not(target_arch = "spirv"))]
             pub fn from_slices(parts: &[&'a [u32]]) -> Self {
@@ -249,13 +210,8 @@ declare_chunks!(
 );
 
 /// Buffer `buffer` of a split scene (its index in [`SplitParams`]), read as elements of `T`.
-///
-/// `FEW`: whether the scene lies in the first [`FEW_CHUNKS`] chunks, so that each read
-/// branches over those alone. The split kernels of displaced grids' formats take that: their
-/// traversal reads words at far more places than plain grids', each place inlining its
-/// branch, and with every chunk's arm lavapipe took over twenty minutes to compile one.
 #[derive(Copy, Clone)]
-pub struct Split<'a, T, const FEW: bool = false> {
+pub struct Split<'a, T> {
     /// By value: a reference to the caller's `Chunks` would be a pointer to a function
     /// variable inside a struct, which shaders cannot hold.
     chunks: Chunks<'a>,
@@ -265,7 +221,7 @@ pub struct Split<'a, T, const FEW: bool = false> {
     item: PhantomData<T>,
 }
 
-impl<'a, T, const FEW: bool> Split<'a, T, FEW> {
+impl<'a, T> Split<'a, T> {
     #[inline(always)]
     pub fn new(chunks: &Chunks<'a>, params: &SplitParams, buffer: usize) -> Self {
         Split {
@@ -282,11 +238,7 @@ impl<'a, T, const FEW: bool> Split<'a, T, FEW> {
     fn word(&self, word: u32, offset: u32) -> u32 {
         let mask = (1u32 << self.shift) - 1;
         let (chunk, at) = (self.first_chunk + (word >> self.shift), (word & mask) + offset);
-        if FEW {
-            self.chunks.word_of_few(chunk, at)
-        } else {
-            self.chunks.word(chunk, at)
-        }
+        self.chunks.word(chunk, at)
     }
 
     /// Words `word .. word + 4`, which lie in one chunk (`word` a multiple of 4: chunks hold
@@ -295,15 +247,11 @@ impl<'a, T, const FEW: bool> Split<'a, T, FEW> {
     fn word4(&self, word: u32) -> [u32; 4] {
         let mask = (1u32 << self.shift) - 1;
         let (chunk, at) = (self.first_chunk + (word >> self.shift), word & mask);
-        if FEW {
-            self.chunks.word4_of_few(chunk, at)
-        } else {
-            self.chunks.word4(chunk, at)
-        }
+        self.chunks.word4(chunk, at)
     }
 }
 
-impl<const FEW: bool> Buffer<u32> for Split<'_, u32, FEW> {
+impl Buffer<u32> for Split<'_, u32> {
     #[inline(always)]
     fn load(self, index: u32) -> u32 {
         self.word(index, 0)
@@ -315,7 +263,7 @@ impl<const FEW: bool> Buffer<u32> for Split<'_, u32, FEW> {
     }
 }
 
-impl<const FEW: bool> Buffer<f32> for Split<'_, f32, FEW> {
+impl Buffer<f32> for Split<'_, f32> {
     #[inline(always)]
     fn load(self, index: u32) -> f32 {
         f32::from_bits(self.word(index, 0))
@@ -327,7 +275,7 @@ impl<const FEW: bool> Buffer<f32> for Split<'_, f32, FEW> {
     }
 }
 
-impl<const FEW: bool> Buffer<BvhNode> for Split<'_, BvhNode, FEW> {
+impl Buffer<BvhNode> for Split<'_, BvhNode> {
     #[inline(always)]
     fn load(self, index: u32) -> BvhNode {
         let [x0, y0, z0, first] = self.word4(8 * index);
@@ -347,7 +295,7 @@ impl<const FEW: bool> Buffer<BvhNode> for Split<'_, BvhNode, FEW> {
     }
 }
 
-impl<const FEW: bool> Buffer<GridHeader> for Split<'_, GridHeader, FEW> {
+impl Buffer<GridHeader> for Split<'_, GridHeader> {
     #[inline(always)]
     fn load(self, index: u32) -> GridHeader {
         let [e0, e1, c0, c1] = self.word4(4 * index);

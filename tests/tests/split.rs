@@ -1,22 +1,21 @@
 //! Scenes larger than one GPU binding: their buffers are cut into chunks and read through the
 //! same shared traversal (see `gridrt_shared::buffer`). Forced here by a small binding limit,
 //! so the scenes stay small: the split reads must give exactly what the whole reads give, on
-//! the CPU and on the GPU, and what cannot be bound must be refused with its sizes.
+//! the CPU and on the GPU, and what cannot be bound (too many chunks, or displaced grids,
+//! which are bound whole) must be refused with its sizes.
 
 use gridrt::bvh::Aabb;
 use gridrt::camera;
-use gridrt::grid::{GridOptions, RadiusFormat, TopFormat};
+use gridrt::grid::{GridOptions, TopFormat};
 use gridrt::image_io::fraction_within;
 use gridrt::mesh::scene::default_scene;
 use gridrt::rays::{primary_rays, trace_cpu};
 use gridrt::scene::{render_cpu, Scene};
-use gridrt::split::{chunks_needed, render_cpu_split, scene_buffers, split};
+use gridrt::split::{render_cpu_split, scene_buffers, split};
 use gridrt::subdiv::Scheme;
 use gridrt_shared::buffer::SPLIT_CHUNKS;
 use gridrt_shared::layout::SHADE_NORMAL;
-use gridrt_tests::{
-    baked_ball, build_pair, build_pair_with, displaced_grids, gpu_or_skip, loosely_compressed, mixed_ball, Pair,
-};
+use gridrt_tests::{baked_ball, build_pair, build_pair_with, displaced_grids, gpu_or_skip, Pair};
 
 /// The smallest power-of-two chunk (at least 1 KiB) that holds `scene` in at most
 /// [`SPLIT_CHUNKS`] chunks; the tests check that it still cuts every buffer larger than 1 KiB.
@@ -53,45 +52,11 @@ fn named_scenes<'a>(pair: &'a Pair, stacked: &'a Scene) -> [(&'static str, &'a S
     ]
 }
 
-/// Grids in the formats made for displaced grids, which split scenes read through kernels of
-/// their own: a wide top level, leaf radius pairs (relative radii at L = 4), and baked balls
-/// of plain and compressed values, of one level and of mixed levels.
-fn displaced_formats() -> Vec<(&'static str, Scene)> {
-    let subdivided =
-        |levels, options: &GridOptions| build_pair_with(&default_scene(), levels, levels, Scheme::Loop, options).grids;
-    let wide = GridOptions {
-        top: TopFormat::Wide,
-        ..GridOptions::default()
-    };
-    let relative = GridOptions {
-        radii: RadiusFormat::Relative,
-        ..GridOptions::default()
-    };
-    vec![
-        ("wide top level", subdivided(2, &wide)),
-        ("leaf radius pairs", subdivided(4, &relative)),
-        ("displaced, L = 3", displaced_grids(&baked_ball(3))),
-        ("displaced, L = 4", displaced_grids(&baked_ball(4))),
-        (
-            "displaced compressed, L = 3",
-            displaced_grids(&loosely_compressed(&baked_ball(3))),
-        ),
-        (
-            "displaced mixed compressed, L = 4",
-            displaced_grids(&loosely_compressed(&mixed_ball(4))),
-        ),
-    ]
-}
-
 #[test]
 fn cpu_reads_split_scenes_as_whole_ones() {
     let pair = pair();
     let stacked = stacked_grids();
-    let displaced = displaced_formats();
-    let all = named_scenes(&pair, &stacked)
-        .into_iter()
-        .chain(displaced.iter().map(|(name, scene)| (*name, scene)));
-    for (name, scene) in all {
+    for (name, scene) in named_scenes(&pair, &stacked) {
         let bytes = smallest_chunk_bytes(scene);
         let cut = split(scene, (bytes / 4) as u32, "test").unwrap();
         let buffers = scene_buffers(scene);
@@ -100,10 +65,9 @@ fn cpu_reads_split_scenes_as_whole_ones() {
             cut.chunks.len(),
             buffers.iter().map(|b| b.words.len() * 4).collect::<Vec<_>>()
         );
-        // Every buffer larger than a chunk is cut, so each is read across chunk boundaries: two
-        // at least, or one where displaced grids' few chunks allow no more.
+        // Every buffer larger than a chunk is cut, so each is read across chunk boundaries.
         let cut_buffers = buffers.iter().filter(|b| b.words.len() * 4 > bytes as usize).count();
-        assert!(cut_buffers >= if scene.splits_as_displaced() { 1 } else { 2 }, "{name}");
+        assert!(cut_buffers >= 2, "{name}");
         let frame = scene.frame(camera::frame(&scene.bounds(), 96, 72), SHADE_NORMAL);
         assert_eq!(
             render_cpu(scene, &frame),
@@ -183,23 +147,22 @@ fn split_stacked_grids_on_the_gpu_trace_as_whole_ones() {
     split_on_the_gpu_equals_whole("split stacked grids", &stacked_grids(), &pair.bounds, false, true);
 }
 
-// Split scenes in displaced grids' formats have one kernel per job, checked the same way: the
-// picture on a compressed bake of mixed levels (the decoder, each grid's own level and its
-// spheres, decimated edges, the wide top level, leaf radius pairs), and ray lists on a plain
-// bake of one level, walked with the stack where whole kernels take the root's visit alone.
-
+/// Displaced grids' formats are read from whole bindings alone: a scene of them that one
+/// binding cannot hold is refused as it is uploaded, naming the buffer and the limit.
 #[test]
-fn split_displaced_grids_on_the_gpu_render_as_whole_ones() {
-    let grids = displaced_grids(&loosely_compressed(&mixed_ball(4)));
-    let bounds = grids.bounds();
-    split_on_the_gpu_equals_whole("split displaced grids", &grids, &bounds, true, false);
-}
-
-#[test]
-fn split_displaced_grids_on_the_gpu_trace_as_whole_ones() {
+fn displaced_grids_larger_than_a_binding_are_refused() {
+    let Some(mut gpu) = gpu_or_skip("displaced_grids_larger_than_a_binding_are_refused") else {
+        return;
+    };
     let grids = displaced_grids(&baked_ball(3));
-    let bounds = grids.bounds();
-    split_on_the_gpu_equals_whole("split displaced grids", &grids, &bounds, false, true);
+    assert!(grids.needs_whole_bindings());
+    let largest = scene_buffers(&grids).iter().map(|b| b.size().bytes).max().unwrap();
+    gpu.limit_bindings(largest / 2).unwrap();
+    let err = gpu.upload(&grids).err().expect("refused").to_string();
+    for part in ["buffer needs", "bytes per binding", "whole bindings", "--backend cpu"] {
+        assert!(err.contains(part), "{err:?} lacks {part:?}");
+    }
+    assert!(!err.contains('\n'), "{err:?} is not one line");
 }
 
 #[test]
@@ -266,20 +229,16 @@ fn binding_limit_from_the_environment() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// A displaced micro-mesh file that needs more than the 8 chunks its split kernels bind (but
-/// no more than plain grids' 28) is refused as it is uploaded, on one line naming the file.
+/// A displaced micro-mesh file whose grids one binding cannot hold is refused before it is
+/// built, on one line naming the file.
 #[test]
-fn displaced_files_past_their_chunks_are_refused_naming_the_file() {
-    if gpu_or_skip("displaced_files_past_their_chunks_are_refused_naming_the_file").is_none() {
+fn displaced_files_larger_than_a_binding_are_refused_naming_the_file() {
+    if gpu_or_skip("displaced_files_larger_than_a_binding_are_refused_naming_the_file").is_none() {
         return;
     }
     let mesh = baked_ball(4);
     let grids = displaced_grids(&mesh);
-    let sizes: Vec<_> = scene_buffers(&grids).iter().map(|b| b.size()).collect();
-    let bytes = (10..20)
-        .map(|k| 1u64 << k)
-        .find(|&b| (9..=SPLIT_CHUNKS as u64).contains(&chunks_needed(&sizes, (b / 4) as u32)))
-        .expect("a binding limit between 8 and 28 chunks");
+    let largest = scene_buffers(&grids).iter().map(|b| b.size().bytes).max().unwrap();
     let dir = gridrt_tests::scratch("split-displaced");
     let file = dir.join("ball.gltf");
     gridrt::micromesh_gltf::write(&file, &mesh, &gridrt::mesh::frame::LocalFrame::IDENTITY).unwrap();
@@ -289,15 +248,16 @@ fn displaced_files_past_their_chunks_are_refused_naming_the_file() {
         .arg(&file)
         .arg("-o")
         .arg(&png)
-        .env("GRIDRT_GPU_BINDING_LIMIT", bytes.to_string())
+        .env("GRIDRT_GPU_BINDING_LIMIT", (largest / 2).to_string())
         .output()
         .unwrap();
     let err = gridrt_tests::stderr(&o);
     assert!(!o.status.success(), "{err}");
     let lines: Vec<&str> = err.lines().filter(|l| l.starts_with("error")).collect();
     assert_eq!(lines.len(), 1, "{err}");
-    for part in ["ball.gltf", "grid vertex", "more than the 8"] {
+    for part in ["ball.gltf", "buffer needs", "whole bindings"] {
         assert!(lines[0].contains(part), "{err:?} lacks {part:?}");
     }
+    assert!(!err.contains("B per micro-triangle"), "built before refusing: {err:?}");
     assert!(!png.exists());
 }

@@ -939,7 +939,8 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
         ),
     };
     let backend = stages.run("device", || open_backend(args.backend, "rendering"))?;
-    backend.check_fits(&sizes).map_err(|e| e.prefixed(&name))?;
+    let displaced = args.mode == Mode::Grid && displaced_grids.is_some();
+    backend.check_fits(&sizes, displaced).map_err(|e| e.prefixed(&name))?;
     check_upload_memory(&name, &sizes, &backend, args)?;
     let scene = match (args.mode, &displaced_grids) {
         (Mode::Grid, Some(m)) => stages.run("build", || Scene::build_displaced(m, &options))?,

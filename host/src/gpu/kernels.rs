@@ -31,9 +31,9 @@ pub(super) struct Kernel {
     pub slot: usize,
 }
 
-/// How many pipelines can be made: triangles 4, split displaced grids 2, split plain grids 2
-/// jobs x 2 walks, grids on whole buffers 2 jobs x 3 formats x 2 walks.
-pub(super) const PIPELINES: usize = 4 + 2 + 4 + 12;
+/// How many pipelines can be made: triangles 4, split plain grids 2 jobs x 2 walks, grids on
+/// whole buffers 2 jobs x 3 formats x 2 walks.
+pub(super) const PIPELINES: usize = 4 + 4 + 12;
 
 /// What the formats of displaced grids add, by format of the grids on whole buffers: plain
 /// grids', displaced grids' with plain values, and with compressed ones.
@@ -60,20 +60,12 @@ impl Kernel {
             };
             return Kernel::grids(job, format, one_visit);
         }
-        if scene.splits_as_displaced() {
-            // Walked with the stack, every format of displaced grids.
-            return Kernel {
-                entry: pick(job, "render_grids_displaced_split", "trace_grids_rays_displaced_split"),
-                carries: Some(
-                    carries::DISPLACED_FORMATS | carries::DISPLACED_GRIDS | carries::DECODER | carries::STACK,
-                ),
-                slot: 4 + job,
-            };
-        }
+        // `Gpu::upload` binds displaced grids' formats whole.
+        debug_assert!(!scene.needs_whole_bindings());
         Kernel {
             entry: pick(job, "render_grids_split", "trace_grids_rays_split"),
             carries: Some(carries::DISPLACED_FORMATS | walk(one_visit)),
-            slot: 6 + 2 * one_visit as usize + job,
+            slot: 4 + 2 * one_visit as usize + job,
         }
     }
 
@@ -95,7 +87,7 @@ impl Kernel {
         Kernel {
             entry: pick(job, "render_grids", "trace_grids_rays"),
             carries: Some(FORMATS[format] | walk(one_visit)),
-            slot: 10 + 4 * format + 2 * one_visit as usize + job,
+            slot: 8 + 4 * format + 2 * one_visit as usize + job,
         }
     }
 }

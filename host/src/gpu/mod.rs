@@ -6,7 +6,7 @@ mod turns;
 
 pub use turns::TimedList;
 
-use crate::error::{error, fail, Result};
+use crate::error::{error, fail, Error, Result};
 use gridrt_shared::buffer::SPLIT_CHUNKS;
 use gridrt_shared::grid_index::MICRO_TRIANGLES;
 use gridrt_shared::layout::{
@@ -17,7 +17,7 @@ use wgpu::util::DeviceExt;
 use crate::limits::parse_bytes;
 use crate::limits::{self, BufferSize};
 use crate::scene::Scene;
-use crate::split::{check_chunks, chunk_words, most_chunks, scene_buffers, split};
+use crate::split::{check_chunks, chunk_words, scene_buffers, split};
 
 /// The SPIR-V module of the `kernel` crate.
 pub const KERNEL_SPV: &[u8] = include_bytes!(env!("kernel.spv"));
@@ -264,12 +264,15 @@ impl Gpu {
     }
 
     /// Refuses, before it is built, a scene whose buffers will be at least `sizes` and cannot
-    /// be bound on this adapter: the check [`Gpu::upload`] makes on the built scene, for plain
-    /// grids' formats (split scenes of displaced grids' formats bind fewer chunks, checked as
-    /// they are uploaded).
-    pub fn check_fits(&self, sizes: &[BufferSize]) -> Result<()> {
+    /// be bound on this adapter: the check [`Gpu::upload`] makes on the built scene. With
+    /// `whole_only` (displaced grids' formats, see [`Scene::needs_whole_bindings`]) every buffer
+    /// must fit in one binding.
+    pub fn check_fits(&self, sizes: &[BufferSize], whole_only: bool) -> Result<()> {
         if self.binds_whole(sizes) {
             return Ok(());
+        }
+        if whole_only {
+            return Err(self.refusing_split(sizes));
         }
         self.check_split_bindings()?;
         check_chunks(
@@ -277,6 +280,30 @@ impl Gpu {
             chunk_words(self.binding_limit),
             SPLIT_CHUNKS,
             &self.describe_limits(),
+        )
+    }
+
+    /// Why a scene in displaced grids' formats whose buffers do not fit one binding each is
+    /// refused: no kernel reads those formats in chunks (each read of a split scene branches
+    /// over its chunks, and their decoders read at many places).
+    fn refusing_split(&self, sizes: &[BufferSize]) -> Error {
+        let too_large: Vec<String> = (sizes.iter())
+            .filter(|b| b.bytes > self.binding_limit)
+            .map(|b| {
+                format!(
+                    "the {} buffer needs {}{} bytes",
+                    b.name,
+                    if b.at_least { "at least " } else { "" },
+                    b.bytes
+                )
+            })
+            .collect();
+        error!(
+            Limits,
+            "{}, more than one binding of {} holds, and displaced grids are read from whole bindings only; \
+             use fewer levels or --backend cpu",
+            too_large.join(", "),
+            self.describe_limits()
         )
     }
 
@@ -308,12 +335,15 @@ impl Gpu {
                 chunks: None,
             });
         }
+        if scene.needs_whole_bindings() {
+            return Err(self.refusing_split(&sizes));
+        }
         let split = split(scene, chunk_words(self.binding_limit), &self.describe_limits())?;
         self.check_split_bindings()?;
         let mut chunks: Vec<wgpu::Buffer> = (split.chunks.iter())
             .map(|c| self.buffer("scene chunk", bytemuck::cast_slice(c)))
             .collect();
-        chunks.resize_with(most_chunks(scene) as usize, || self.buffer("unused chunk", &[]));
+        chunks.resize_with(SPLIT_CHUNKS as usize, || self.buffer("unused chunk", &[]));
         Ok(GpuScene {
             scene,
             buffers: statics,
