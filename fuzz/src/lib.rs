@@ -52,7 +52,7 @@ pub fn check_gltf(data: &[u8]) {
     check_loaded(gridrt::mesh::gltf::parse_gltf(data, Some(folder)));
     // The same bytes as a displaced micro-mesh: refused on one line, or decoded to finite
     // micro-vertices whenever its counts and levels check out.
-    match gridrt::mesh::gltf_micromap::parse_displaced(data, Some(folder)) {
+    match gridrt::micromesh::gltf_micromap::parse_displaced(data, Some(folder)) {
         Err(e) => assert_one_line(&e),
         Ok(None) => {}
         Ok(Some(displaced)) => {
@@ -79,7 +79,7 @@ pub fn check_gltf(data: &[u8]) {
 /// triangles each hold their level's values, no more values than the file's bytes could hold,
 /// and which writes back to a file that reads as the same micromap.
 pub fn check_bary(data: &[u8]) {
-    use gridrt::bary;
+    use gridrt::micromesh::bary;
     match bary::read(data) {
         Err(e) => assert_one_line(&e),
         Ok(map) => {
@@ -96,19 +96,19 @@ pub fn check_bary(data: &[u8]) {
 /// A micromap written as a micro-mesh's files (glTF, buffer, `.bary`) over an earlier set of
 /// another micromap in the same place: the glTF reads back with this micromap, and the folder
 /// holds this set alone, whole.
-fn check_written_set(map: &gridrt::bary::Micromap) {
-    use gridrt::displaced::DisplacedMesh;
+fn check_written_set(map: &gridrt::micromesh::bary::Micromap) {
     use gridrt::mesh::frame::LocalFrame;
+    use gridrt::micromesh::DisplacedMesh;
     // A primitive reads one group: a micromap of one group of all its triangles reads back
     // whole.
     let count = map.triangles.len() as u32;
-    let whole = |g: &gridrt::bary::MicromapGroup| g.triangle_first == 0 && g.triangle_count == count;
+    let whole = |g: &gridrt::micromesh::bary::MicromapGroup| g.triangle_first == 0 && g.triangle_count == count;
     if count == 0 || map.groups.len() != 1 || !whole(&map.groups[0]) {
         return;
     }
     // One triangle of its own for each of the micromap's, side by side.
     let corner = |t: u32, k: u32| Vec3::new((t + (k == 1) as u32) as f32, (k == 2) as u32 as f32, 0.0);
-    let mesh = |micromap: gridrt::bary::Micromap| DisplacedMesh {
+    let mesh = |micromap: gridrt::micromesh::bary::Micromap| DisplacedMesh {
         positions: (0..count).flat_map(|t| (0..3).map(move |k| corner(t, k))).collect(),
         directions: vec![Vec3::Z; 3 * count as usize],
         triangles: (0..count).map(|t| [3 * t, 3 * t + 1, 3 * t + 2]).collect(),
@@ -120,9 +120,9 @@ fn check_written_set(map: &gridrt::bary::Micromap) {
     let gltf = folder.join("set.gltf");
     let mut earlier = map.clone();
     earlier.values.iter_mut().for_each(|v| *v ^= 1);
-    gridrt::micromesh_gltf::write(&gltf, &mesh(earlier), &LocalFrame::IDENTITY).expect("the earlier set is written");
+    gridrt::micromesh::gltf::write(&gltf, &mesh(earlier), &LocalFrame::IDENTITY).expect("the earlier set is written");
     let written =
-        gridrt::micromesh_gltf::write(&gltf, &mesh(map.clone()), &LocalFrame::IDENTITY).expect("the set is written");
+        gridrt::micromesh::gltf::write(&gltf, &mesh(map.clone()), &LocalFrame::IDENTITY).expect("the set is written");
     let mut names: Vec<_> = (std::fs::read_dir(&folder).expect("the folder lists"))
         .map(|e| e.expect("an entry").path())
         .collect();
@@ -131,10 +131,10 @@ fn check_written_set(map: &gridrt::bary::Micromap) {
     expected.sort();
     assert_eq!(names, expected, "the folder holds the new set alone");
     let bytes = std::fs::read(&gltf).expect("the glTF reads");
-    let read = gridrt::mesh::gltf_micromap::parse_displaced(&bytes, Some(&folder))
+    let read = gridrt::micromesh::gltf_micromap::parse_displaced(&bytes, Some(&folder))
         .expect("the written set reads")
         .expect("it is displaced");
-    let levels = |m: &gridrt::bary::Micromap| m.triangles.iter().map(|t| t.level).collect::<Vec<_>>();
+    let levels = |m: &gridrt::micromesh::bary::Micromap| m.triangles.iter().map(|t| t.level).collect::<Vec<_>>();
     assert_eq!(levels(&read.micromap), levels(map));
     for t in 0..map.triangles.len() {
         assert_eq!(read.micromap.triangle_values(t), map.triangle_values(t), "triangle {t}");

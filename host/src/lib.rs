@@ -29,18 +29,14 @@
 //! ([`scene`]) or the GPU (`gpu`), with the one implementation in `gridrt_shared`.
 //!
 //! Displaced micro-meshes (a base mesh, directions, and a micromap of 11-bit values per
-//! triangle) are taking shape beside them: [`bary`] reads and writes micromaps, [`displaced`]
-//! decodes them into micro-triangles through `gridrt_shared::displacement`, and
-//! [`micromesh_gltf`] writes them as glTF with NVIDIA's micromap extensions. [`surface_distance`]
-//! measures how far apart two surfaces are (`gridrt compare`).
+//! triangle) have one home, [`micromesh`]: the type and its decoding, baking, and the `.bary`
+//! and glTF files. [`surface_distance`] measures how far apart two surfaces are (`gridrt
+//! compare`).
 
 pub mod backend;
-pub mod bake;
-pub mod bary;
 pub mod bit_writer;
 pub mod bvh;
 pub mod camera;
-pub mod displaced;
 pub mod error;
 pub mod files;
 #[cfg(feature = "gpu")]
@@ -52,7 +48,7 @@ pub mod lagrangian;
 pub mod limits;
 pub mod lod;
 pub mod mesh;
-pub mod micromesh_gltf;
+pub mod micromesh;
 pub mod pipeline;
 pub mod quantize;
 pub mod rays;

@@ -12,9 +12,9 @@ use gridrt_shared::layout::{
     SHADE_LEVEL, SHADE_LIT, SHADE_NORMAL, SHADE_PRIMITIVE,
 };
 
-use crate::displaced::DisplacedMesh;
 use crate::grid::{self, GridBuild};
 use crate::mesh::Mesh;
+use crate::micromesh::DisplacedMesh;
 use crate::rays::AO_RADIUS;
 use crate::scene::Scene;
 use crate::{image_io, subdiv, triangles};

@@ -3,13 +3,13 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use gridrt::bake::{bake, BakeOptions, Base};
 use gridrt::bvh::Aabb;
-use gridrt::displaced::DisplacedMesh;
 use gridrt::error::ErrorKind;
 use gridrt::gpu::Gpu;
 use gridrt::grid;
 use gridrt::mesh::Mesh;
+use gridrt::micromesh::bake::{bake, BakeOptions, Base};
+use gridrt::micromesh::DisplacedMesh;
 use gridrt::pipeline::{BuildOptions, Representation};
 use gridrt::scene::Scene;
 use gridrt::subdiv::{subdivide, Scheme, Subdivided};
@@ -325,7 +325,7 @@ pub fn mixed_ball(levels: u32) -> DisplacedMesh {
     micromap.triangles.clear();
     for (t, &l) in own.iter().enumerate() {
         let (values, shift, m) = (mesh.micromap.triangle_values(t), levels - l, 1u32 << l);
-        micromap.triangles.push(gridrt::bary::MicromapTriangle {
+        micromap.triangles.push(gridrt::micromesh::bary::MicromapTriangle {
             level: l,
             first_value: micromap.values.len() as u32,
         });
@@ -339,7 +339,7 @@ pub fn mixed_ball(levels: u32) -> DisplacedMesh {
     }
     micromap.value_code = None;
     mesh.micromap = micromap;
-    mesh.decimated_edges = gridrt::bake::levels::decimated_edges(&triangles, &own);
+    mesh.decimated_edges = gridrt::micromesh::bake::levels::decimated_edges(&triangles, &own);
     assert!((1..=levels).all(|l| own.contains(&l)), "{own:?}");
     assert!(mesh.decimated_edges.iter().filter(|&&f| f != 0).count() >= 4);
     mesh.check().unwrap();

@@ -180,7 +180,7 @@ fn a_bake_in_nvidia_blocks_reads_back_as_measured() {
         report["nv_blocks"]["before_symmetric"]["rms"].as_f64().unwrap(),
     );
     assert!(rms <= 1.25 * before, "{report}");
-    let map = gridrt::bary::read(&std::fs::read(&side_files(&out)[1]).unwrap()).unwrap();
+    let map = gridrt::micromesh::bary::read(&std::fs::read(&side_files(&out)[1]).unwrap()).unwrap();
     assert!(map.nv_blocks && map.triangles.iter().all(|t| t.level == 4));
     reads_back_as_measured(&reference, &out, &report);
     fails_with(

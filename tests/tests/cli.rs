@@ -911,9 +911,9 @@ fn compare_measures_the_distance_between_surfaces() {
 /// the shared base edge.
 #[test]
 fn displaced_micro_meshes_are_decoded_not_subdivided() {
-    use gridrt::bary::{values_per_triangle, Micromap};
-    use gridrt::displaced::DisplacedMesh;
     use gridrt::mesh::frame::LocalFrame;
+    use gridrt::micromesh::bary::{values_per_triangle, Micromap};
+    use gridrt::micromesh::DisplacedMesh;
     use gridrt_shared::glam::Vec3;
 
     let dir = scratch("displaced");
@@ -944,7 +944,7 @@ fn displaced_micro_meshes_are_decoded_not_subdivided() {
         decimated_edges: Vec::new(),
     };
     let gltf = dir.join("baked.gltf");
-    gridrt::micromesh_gltf::write(&gltf, &mesh, &LocalFrame::IDENTITY).unwrap();
+    gridrt::micromesh::gltf::write(&gltf, &mesh, &LocalFrame::IDENTITY).unwrap();
     let g = gltf.to_str().unwrap();
 
     let png = dir.join("baked.png");

@@ -7,9 +7,9 @@
 use gridrt::backend::Backend;
 use gridrt::bvh::Aabb;
 use gridrt::camera;
-use gridrt::displaced::DisplacedMesh;
 use gridrt::grid::TopFormat;
 use gridrt::image_io::fraction_within;
+use gridrt::micromesh::DisplacedMesh;
 use gridrt::pipeline::{BuildOptions, RenderOptions, Representation, Shading};
 use gridrt::scene::{render_cpu, Scene};
 use gridrt_shared::glam::Vec3;
@@ -279,7 +279,7 @@ fn displaced_occlusion_gpu_equals_cpu() {
 /// nor its displaced grids; without the flags they do.
 #[test]
 fn mixed_levels_with_decimated_edges_render_watertight() {
-    use gridrt::bary::{write, Micromap};
+    use gridrt::micromesh::bary::{write, Micromap};
     use gridrt_shared::displacement::u_major_index;
     use gridrt_shared::grid_index::{grid_size, lattice_points};
 

@@ -241,7 +241,7 @@ fn displaced_files_larger_than_a_binding_are_refused_naming_the_file() {
     let largest = scene_buffers(&grids).iter().map(|b| b.size().bytes).max().unwrap();
     let dir = gridrt_tests::scratch("split-displaced");
     let file = dir.join("ball.gltf");
-    gridrt::micromesh_gltf::write(&file, &mesh, &gridrt::mesh::frame::LocalFrame::IDENTITY).unwrap();
+    gridrt::micromesh::gltf::write(&file, &mesh, &gridrt::mesh::frame::LocalFrame::IDENTITY).unwrap();
     let png = dir.join("ball.png");
     let o = std::process::Command::new(gridrt_tests::gridrt_exe())
         .args(["render", "--backend", "gpu", "--width", "32", "--height", "24"])

@@ -1,4 +1,4 @@
-//! `gridrt bake`: a detailed mesh baked into a displaced micro-mesh (see `gridrt::bake`),
+//! `gridrt bake`: a detailed mesh baked into a displaced micro-mesh (see `gridrt::micromesh::bake`),
 //! written as glTF + `.bary`, with its size and its distance from the reference.
 
 use std::path::{Path, PathBuf};
@@ -8,14 +8,14 @@ use serde::Serialize;
 
 use super::progress::Stages;
 use super::BakeArgs;
-use gridrt::bake::refine::Refinement;
-use gridrt::bake::{self, BakeOptions, BakeReport, Base};
-use gridrt::displaced::DisplacedMesh;
 use gridrt::files;
 use gridrt::grid::compressed::{compress, CompressedMesh, Compressor, ValueCompression};
 use gridrt::grid::{self, GridOptions};
 use gridrt::mesh;
-use gridrt::micromesh_gltf;
+use gridrt::micromesh;
+use gridrt::micromesh::bake::refine::Refinement;
+use gridrt::micromesh::bake::{self, BakeOptions, BakeReport, Base};
+use gridrt::micromesh::DisplacedMesh;
 use gridrt::surface_distance::{self, DistanceSummary, Sampling, SurfaceDistance};
 
 #[derive(Serialize)]
@@ -219,7 +219,7 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
         }
     };
     let outputs = stages.run("write", || {
-        micromesh_gltf::write_keeping(&args.output, &mesh, &frame, &inputs)
+        micromesh::gltf::write_keeping(&args.output, &mesh, &frame, &inputs)
     })?;
     let bytes = |p: &Path| std::fs::metadata(p).map_or(0, |m| m.len());
     let report = Report {

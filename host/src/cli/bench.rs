@@ -139,7 +139,7 @@ fn agreement(a: &Scene, ha: &[HitRecord], b: &Scene, hb: &[HitRecord]) -> f64 {
 }
 
 /// The displaced micro-mesh an input brings, when it has triangles (displaced grids).
-fn grids_of(input: &Input) -> Option<&gridrt::displaced::DisplacedMesh> {
+fn grids_of(input: &Input) -> Option<&gridrt::micromesh::DisplacedMesh> {
     input.micromesh.as_ref().filter(|m| m.deepest_level().is_some())
 }
 

@@ -621,8 +621,8 @@ pub struct BakeArgs {
     #[arg(
         long,
         value_name = "N",
-        default_value_t = gridrt::bake::refine::Refinement::default().rounds,
-        value_parser = clap::value_parser!(u32).range(0..=gridrt::bake::refine::MAX_ROUNDS as i64)
+        default_value_t = gridrt::micromesh::bake::refine::Refinement::default().rounds,
+        value_parser = clap::value_parser!(u32).range(0..=gridrt::micromesh::bake::refine::MAX_ROUNDS as i64)
     )]
     pub fit_rounds: u32,
     /// The glTF to write; its buffer (.bin) and micromap (.bary) go beside it.

@@ -8,10 +8,10 @@ use serde::Serialize;
 use serde_json::{Map, Value};
 
 use super::{BuildArgs, StatsArgs};
-use gridrt::displaced::DisplacedMesh;
 use gridrt::grid::{self, GridScene};
 use gridrt::limits;
 use gridrt::mesh::{Input, Mesh};
+use gridrt::micromesh::DisplacedMesh;
 use gridrt::subdiv::Subdivided;
 use gridrt::triangles::{self, TriangleScene};
 

@@ -32,9 +32,9 @@ use rayon::prelude::*;
 use super::displaced::expanded_mesh;
 use super::value_tables::{level_sorted_edges, write_edge_levels, Rendered};
 use super::{stored_edge_point, BaseEdges};
-use crate::bary::MicromapTriangle;
-use crate::displaced::DisplacedMesh;
 use crate::error::{fail, Result};
+use crate::micromesh::bary::MicromapTriangle;
+use crate::micromesh::DisplacedMesh;
 
 /// Widest correction: a whole value.
 const MAX_WIDTH: u32 = VALUE_BITS;
@@ -777,9 +777,9 @@ impl Target {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bary::Micromap;
     use crate::grid::displaced::{build, layout};
     use crate::grid::GridOptions;
+    use crate::micromesh::bary::Micromap;
     use gridrt_shared::compressed_values::CodedScene;
     use gridrt_shared::glam::Vec3;
     use gridrt_shared::grid_index::lattice_points;

@@ -11,7 +11,7 @@
 //! spheres enclose exactly the points the traversal computes. The micromap's ranges are
 //! folded into the base mesh first (see [`DisplacedMesh::with_ranges_folded`]).
 //!
-//! A micro-mesh whose values carry a compressed code ([`crate::bary::Micromap::value_code`]) is laid
+//! A micro-mesh whose values carry a compressed code ([`crate::micromesh::bary::Micromap::value_code`]) is laid
 //! out with blocks for values: a table of the grids' blocks and the blocks, each of its own
 //! length (written in leaf order by the build), then the base edges' blocks end to end and the
 //! corners' 11-bit values (see [`super::compressed`]).
@@ -47,10 +47,10 @@ use super::{
     check_counts, compressed, edge_points, value_tables, BaseEdges, GridBuild, GridLayout, GridOptions, GridScene,
     GridShape,
 };
-use crate::displaced::DisplacedMesh;
 use crate::error::{fail, Result};
 use crate::limits::BufferSize;
 use crate::mesh::Mesh;
+use crate::micromesh::DisplacedMesh;
 
 /// Lays out `mesh` as displaced grids. Triangles of mixed levels share the deepest one's
 /// lattice: a coarser grid holds its own level's points of it, and the points between them
@@ -278,7 +278,7 @@ pub(crate) fn expanded_mesh(mesh: &DisplacedMesh) -> DisplacedMesh {
         }
     }
     let triangles: Vec<(u32, Vec<u16>)> = values.into_iter().map(|v| (levels, v)).collect();
-    let mut micromap = crate::bary::Micromap::from_triangles(0.0, 1.0, &triangles);
+    let mut micromap = crate::micromesh::bary::Micromap::from_triangles(0.0, 1.0, &triangles);
     micromap.value_code = mesh.micromap.value_code;
     DisplacedMesh {
         positions: mesh.positions.clone(),
@@ -299,7 +299,7 @@ fn expanded_values(mesh: &DisplacedMesh, g: usize, levels: u32) -> Vec<u16> {
     let own = mesh.micromap.triangles[g].level;
     let (n, shift) = (grid_size(levels), levels - own);
     let values = mesh.micromap.triangle_values(g);
-    let mut out = vec![0u16; crate::bary::values_per_triangle(levels)];
+    let mut out = vec![0u16; crate::micromesh::bary::values_per_triangle(levels)];
     for [i, j] in lattice_points(grid_size(own)) {
         out[u_major_index([i << shift, j << shift], n) as usize] =
             values[u_major_index([i, j], grid_size(own)) as usize];

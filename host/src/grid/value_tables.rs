@@ -9,7 +9,7 @@ use gridrt_shared::value_tables::{EDGE_LEVEL_WORDS, EDGE_TABLE_LEVELS};
 
 use super::BaseEdges;
 use crate::bit_writer::BitWriter;
-use crate::displaced::DisplacedMesh;
+use crate::micromesh::DisplacedMesh;
 
 /// Which points some grid renders, where triangles of mixed levels are laid out at the
 /// deepest level (see [`super::displaced::expanded_mesh`]): a grid renders its own level's

@@ -119,7 +119,7 @@ fn glb_chunks(bytes: &[u8]) -> Result<(&[u8], Option<&[u8]>)> {
 /// A glTF document checked and ready to read: the crate's view of it, its JSON as plain
 /// values (for numbers in full precision and for extensions), its buffers' bytes, and the
 /// nodes its scene draws with their transforms, parents first.
-pub(super) struct OpenedGltf {
+pub(crate) struct OpenedGltf {
     pub document: gltf::Document,
     pub raw: Value,
     pub buffers: Vec<Vec<u8>>,
@@ -136,7 +136,7 @@ const HALF_FLOAT: u64 = 5131;
 const UNSIGNED_SHORT: u64 = 5123;
 
 /// Parses and checks a document (the JSON, and a GLB's binary chunk if any).
-pub(super) fn open_document(json: &[u8], bin: Option<&[u8]>, folder: Option<&Path>) -> Result<OpenedGltf> {
+pub(crate) fn open_document(json: &[u8], bin: Option<&[u8]>, folder: Option<&Path>) -> Result<OpenedGltf> {
     // The text as plain JSON first: for the node transforms' numbers in full precision, and
     // for what the crate's validation would index without checking.
     let raw: Value = serde_json::from_slice(json).map_err(|e| error!(Input, "{e}"))?;
@@ -197,7 +197,7 @@ fn half_float_accessors(raw: &Value) -> Result<Vec<usize>> {
 }
 
 /// The JSON and binary chunk of a `.gltf` or `.glb` file's bytes.
-pub(super) fn split_file(bytes: &[u8]) -> Result<(&[u8], Option<&[u8]>)> {
+pub(crate) fn split_file(bytes: &[u8]) -> Result<(&[u8], Option<&[u8]>)> {
     if bytes.starts_with(b"glTF") {
         return glb_chunks(bytes);
     }
@@ -243,7 +243,7 @@ fn parse_document(json: &[u8], bin: Option<&[u8]>, folder: Option<&Path>) -> Res
 /// (instances), from its accessors' counts, each triangle as `weight` of the mesh's index and
 /// the primitive says
 /// (the micro-triangles a displaced one decodes to). `what` names what is counted.
-pub(super) fn check_drawn_size(
+pub(crate) fn check_drawn_size(
     opened: &OpenedGltf,
     weight: impl Fn(usize, &gltf::Primitive) -> f64,
     bytes_per: u64,
@@ -493,7 +493,7 @@ pub fn uris_named(document: &Value) -> Vec<String> {
 }
 
 /// The bytes a buffer's `uri` names, and where they came from (for messages).
-pub(super) fn read_uri(uri: &str, folder: Option<&Path>) -> Result<(Vec<u8>, String)> {
+pub(crate) fn read_uri(uri: &str, folder: Option<&Path>) -> Result<(Vec<u8>, String)> {
     if let Some(data) = uri.strip_prefix("data:") {
         let Some((_, encoded)) = data.split_once(";base64,") else {
             fail!(Input, "its data URI is not base64-encoded");
@@ -573,7 +573,7 @@ fn percent_decode(uri: &str) -> Option<String> {
 }
 
 /// A buffer view's bytes, checked to lie in its buffer.
-pub(super) fn view_bytes<'a>(view: &gltf::buffer::View, buffers: &'a [Vec<u8>]) -> Result<&'a [u8]> {
+pub(crate) fn view_bytes<'a>(view: &gltf::buffer::View, buffers: &'a [Vec<u8>]) -> Result<&'a [u8]> {
     let (v, b) = (view.index(), view.buffer().index());
     let buffer = &buffers[b];
     let range = view.offset()..view.offset().saturating_add(view.length());
@@ -644,7 +644,7 @@ impl<'a> Elements<'a> {
 }
 
 /// Names of the types and component types the specification numbers.
-pub(super) fn describe(accessor: &gltf::Accessor) -> String {
+pub(crate) fn describe(accessor: &gltf::Accessor) -> String {
     let component = match accessor.data_type() {
         DataType::I8 => "BYTE",
         DataType::U8 => "UNSIGNED_BYTE",
@@ -659,7 +659,7 @@ pub(super) fn describe(accessor: &gltf::Accessor) -> String {
 
 /// An accessor's values as `f64`, each element's `N` components; its sparse substitutions
 /// applied. The caller has checked its type.
-pub(super) fn read_accessor<const N: usize>(accessor: &gltf::Accessor, buffers: &[Vec<u8>]) -> Result<Vec<[f64; N]>> {
+pub(crate) fn read_accessor<const N: usize>(accessor: &gltf::Accessor, buffers: &[Vec<u8>]) -> Result<Vec<[f64; N]>> {
     let ty = accessor.data_type();
     let width = ty.size();
     let decode =
@@ -713,7 +713,7 @@ fn component(ty: DataType, b: &[u8]) -> f64 {
     }
 }
 
-pub(super) fn add_primitive(
+pub(crate) fn add_primitive(
     mesh: &mut WorldMesh,
     primitive: &gltf::Primitive,
     transform: &DMat4,

@@ -9,11 +9,11 @@ use std::collections::{HashMap, HashSet};
 use std::path::Path;
 
 use crate::error::{error, fail, Result};
+use crate::micromesh::gltf_micromap;
 use gridrt_shared::glam::{DVec3, Vec3};
 
 pub mod frame;
 pub mod gltf;
-pub mod gltf_micromap;
 pub mod obj;
 pub mod ply;
 pub mod scene;
@@ -297,7 +297,7 @@ pub struct Input {
     pub displaced: Option<DisplacedSource>,
     /// The displaced micro-mesh itself, in the same frame as `mesh` (whose triangles are its
     /// decoded micro-triangles, point for point).
-    pub micromesh: Option<crate::displaced::DisplacedMesh>,
+    pub micromesh: Option<crate::micromesh::DisplacedMesh>,
     /// Where a file was read otherwise than it may mean (a default taken for what it leaves
     /// out), one line each naming the file; a caller shows them.
     pub warnings: Vec<String>,

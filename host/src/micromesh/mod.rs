@@ -1,15 +1,27 @@
-//! Displaced micro-meshes: a base mesh, a direction vector per base vertex and a micromap of
-//! 11-bit displacement values per base triangle (see `gridrt_shared::displacement` for what a
-//! micro-vertex is), checked, and decoded into the micro-triangles they stand for.
+//! The displaced micro-mesh, one concept in one place: a base mesh, a direction vector per
+//! base vertex and a micromap of 11-bit displacement values per base triangle (see
+//! `gridrt_shared::displacement` for what a micro-vertex is).
+//!
+//! - this file: the type ([`DisplacedMesh`]), its checks, and its decoding into the
+//!   micro-triangles it stands for;
+//! - [`bake`]: making one from a detailed mesh (simplify, directions, cast, fit, levels);
+//! - [`bary`]: NVIDIA's `.bary` micromap files, read and written (their compressed blocks too);
+//! - [`gltf_micromap`] reads, and [`gltf`] writes, glTF with NVIDIA's micromap extensions;
+//! - the grid formats that trace one live in `grid::displaced` and `grid::compressed`.
 //!
 //! The decoded triangles are what a triangle BVH over the same surface traces (the baseline
 //! next to displaced grids) and what `export` writes. Every micro-vertex is computed by the
 //! shared decoder, so a point on a base edge comes out with the same bits from both triangles
 //! that share the edge: welding the decoded mesh's equal positions closes every seam.
 
-use crate::bary::{compressed_blocks, Micromap};
+pub mod bake;
+pub mod bary;
+pub mod gltf;
+pub mod gltf_micromap;
+
 use crate::error::{fail, Result};
 use crate::mesh::Mesh;
+use crate::micromesh::bary::{compressed_blocks, Micromap};
 use gridrt_shared::displacement::{
     decimated_point, displaced_point, u_major_index, unorm11_displacement, DisplacedTriangle, DECIMATED_EDGES,
 };
@@ -137,7 +149,7 @@ impl DisplacedMesh {
     }
 
     /// The same surface with its values as NVIDIA's compressed blocks decode them, to be
-    /// written so (see [`crate::bary::compressed_blocks`]), and the blocks' bytes.
+    /// written so (see [`crate::micromesh::bary::compressed_blocks`]), and the blocks' bytes.
     ///
     /// Points that neighbours share keep one value: triangles are encoded finest first, each
     /// taking on its edges the values its encoded neighbours decoded there. Where its format
@@ -236,7 +248,7 @@ impl DisplacedMesh {
     pub fn with_ranges_folded(&self) -> DisplacedMesh {
         let mut folded = DisplacedMesh {
             micromap: Micromap {
-                groups: vec![crate::bary::MicromapGroup {
+                groups: vec![crate::micromesh::bary::MicromapGroup {
                     triangle_first: 0,
                     triangle_count: self.triangles.len() as u32,
                     bias: 0.0,
@@ -370,8 +382,8 @@ fn kept_triangles(level: u32, decimated: u32) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bary::{values_per_triangle, Micromap};
     use crate::mesh::WorldMesh;
+    use crate::micromesh::bary::{values_per_triangle, Micromap};
 
     /// Two triangles sharing the edge between vertices 1 and 2, in opposite orientations,
     /// whose values agree on that edge (as a micromap's must) and differ elsewhere.
@@ -545,13 +557,13 @@ mod tests {
         let plain = mesh.with_ranges_folded();
         assert_eq!(plain.positions.len(), 4);
         mesh.micromap.groups = vec![
-            crate::bary::MicromapGroup {
+            crate::micromesh::bary::MicromapGroup {
                 triangle_first: 0,
                 triangle_count: 1,
                 bias: -0.05,
                 scale: 0.2,
             },
-            crate::bary::MicromapGroup {
+            crate::micromesh::bary::MicromapGroup {
                 triangle_first: 1,
                 triangle_count: 1,
                 bias: 0.1,

@@ -414,7 +414,7 @@ fn format_of(block_format: u16) -> Result<&'static BlockFormat> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bary::bird_curve::tests::REFERENCE;
+    use crate::micromesh::bary::bird_curve::tests::REFERENCE;
 
     /// Twice the noise [`surface`] adds: the finest levels' corrections of a bit or two
     /// follow the surface, not the noise.
@@ -507,7 +507,7 @@ mod tests {
     /// aligned to 128 bytes as the format asks.
     #[test]
     fn a_file_of_blocks_is_read() {
-        use crate::bary::{container, read, FORMAT_DISP_C1_BLOCK, GROUPS_ID, TRIANGLES_ID, VALUES_ID};
+        use crate::micromesh::bary::{container, read, FORMAT_DISP_C1_BLOCK, GROUPS_ID, TRIANGLES_ID, VALUES_ID};
         let le = |words: &[u32]| words.iter().flat_map(|w| w.to_le_bytes()).collect::<Vec<u8>>();
         let first = flat_block(|p| (p[0] * 9 + p[1]) as u16);
         let mut second = vec![0u8; 128];

@@ -30,9 +30,9 @@
 //! ```no_run
 //! # fn main() -> gridrt::error::Result<()> {
 //! let input = gridrt::mesh::open(Some("scan.ply".as_ref()))?;
-//! let options = gridrt::bake::BakeOptions::for_reference(&input.mesh, 3);
-//! let baked = gridrt::bake::bake(&input.mesh, &options)?;
-//! gridrt::micromesh_gltf::write("scan.gltf".as_ref(), &baked.mesh, &input.frame)?;
+//! let options = gridrt::micromesh::bake::BakeOptions::for_reference(&input.mesh, 3);
+//! let baked = gridrt::micromesh::bake::bake(&input.mesh, &options)?;
+//! gridrt::micromesh::gltf::write("scan.gltf".as_ref(), &baked.mesh, &input.frame)?;
 //! # Ok(()) }
 //! ```
 
@@ -48,10 +48,10 @@ use gridrt_shared::glam::Vec3;
 use gridrt_shared::grid_index::{grid_size, lattice_points, triangle_count};
 use rayon::prelude::*;
 
-use crate::bary::{values_per_triangle, Micromap};
-use crate::displaced::{self, DisplacedMesh};
 use crate::error::{fail, Result};
 use crate::mesh::Mesh;
+use crate::micromesh::bary::{values_per_triangle, Micromap};
+use crate::micromesh::{self, DisplacedMesh};
 use cast::{Crossing, Reference};
 use refine::{MicroLines, Refinement};
 
@@ -301,12 +301,12 @@ type FoldedBase<'a> = (&'a [Vec3], &'a [Vec3], &'a [[u32; 3]]);
 /// Steps 1 to 5 of the module docs: the base mesh, its directions, both passes and the fit
 /// of the ranges between them.
 fn cross(reference: &Mesh, options: &BakeOptions) -> Result<Crossed> {
-    if options.levels > displaced::MAX_LEVEL {
+    if options.levels > micromesh::MAX_LEVEL {
         fail!(
             Options,
             "level {} is past the deepest gridrt decodes ({})",
             options.levels,
-            displaced::MAX_LEVEL
+            micromesh::MAX_LEVEL
         );
     }
     let base = match &options.base {

@@ -16,11 +16,11 @@ use std::path::{Path, PathBuf};
 
 use serde_json::{json, Value};
 
-use crate::bary;
-use crate::displaced::DisplacedMesh;
 use crate::error::{error, Result};
 use crate::files::{self, MainFile, SideFile};
 use crate::mesh::frame::LocalFrame;
+use crate::micromesh::bary;
+use crate::micromesh::DisplacedMesh;
 
 /// Writes `mesh` (in `frame`'s local units) to `path` (a `.gltf`), its buffer and its
 /// micromap beside it; returns the three paths, the glTF first.
@@ -147,7 +147,7 @@ pub(crate) fn write_far_from_origin(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bary::{values_per_triangle, Micromap};
+    use crate::micromesh::bary::{values_per_triangle, Micromap};
     use gridrt_shared::glam::{DVec3, Vec3};
 
     fn sample() -> DisplacedMesh {

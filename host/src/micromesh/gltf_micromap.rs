@@ -20,15 +20,15 @@ use std::path::Path;
 use gridrt_shared::glam::{DMat4, DVec3};
 use serde_json::Value;
 
-use super::gltf::{
+use crate::error::{error, fail, Result};
+use crate::mesh::frame::LocalFrame;
+use crate::mesh::gltf::{
     add_primitive, check_drawn_size, describe, open_document, read_accessor, read_uri, split_file, view_bytes,
     OpenedGltf,
 };
-use super::WorldMesh;
-use crate::bary::{self, MeshProperties, Micromap, MicromapGroup, MicromapTriangle};
-use crate::displaced::DisplacedMesh;
-use crate::error::{error, fail, Result};
-use crate::mesh::frame::LocalFrame;
+use crate::mesh::WorldMesh;
+use crate::micromesh::bary::{self, MeshProperties, Micromap, MicromapGroup, MicromapTriangle};
+use crate::micromesh::DisplacedMesh;
 use gltf::accessor::{DataType, Dimensions};
 use gltf::mesh::Mode;
 
@@ -530,7 +530,7 @@ fn widen<const M: usize>(values: Result<Vec<[f64; M]>>) -> Result<Vec<[f64; 4]>>
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bary::values_per_triangle;
+    use crate::micromesh::bary::values_per_triangle;
     use gridrt_shared::displacement::u_major_index;
     use gridrt_shared::glam::Vec3;
 
@@ -558,7 +558,7 @@ mod tests {
     #[test]
     fn written_files_read_back_as_written() {
         let mesh = sample();
-        let (path, frame) = crate::micromesh_gltf::write_far_from_origin(&mesh, "gltf-micromap");
+        let (path, frame) = crate::micromesh::gltf::write_far_from_origin(&mesh, "gltf-micromap");
         let dir = path.parent().unwrap();
         let read = parse_displaced(&std::fs::read(&path).unwrap(), Some(dir))
             .unwrap()
@@ -586,7 +586,7 @@ mod tests {
         mesh.decimated_edges.clear();
         let options = crate::grid::compressed::ValueCompression::bounded(1e-2);
         let compressed = crate::grid::compressed::compress(&mesh, &options).unwrap();
-        let (path, _) = crate::micromesh_gltf::write_far_from_origin(&compressed.mesh, "gltf-value-code");
+        let (path, _) = crate::micromesh::gltf::write_far_from_origin(&compressed.mesh, "gltf-value-code");
         let bytes = std::fs::read(&path).unwrap();
         let read = parse_displaced(&bytes, path.parent()).unwrap().unwrap();
         assert_eq!(read.micromap, compressed.mesh.micromap);
@@ -610,7 +610,7 @@ mod tests {
     fn values_in_blocks_read_back() {
         let mesh = sample();
         let mesh = mesh.in_nv_blocks().0;
-        let (path, _) = crate::micromesh_gltf::write_far_from_origin(&mesh, "gltf-nv-blocks");
+        let (path, _) = crate::micromesh::gltf::write_far_from_origin(&mesh, "gltf-nv-blocks");
         let bytes = std::fs::read(&path).unwrap();
         let read = parse_displaced(&bytes, path.parent()).unwrap().unwrap();
         assert_eq!(read.micromap, mesh.micromap);

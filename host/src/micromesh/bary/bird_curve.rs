@@ -76,7 +76,7 @@ pub fn u_major_positions(level: u32) -> Vec<u32> {
 #[cfg(test)]
 pub(super) mod tests {
     use super::*;
-    use crate::bary::values_per_triangle;
+    use crate::micromesh::bary::values_per_triangle;
 
     /// Bird-curve index of each value in u-major order, as the reference implementation in
     /// NVIDIA's BaryFile library (`baryValueLayoutGetIndex`) gives them.

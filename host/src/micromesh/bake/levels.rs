@@ -34,10 +34,10 @@ use rayon::prelude::*;
 
 use super::refine::{self, MicroLines};
 use super::{fit, BakeOptions, Baked, Crossed};
-use crate::bary::{packed_bytes, Micromap};
-use crate::displaced::DisplacedMesh;
 use crate::error::Result;
 use crate::mesh::Mesh;
+use crate::micromesh::bary::{packed_bytes, Micromap};
+use crate::micromesh::DisplacedMesh;
 use crate::surface_distance::{area_samples, area_samples_on_triangles, NearestTriangles, Sampling};
 
 /// What decides the levels.
@@ -84,7 +84,7 @@ impl<'a> LevelFitting<'a> {
         let mesh = fitted_together(self.reference, &self.crossed, &self.fits, &levels, self.options);
         mesh.check()?;
         let mut report = self.crossed.report;
-        report.micro_triangles = mesh.micro_triangles_at(crate::displaced::MAX_LEVEL);
+        report.micro_triangles = mesh.micro_triangles_at(crate::micromesh::MAX_LEVEL);
         Ok(Baked { mesh, report })
     }
 }
@@ -294,7 +294,7 @@ fn fitted_together(
 /// Micro-triangles of each level `0 ..= 6` in `mesh`, as rendered (less those that decimated
 /// edges collapse).
 pub fn level_counts(mesh: &DisplacedMesh) -> Vec<u64> {
-    let deepest = crate::displaced::MAX_LEVEL;
+    let deepest = crate::micromesh::MAX_LEVEL;
     let mut counts = vec![0u64; deepest as usize + 1];
     for (t, triangle) in mesh.micromap.triangles.iter().enumerate() {
         counts[triangle.level as usize] += mesh.rendered_micro_triangles(t, deepest);
@@ -305,9 +305,9 @@ pub fn level_counts(mesh: &DisplacedMesh) -> Vec<u64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bake::tests::{border_edges, sphere, symmetric_rms};
-    use crate::bake::Base;
     use crate::mesh::WorldMesh;
+    use crate::micromesh::bake::tests::{border_edges, sphere, symmetric_rms};
+    use crate::micromesh::bake::Base;
 
     /// Fits of a strip of four triangles (0-1-2-3 in a row) at levels 0 to 3: the first two
     /// flat (level 0 as good as any), the third gaining little past level 1, the last
@@ -322,7 +322,7 @@ mod tests {
         ];
         let levels = (0..4)
             .map(|l| LevelFit {
-                values: vec![vec![0.0; crate::bary::values_per_triangle(l as u32)]; 4],
+                values: vec![vec![0.0; crate::micromesh::bary::values_per_triangle(l as u32)]; 4],
                 squared_error: errors.iter().map(|e| e[l]).collect(),
             })
             .collect();
@@ -378,7 +378,7 @@ mod tests {
             base: Base::Decimated { triangles: 128 },
             ..BakeOptions::for_reference(&reference, 2)
         };
-        let uniform = crate::bake::bake(&reference, &options).unwrap().mesh;
+        let uniform = crate::micromesh::bake::bake(&reference, &options).unwrap().mesh;
         let budget = (uniform.triangles.len() * packed_bytes(2)) as u64;
         let finer = BakeOptions { levels: 3, ..options };
         let mixed = bake_levels(&reference, &finer, LevelTarget::MaxBytes(budget)).unwrap();

@@ -30,8 +30,8 @@ use gridrt_shared::glam::{DVec3, Vec3};
 use gridrt_shared::grid_index::{grid_size, lattice_points, sub_triangle, triangle_count};
 use rayon::prelude::*;
 
-use crate::bary::values_per_triangle;
 use crate::mesh::Mesh;
+use crate::micromesh::bary::values_per_triangle;
 use crate::surface_distance::{area_samples, NearestTriangles, Sampling};
 
 /// How far refinement goes.
