@@ -149,7 +149,7 @@ fn wanted(filters: &[String], mesh: &str, builder: &str) -> bool {
 }
 
 fn bench_mesh(path: &Path, name: &str, filters: &[String]) -> anyhow::Result<(usize, Vec<Row>)> {
-    let mesh = gridrt::mesh::load_mesh(path)?;
+    let mesh = gridrt::input::load_mesh(path)?;
     let sub = gridrt::subdiv::subdivide(&mesh, 3, gridrt::subdiv::Scheme::Loop);
     let tris = sub.micro_triangles(3);
     let positions = &sub.positions;

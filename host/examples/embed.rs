@@ -8,7 +8,7 @@ use std::process::ExitCode;
 use gridrt::backend::{Backend, BackendChoice};
 use gridrt::error::{ErrorKind, Result};
 use gridrt::pipeline::{BuildOptions, RenderOptions};
-use gridrt::{camera, mesh, scene::Scene};
+use gridrt::{camera, input, scene::Scene};
 
 fn main() -> ExitCode {
     let mut args = std::env::args().skip(1);
@@ -32,7 +32,7 @@ fn main() -> ExitCode {
 }
 
 fn render(path: Option<&str>, levels: u32) -> Result<()> {
-    let input = mesh::open(path.map(std::path::Path::new))?;
+    let input = input::open(path.map(std::path::Path::new))?;
     let scene = Scene::build(&input.mesh, &BuildOptions::levels(levels))?;
     let view = camera::frame(&scene.bounds(), 640, 480);
     let backend = Backend::open(BackendChoice::Auto)?;

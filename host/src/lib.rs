@@ -8,10 +8,10 @@
 //! ```
 //! use gridrt::backend::Backend;
 //! use gridrt::pipeline::{BuildOptions, RenderOptions};
-//! use gridrt::{camera, mesh, scene::Scene};
+//! use gridrt::{camera, input, scene::Scene};
 //!
 //! // The built-in scene; `Some(path)` loads a .obj or .ply file.
-//! let input = mesh::open(None)?;
+//! let input = input::open(None)?;
 //! let scene = Scene::build(&input.mesh, &BuildOptions::levels(3))?;
 //! let view = camera::frame(&scene.bounds(), 64, 48);
 //! // `Backend::open(BackendChoice::Auto)` takes the GPU when there is one.
@@ -44,6 +44,7 @@ pub mod gpu;
 pub mod grid;
 pub mod heat_map;
 pub mod image_io;
+pub mod input;
 pub mod lagrangian;
 pub mod limits;
 pub mod lod;

@@ -67,7 +67,7 @@ impl Default for BuildOptions {
 }
 
 impl Scene {
-    /// Builds `mesh` (in its local frame, see [`crate::mesh::open`]) as `options` say. Grids
+    /// Builds `mesh` (in its local frame, see [`crate::input::open`]) as `options` say. Grids
     /// are built one base triangle at a time; the baseline subdivides the whole mesh.
     pub fn build(mesh: &Mesh, options: &BuildOptions) -> Result<Scene> {
         Scene::build_reporting(mesh, options, &|_| {})

@@ -11,18 +11,19 @@ use crate::footprint::FootprintFrame;
 use crate::glam::Vec3;
 use crate::grid_index::{
     edge_vertex_count, lattice_index, level_start, micro_cell_offset, sub_triangle, triangle_count, vertex_count,
-    GridSlots, Lattice, LeveledAreas, MAX_LEAF_DEPTH,
+    Lattice, MAX_LEAF_DEPTH,
 };
+use crate::grid_slots::{GridSlots, LeveledAreas};
 use crate::layout::{
-    GridHeader, GridIds, GridParams, Hit, SplitParams, DISPLACED_COMPRESSED, GRID_HEADERS, GRID_RADII, GRID_VERTICES,
-    RADII_HALF, RADII_RELATIVE,
+    relative_radius_words, GridHeader, GridIds, GridParams, Hit, SplitParams, DISPLACED_COMPRESSED, GRID_HEADERS,
+    GRID_RADII, GRID_VERTICES, RADII_HALF, RADII_RELATIVE,
 };
 use crate::lod::grid_level;
 use crate::quantize::{dequantize, halves_from_words, read_half, unit_from_exponent};
 use crate::ray::{Ray, T_FAR};
 use crate::sphere::{
     byte_thickness, decode_radius, intersect_sphere_scaled, leaf_radius, leaf_thickness, relative_radius,
-    relative_radius_at, relative_radius_words,
+    relative_radius_at,
 };
 use crate::traverse::{load_vec3_bits, record_hit, LeafPrimitives};
 use crate::triangle::{intersect_sheared, shear};

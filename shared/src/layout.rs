@@ -4,9 +4,15 @@
 //! Rust, in the SPIR-V that rust-gpu emits and in std430 storage buffers.
 
 use crate::grid_index::{sphere_count, triangle_count};
-use crate::sphere::relative_radius_words;
 #[cfg(not(target_arch = "spirv"))]
 use bytemuck::{Pod, Zeroable};
+
+/// Words of one grid's radii stored relative to its root ([`RADII_RELATIVE`]): the
+/// root's `f32`, then a byte per other sphere, four to a word.
+#[inline]
+pub fn relative_radius_words(sphere_count: u32) -> u32 {
+    1 + (sphere_count - 1).div_ceil(4)
+}
 
 /// One node of a binary BVH (32 bytes). `count == 0`: interior node whose children are
 /// `first` and `first + 1`. `count > 0`: leaf over primitives `first .. first + count` of the

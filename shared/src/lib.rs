@@ -16,6 +16,7 @@ pub mod cost;
 pub mod displacement;
 pub mod footprint;
 pub mod grid_index;
+pub mod grid_slots;
 pub mod grid_traverse;
 pub mod layout;
 pub mod lod;

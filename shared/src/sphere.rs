@@ -26,13 +26,6 @@ pub fn byte_thickness(radius: f32, code: u32) -> f32 {
     radius * ((code & 0xff) as f32 * (2.0 / 255.0))
 }
 
-/// Words of one grid's radii stored relative to its root (`layout::RADII_RELATIVE`): the
-/// root's `f32`, then a byte per other sphere, four to a word.
-#[inline]
-pub fn relative_radius_words(sphere_count: u32) -> u32 {
-    1 + (sphere_count - 1).div_ceil(4)
-}
-
 /// The radius that byte `k` of `word` codes, in 255ths of the root's radius `root`.
 #[inline]
 pub fn relative_radius(root: f32, word: u32, k: u32) -> f32 {

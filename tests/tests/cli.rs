@@ -644,7 +644,7 @@ fn creases_keep_a_cube_sharp() {
         args.extend(["-o", out.to_str().unwrap()]);
         let o = gridrt(&args);
         assert!(o.status.success(), "{}", stderr(&o));
-        let (micro, _) = gridrt::mesh::load_mesh_quiet(&out).unwrap();
+        let (micro, _) = gridrt::input::load_mesh_quiet(&out).unwrap();
         let tolerance = size * 1e-5;
         let at_bound = |x: f32| {
             let x = x as f64;

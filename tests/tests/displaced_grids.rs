@@ -349,7 +349,7 @@ fn mixed_levels_with_decimated_edges_render_watertight() {
     // them, aimed at the centre: how many pass through the surface, as decoded triangles and
     // as displaced grids.
     let leaks = |flags: [u8; 4]| {
-        let input = gridrt::mesh::open(Some(&write_gltf(flags))).unwrap();
+        let input = gridrt::input::open(Some(&write_gltf(flags))).unwrap();
         let micromesh = input.micromesh.as_ref().unwrap();
         let expected = if flags == [0; 4] { vec![] } else { flags.to_vec() };
         assert_eq!(micromesh.decimated_edges, expected);

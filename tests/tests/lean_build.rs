@@ -2,7 +2,7 @@
 //! neighbourhood gives exactly the scene of subdividing the whole mesh first.
 
 use gridrt::grid::{build, build_lean, lean_build_applies, GridBuild, GridOptions};
-use gridrt::mesh::load_mesh_quiet;
+use gridrt::input::load_mesh_quiet;
 use gridrt::subdiv::{subdivide, Scheme};
 use gridrt_tests::meshes_dir_or_skip;
 

@@ -3,7 +3,7 @@
 use gridrt::backend::{Backend, BackendChoice, AO_SAMPLES_PER_PASS};
 use gridrt::camera;
 use gridrt::image_io::fraction_within;
-use gridrt::mesh;
+use gridrt::input;
 use gridrt::pipeline::{BuildOptions, RenderOptions, Representation, Shading};
 use gridrt::scene::{render_cpu, Scene};
 use gridrt_shared::layout::{AO_MISS, AO_OPEN_MASK, NO_HIT};
@@ -17,7 +17,7 @@ fn gpu_backend(test: &str) -> Option<Backend> {
 
 /// The built-in scene at L = 2 in both representations, built through the pipeline.
 fn both_scenes() -> Vec<(Representation, Scene)> {
-    let input = mesh::open(None).unwrap();
+    let input = input::open(None).unwrap();
     [Representation::Grids, Representation::Triangles]
         .map(|representation| {
             let options = BuildOptions {
@@ -31,7 +31,7 @@ fn both_scenes() -> Vec<(Representation, Scene)> {
 
 #[test]
 fn the_pipeline_renders_both_representations_on_both_backends() {
-    let input = mesh::open(None).unwrap();
+    let input = input::open(None).unwrap();
     assert_eq!((input.name.as_str(), input.cleaning.dropped), ("default scene", 0));
     let gpu = gpu_backend("the_pipeline_renders_both_representations_on_both_backends");
     let mut images = Vec::new();
@@ -60,14 +60,14 @@ fn the_pipeline_renders_both_representations_on_both_backends() {
 
 #[test]
 fn the_pipeline_refuses_what_it_cannot_build() {
-    let input = mesh::open(None).unwrap();
+    let input = input::open(None).unwrap();
     let deeper = BuildOptions {
         lod: Some(4),
         ..BuildOptions::levels(3)
     };
     let e = Scene::build(&input.mesh, &deeper).err().expect("refused").to_string();
     assert!(e.contains("level of detail 4"), "{e}");
-    let e = mesh::open(Some("no/such/mesh.ply".as_ref()))
+    let e = input::open(Some("no/such/mesh.ply".as_ref()))
         .err()
         .expect("refused")
         .to_string();

@@ -5,8 +5,9 @@ use gridrt::backend::{Backend, BackendChoice};
 use gridrt::camera;
 use gridrt::grid::{build_lean, GridBuild, GridScene};
 use gridrt::image_io::fraction_within;
+use gridrt::input;
 use gridrt::mesh::scene::octahedron;
-use gridrt::mesh::{self, Mesh};
+use gridrt::mesh::Mesh;
 use gridrt::pipeline::{BuildOptions, RenderOptions, Representation, Shading};
 use gridrt::scene::Scene;
 use gridrt::subdiv::Scheme;
@@ -214,7 +215,7 @@ fn smooth_shading_renders_alike_on_both_backends() {
 /// The baseline has no lattice: asking it for smooth normals is refused, not ignored.
 #[test]
 fn the_baseline_refuses_smooth_normals() {
-    let input = mesh::open(None).unwrap();
+    let input = input::open(None).unwrap();
     let options = BuildOptions {
         representation: Representation::Triangles,
         ..BuildOptions::levels(1)

@@ -11,7 +11,7 @@ use super::BakeArgs;
 use gridrt::files;
 use gridrt::grid::compressed::{compress, CompressedMesh, Compressor, ValueCompression};
 use gridrt::grid::{self, GridOptions};
-use gridrt::mesh;
+use gridrt::input;
 use gridrt::micromesh;
 use gridrt::micromesh::bake::refine::Refinement;
 use gridrt::micromesh::bake::{self, BakeOptions, BakeReport, Base};
@@ -86,7 +86,7 @@ struct BlocksReport {
 
 pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
     let inputs = check_outputs(args)?;
-    let (reference, cleaning, warnings) = stages.run("load", || mesh::load_world_warning(&args.reference))?;
+    let (reference, cleaning, warnings) = stages.run("load", || input::load_world_warning(&args.reference))?;
     for warning in warnings {
         eprintln!("warning: {warning}");
     }
@@ -104,7 +104,7 @@ pub fn run(args: &BakeArgs, stages: &mut Stages) -> Result<()> {
     surface_distance::check_area(&reference_mesh, &name)?;
     let base = match &args.base {
         Some(path) => {
-            let (base, _, warnings) = stages.run("load base", || mesh::load_world_warning(path))?;
+            let (base, _, warnings) = stages.run("load base", || input::load_world_warning(path))?;
             for warning in warnings {
                 eprintln!("warning: {warning}");
             }
@@ -527,7 +527,7 @@ fn check_outputs(args: &BakeArgs) -> Result<Vec<PathBuf>> {
     files::check_output(&args.output, "gltf")?;
     let mut paths = vec![args.reference.as_path()];
     paths.extend(args.base.as_deref());
-    let inputs = mesh::files_read(&paths);
+    let inputs = input::files_read(&paths);
     files::check_not_input(&args.output, &inputs)?;
     if args
         .base

@@ -1,6 +1,7 @@
 //! `gridrt bench`: the published Table 1 measured here, on the same rays for both
 //! representations: memory, build time and ray throughput of grids against the baseline.
 
+use super::chart::{write_chart, ChartRow};
 use std::fmt::Write as _;
 
 use anyhow::{bail, Result};
@@ -11,7 +12,8 @@ use super::stats::{self, Stats};
 use super::{BenchArgs, BuildArgs};
 use gridrt::backend::{Backend, TimedTrace};
 use gridrt::bvh::Aabb;
-use gridrt::mesh::{Input, Mesh};
+use gridrt::input::Input;
+use gridrt::mesh::Mesh;
 use gridrt::rays::{ao_rays, primary_rays, reorder, trace_cpu, RayOrder};
 use gridrt::scene::Scene;
 use gridrt::{limits, triangles};
@@ -87,7 +89,7 @@ fn check_outputs(args: &BenchArgs) -> Result<()> {
     gridrt::files::check_distinct(&outputs)?;
     let mut read: Vec<&std::path::Path> = args.meshes.iter().map(|p| p.as_path()).collect();
     read.extend(args.reference.as_deref());
-    let mut inputs = gridrt::mesh::files_read(&read);
+    let mut inputs = gridrt::input::files_read(&read);
     inputs.push(args.font.clone());
     for output in &outputs {
         gridrt::files::check_not_input(output, &inputs)?;
@@ -202,7 +204,7 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
         bail!("--reference compares one micro-mesh with the mesh it was baked from: name one mesh");
     }
     let reference = match &args.reference {
-        Some(path) => Some(gridrt::mesh::load_world(path)?.0),
+        Some(path) => Some(gridrt::input::load_world(path)?.0),
         None => None,
     };
     let rays_per_view = args.width as u64 * args.height as u64 * (1 + args.ao_samples as u64);
@@ -368,7 +370,17 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
             .map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", path.display()))?;
     }
     if let Some(path) = &args.chart {
-        super::chart::write_chart(&results, path, &args.font)?;
+        let rows: Vec<ChartRow> = (results.iter())
+            .map(|r| ChartRow {
+                mesh: &r.stats.mesh,
+                compression_gain: r.stats.compression_gain,
+                construction_gain: r.stats.construction_gain,
+                rt_impact_primary: r.rt_impact_percent.primary,
+                rt_impact_ao: r.rt_impact_percent.ao,
+            })
+            .collect();
+        let backend = results.first().map_or("", |r| r.backend.as_str());
+        write_chart(&rows, backend, path, &args.font)?;
     }
     if let Some(path) = &args.markdown {
         std::fs::write(path, table).map_err(|e| anyhow::anyhow!("{}: cannot write: {e}", path.display()))?;

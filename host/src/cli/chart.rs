@@ -7,8 +7,6 @@ use anyhow::{anyhow, Context, Result};
 use plotters::prelude::*;
 use plotters::style::{register_font, FontStyle};
 
-use super::bench::BenchResult;
-
 /// Where a sans-serif font is looked for when none is given (Debian's fonts-dejavu-core).
 pub const DEFAULT_FONT: &str = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
 
@@ -19,34 +17,41 @@ fn short_name(mesh: &str) -> String {
         .unwrap_or_else(|| mesh.to_string())
 }
 
-pub fn write_chart(results: &[BenchResult], path: &Path, font: &Path) -> Result<()> {
+/// One mesh's bars: its three ratios, the impact for primary and AO rays.
+pub struct ChartRow<'a> {
+    pub mesh: &'a str,
+    pub compression_gain: f64,
+    pub construction_gain: f64,
+    pub rt_impact_primary: f64,
+    pub rt_impact_ao: f64,
+}
+
+/// Draws `results`, measured on `backend`, to the PNG `path` in the TrueType `font`.
+pub fn write_chart(results: &[ChartRow], backend: &str, path: &Path, font: &Path) -> Result<()> {
     let bytes = std::fs::read(font).with_context(|| format!("{}: cannot read font for the chart", font.display()))?;
     register_font("sans-serif", FontStyle::Normal, Box::leak(bytes.into_boxed_slice()))
         .map_err(|_| anyhow!("{}: not a usable TrueType font", font.display()))?;
-    let names: Vec<String> = results.iter().map(|r| short_name(&r.stats.mesh)).collect();
+    let names: Vec<String> = results.iter().map(|r| short_name(r.mesh)).collect();
     let panels: [(&str, Vec<(f64, RGBColor)>); 3] = [
         (
             "compression gain (x)",
-            results.iter().map(|r| (r.stats.compression_gain, BLUE)).collect(),
+            results.iter().map(|r| (r.compression_gain, BLUE)).collect(),
         ),
         (
             "construction gain (x)",
-            results.iter().map(|r| (r.stats.construction_gain, GREEN)).collect(),
+            results.iter().map(|r| (r.construction_gain, GREEN)).collect(),
         ),
         (
             "RT impact (%): primary, AO",
             results
                 .iter()
-                .flat_map(|r| [(r.rt_impact_percent.primary, RED), (r.rt_impact_percent.ao, MAGENTA)])
+                .flat_map(|r| [(r.rt_impact_primary, RED), (r.rt_impact_ao, MAGENTA)])
                 .collect(),
         ),
     ];
+    let title = format!("gridrt vs triangle BVH, {backend} backend");
     let backend = BitMapBackend::new(path, (1500, 500)).into_drawing_area();
     backend.fill(&WHITE).map_err(|e| anyhow!("{}: {e}", path.display()))?;
-    let title = format!(
-        "gridrt vs triangle BVH, {} backend",
-        results.first().map_or("", |r| r.backend.as_str())
-    );
     let backend = backend
         .titled(&title, ("sans-serif", 24))
         .map_err(|e| anyhow!("{}: {e}", path.display()))?;

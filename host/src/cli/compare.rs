@@ -7,7 +7,7 @@ use anyhow::Result;
 use serde::Serialize;
 
 use super::CompareArgs;
-use gridrt::mesh;
+use gridrt::input;
 use gridrt::surface_distance::{self, DistanceSummary, Sampling};
 
 #[derive(Serialize)]
@@ -24,8 +24,8 @@ struct Report {
 
 pub fn run(args: &CompareArgs) -> Result<()> {
     surface_distance::check_samples(args.samples, "--samples")?;
-    let (reference, _, mut warnings) = mesh::load_world_warning(&args.reference)?;
-    let (other, _, more) = mesh::load_world_warning(&args.other)?;
+    let (reference, _, mut warnings) = input::load_world_warning(&args.reference)?;
+    let (other, _, more) = input::load_world_warning(&args.other)?;
     warnings.extend(more);
     for warning in warnings {
         eprintln!("warning: {warning}");

@@ -8,9 +8,10 @@ use clap::{Parser, Subcommand, ValueEnum};
 use gridrt::backend::{Backend, BackendChoice};
 use gridrt::camera::Viewpoint;
 use gridrt::heat_map::CostSummary;
+use gridrt::input::{self, Input};
 use gridrt::lod::LodReport;
 use gridrt::mesh::frame::LocalFrame;
-use gridrt::mesh::{self, Input, Mesh};
+use gridrt::mesh::{self, Mesh};
 use gridrt::pipeline::{BuildOptions, RenderOptions, Representation, Shading};
 use gridrt::rays::RayOrder;
 use gridrt::scene::Scene;
@@ -762,14 +763,14 @@ pub fn run(cli: Cli) -> Result<()> {
 }
 
 /// The mesh named on the command line, or the built-in scene, in its local frame (see
-/// `gridrt::mesh::open`), warning about dropped degenerate triangles.
+/// `gridrt::input::open`), warning about dropped degenerate triangles.
 pub fn load(path: Option<&Path>) -> Result<Input> {
     load_all(path.as_slice())
 }
 
 /// [`load`] for several meshes rendered together.
 pub fn load_all(paths: &[&Path]) -> Result<Input> {
-    let input = mesh::open_all(paths)?;
+    let input = input::open_all(paths)?;
     for warning in &input.warnings {
         eprintln!("warning: {warning}");
     }
@@ -877,7 +878,7 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
         .map(|k| frame_path(&args.output, k, args.turntable))
         .collect();
     let paths: Vec<&Path> = args.meshes.iter().map(PathBuf::as_path).collect();
-    let inputs = mesh::files_read(&paths);
+    let inputs = input::files_read(&paths);
     for output in &outputs {
         files::check_png_path(output)?;
         files::check_not_input(output, &inputs)?;
@@ -1087,7 +1088,7 @@ const DEFAULT_EXPORT_LEVELS: u32 = 3;
 fn export(args: &ExportArgs, stages: &mut Stages) -> Result<()> {
     files::check_output(&args.output, "ply")?;
     let paths: Vec<&Path> = args.mesh.iter().map(PathBuf::as_path).collect();
-    files::check_not_input(&args.output, &mesh::files_read(&paths))?;
+    files::check_not_input(&args.output, &input::files_read(&paths))?;
     let Input {
         name,
         mesh,

@@ -9,8 +9,9 @@ use serde_json::{Map, Value};
 
 use super::{BuildArgs, StatsArgs};
 use gridrt::grid::{self, GridScene};
+use gridrt::input::Input;
 use gridrt::limits;
-use gridrt::mesh::{Input, Mesh};
+use gridrt::mesh::Mesh;
 use gridrt::micromesh::DisplacedMesh;
 use gridrt::subdiv::Subdivided;
 use gridrt::triangles::{self, TriangleScene};

@@ -29,7 +29,7 @@ use gridrt_shared::grid_index::{corner_point, grid_size, parents, Lattice};
 
 use rayon::prelude::*;
 
-use super::displaced::expanded_mesh;
+use super::expanded::expanded_mesh;
 use super::value_tables::{level_sorted_edges, write_edge_levels, Rendered};
 use super::{stored_edge_point, BaseEdges};
 use crate::error::{fail, Result};

@@ -10,15 +10,15 @@ use gridrt_shared::buffer::Buffer;
 use gridrt_shared::compressed_values::ValueCode;
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::grid_index::{
-    edge_point, edge_vertex_count, grid_size, inner_points, inner_vertex_count, sphere_count, triangle_count,
-    GridSlots, Lattice,
+    edge_point, edge_vertex_count, grid_size, inner_points, inner_vertex_count, sphere_count, triangle_count, Lattice,
 };
+use gridrt_shared::grid_slots::GridSlots;
 use gridrt_shared::grid_traverse::MAX_SPHERE_LEVEL;
+use gridrt_shared::layout::relative_radius_words;
 use gridrt_shared::layout::{
     BvhNode, GridHeader, GridIds, GridParams, OwnRoom, DISPLACED_COMPRESSED, DISPLACED_PLAIN, MAX_HEADER_ID,
 };
 use gridrt_shared::quantize;
-use gridrt_shared::sphere::relative_radius_words;
 use gridrt_shared::top_nodes::{TopNodes, COMPACT};
 use gridrt_shared::wide_nodes::{WIDE, WIDTH};
 use rayon::prelude::*;
@@ -29,6 +29,7 @@ use crate::limits::BufferSize;
 pub mod compact_top;
 pub mod compressed;
 pub mod displaced;
+mod expanded;
 mod lean;
 mod spheres;
 #[cfg(test)]

@@ -118,7 +118,7 @@ fn rendered_points(points: &mut [Vec3A], levels: u32, own: u32) {
         }
     }
     for h in (0..shift).rev().map(|k| 1u32 << k) {
-        for p in lattice_points(n).filter(|&p| super::displaced::new_at_spacing(p, h)) {
+        for p in lattice_points(n).filter(|&p| super::expanded::new_at_spacing(p, h)) {
             let [a, b] = parents(p, h);
             points[at(p)] = (points[at(a)] + points[at(b)]) * 0.5;
         }
@@ -338,7 +338,7 @@ pub fn encode_radius(r: f32, scale: f32) -> u16 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use gridrt_shared::sphere::relative_radius_words;
+    use gridrt_shared::layout::relative_radius_words;
 
     /// Every decoded radius holds the radius it stands for, within a code step of the root's.
     #[test]

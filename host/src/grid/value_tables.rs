@@ -12,7 +12,7 @@ use crate::bit_writer::BitWriter;
 use crate::micromesh::DisplacedMesh;
 
 /// Which points some grid renders, where triangles of mixed levels are laid out at the
-/// deepest level (see [`super::displaced::expanded_mesh`]): a grid renders its own level's
+/// deepest level (see [`super::expanded::expanded_mesh`]): a grid renders its own level's
 /// points, but not those its decimated edges move, and a base edge is rendered at the finest
 /// level any of its grids renders it at. Every point is rendered where levels are one.
 #[derive(Clone, Debug, Default)]

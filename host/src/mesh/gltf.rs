@@ -831,7 +831,7 @@ pub fn glb_container(json: &[u8], bin: &[u8]) -> Vec<u8> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::load_mesh_quiet;
+    use super::super::read_world;
     use super::super::test_util::{expect_err, load_ok, load_scrambled, write_temp};
     use super::*;
 
@@ -941,7 +941,7 @@ mod tests {
             parse_gltf
         };
         check(&parse(&std::fs::read(path).unwrap(), path.parent()).unwrap());
-        let (mesh, cleaning) = crate::mesh::load_world(path).unwrap();
+        let (mesh, cleaning) = read_world(path).unwrap();
         assert_eq!((mesh.positions.len(), cleaning.welded), (8, 4));
     }
 
@@ -1091,7 +1091,7 @@ mod tests {
         let folder = folder.parent().unwrap();
         let inside = folder.join("inside.gltf");
         std::fs::write(&inside, document(Some("scene.bin"))).unwrap();
-        assert!(load_mesh_quiet(&inside).is_ok());
+        assert!(read_world(&inside).is_ok());
         let escaped = document(Some("sub%2F..%2Fscene.bin"));
         for (name, uri, why) in [
             ("up.gltf", "../../../../etc/passwd", "steps out of its folder"),
@@ -1111,7 +1111,7 @@ mod tests {
             std::os::unix::fs::symlink(&outside, &link).unwrap();
             let linked = folder.join("link.gltf");
             std::fs::write(&linked, document(Some("link.bin"))).unwrap();
-            let e = load_mesh_quiet(&linked).unwrap_err().to_string();
+            let e = read_world(&linked).unwrap_err().to_string();
             assert!(e.contains("leads out of the asset's folder through a link"), "{e}");
         }
     }
@@ -1147,7 +1147,7 @@ mod tests {
     fn node_transforms_are_read_in_double_precision_and_checked() {
         let far = with_nodes(r#"[{"mesh": 0, "translation": [10000000.125, 0, 0]}]"#);
         let path = write_temp("far.glb", &far);
-        let (mesh, _) = crate::mesh::load_world(&path).unwrap();
+        let (mesh, _) = read_world(&path).unwrap();
         assert_eq!(mesh.positions[1], DVec3::new(10000001.125, 0.0, 0.0));
         let huge = with_nodes(r#"[{"mesh": 0, "translation": [1e39, 0, 0]}]"#);
         expect_err(
@@ -1184,7 +1184,7 @@ mod tests {
             "accessors": [{"bufferView": 0, "componentType": 5126, "count": 6, "type": "VEC3",
             "min": [0, 0, 0], "max": [1, 1, 0]}]}"#;
         let path = write_temp("seams.glb", &glb(doc, &b));
-        let (mesh, cleaning) = crate::mesh::load_world(&path).unwrap();
+        let (mesh, cleaning) = read_world(&path).unwrap();
         assert_eq!((mesh.positions.len(), cleaning.welded), (4, 2));
         assert_eq!(mesh.triangles, vec![[0, 1, 2], [0, 2, 3]]);
     }

@@ -29,7 +29,7 @@
 //!
 //! ```no_run
 //! # fn main() -> gridrt::error::Result<()> {
-//! let input = gridrt::mesh::open(Some("scan.ply".as_ref()))?;
+//! let input = gridrt::input::open(Some("scan.ply".as_ref()))?;
 //! let options = gridrt::micromesh::bake::BakeOptions::for_reference(&input.mesh, 3);
 //! let baked = gridrt::micromesh::bake::bake(&input.mesh, &options)?;
 //! gridrt::micromesh::gltf::write("scan.gltf".as_ref(), &baked.mesh, &input.frame)?;
