@@ -154,11 +154,6 @@ mod tests {
     use crate::grid_index::{edge_vertex_count, grid_size, inner_vertex_count, lattice_points, vertex_count};
     use crate::layout::MAX_HEADER_ID;
     use std::collections::BTreeSet;
-    use std::vec::Vec;
-
-    fn lattice(n: u32) -> Vec<Lattice> {
-        lattice_points(n).collect()
-    }
 
     /// Every lattice point of a grid lands in a distinct slot, and the slots fill the inner,
     /// edge and corner areas exactly, for both orientations of every edge.
@@ -175,8 +170,7 @@ mod tests {
                     corners,
                 };
                 let (grid, edge_offset, corner_offset) = (3, 1000, 5000);
-                let slots: BTreeSet<u32> = lattice(n)
-                    .into_iter()
+                let slots: BTreeSet<u32> = lattice_points(n)
                     .map(|p| vertex_slot(p, n, grid, &header, inner, edge_offset, corner_offset))
                     .collect();
                 assert_eq!(slots.len() as u32, vertex_count(levels));

@@ -69,7 +69,6 @@ pub fn layout(mesh: &DisplacedMesh, options: &GridOptions) -> Result<GridLayout>
         positions: mesh.positions.clone(),
         triangles: mesh.triangles.clone(),
     };
-    let n = grid_size(levels);
     check_counts(&base, edges.owner.len() as u64, levels, options, false)?;
     let mut shape = GridShape::new(&base, edges.owner.len(), levels, options, false);
     let inner_count = inner_vertex_count(levels) as usize;
@@ -82,39 +81,7 @@ pub fn layout(mesh: &DisplacedMesh, options: &GridOptions) -> Result<GridLayout>
     check_addressable(base_word, &format!("{grids} grids at level {levels}"))?;
     shape.base_word = base_word as u32;
 
-    let value = |g: usize, p: Lattice| mesh.micromap.triangle_values(g)[u_major_index(p, n) as usize];
-    let triangle = |g: usize| DisplacedTriangle {
-        positions: mesh.triangles[g].map(|v| mesh.positions[v as usize]),
-        directions: mesh.triangles[g].map(|v| mesh.directions[v as usize]),
-        ids: mesh.triangles[g],
-    };
-    let decode =
-        |g: usize, p: Lattice| displaced_point(&triangle(g), p, n, unorm11_displacement(value(g, p) as u32, 1.0, 0.0));
-
-    // Values and decoded positions, slot by slot: inner, edge, corner areas.
-    let mut values: Vec<u16> = Vec::with_capacity(shape.corner_offset as usize + base.positions.len());
-    let mut vertices: Vec<Vec3> = Vec::with_capacity(values.capacity());
-    for g in 0..grids {
-        values.extend(inner_points(n).map(|p| value(g, p)));
-        vertices.extend(inner_points(n).map(|p| decode(g, p)));
-    }
-    for &(g, e) in &edges.owner {
-        values.extend(edge_points(&base.triangles[g], e, n).map(|p| value(g, p)));
-        vertices.extend(edge_points(&base.triangles[g], e, n).map(|p| decode(g, p)));
-    }
-    let mut corner_of = vec![None; base.positions.len()];
-    for (g, t) in base.triangles.iter().enumerate() {
-        for (c, &v) in t.iter().enumerate() {
-            let lattice = corner_point(c as u32, n);
-            corner_of[v as usize].get_or_insert((g, lattice));
-        }
-    }
-    for &corner in &corner_of {
-        // A base vertex no triangle uses decodes to its own position (value 0).
-        let (q, p) = corner.map_or((0, None), |(g, lattice)| (value(g, lattice), Some(decode(g, lattice))));
-        values.push(q);
-        vertices.push(p.unwrap_or(Vec3::ZERO));
-    }
+    let (values, vertices) = values_by_slot(&mesh, &base, &edges, &shape);
 
     let (inner_by_grid, shared, value_blocks) = match mesh.micromap.value_code {
         None if !own_levels.is_empty() => {
@@ -160,16 +127,7 @@ pub fn layout(mesh: &DisplacedMesh, options: &GridOptions) -> Result<GridLayout>
             (Vec::new(), encoded.shared, Some(blocks))
         }
     };
-    let edge_word = shape.edge_word as usize;
-    let mut buffer = vec![0u32; shape.base_word as usize + 6 * base.positions.len()];
-    buffer[edge_word..edge_word + shared.len()].copy_from_slice(&shared);
-    for (record, (p, d)) in buffer[shape.base_word as usize..]
-        .chunks_mut(6)
-        .zip(mesh.positions.iter().zip(&mesh.directions))
-    {
-        record[..3].copy_from_slice(&p.to_array().map(f32::to_bits));
-        record[3..].copy_from_slice(&d.to_array().map(f32::to_bits));
-    }
+    let buffer = value_buffer(&shape, &shared, &mesh);
     Ok(GridLayout {
         shape,
         ids: edges.ids(&base),
@@ -179,6 +137,60 @@ pub fn layout(mesh: &DisplacedMesh, options: &GridOptions) -> Result<GridLayout>
         buffer,
         own_levels,
     })
+}
+
+/// Each vertex slot's value and decoded position, slot by slot: the inner areas grid by
+/// grid, each base edge's points from the grid that stores it, then the corners (a base
+/// vertex no triangle uses decodes to its own position, value 0).
+fn values_by_slot(mesh: &DisplacedMesh, base: &Mesh, edges: &BaseEdges, shape: &GridShape) -> (Vec<u16>, Vec<Vec3>) {
+    let n = grid_size(shape.levels);
+    let value = |g: usize, p: Lattice| mesh.micromap.triangle_values(g)[u_major_index(p, n) as usize];
+    let triangle = |g: usize| DisplacedTriangle {
+        positions: mesh.triangles[g].map(|v| mesh.positions[v as usize]),
+        directions: mesh.triangles[g].map(|v| mesh.directions[v as usize]),
+        ids: mesh.triangles[g],
+    };
+    let decode =
+        |g: usize, p: Lattice| displaced_point(&triangle(g), p, n, unorm11_displacement(value(g, p) as u32, 1.0, 0.0));
+    let mut values: Vec<u16> = Vec::with_capacity(shape.corner_offset as usize + base.positions.len());
+    let mut vertices: Vec<Vec3> = Vec::with_capacity(values.capacity());
+    for g in 0..base.triangles.len() {
+        values.extend(inner_points(n).map(|p| value(g, p)));
+        vertices.extend(inner_points(n).map(|p| decode(g, p)));
+    }
+    for &(g, e) in &edges.owner {
+        values.extend(edge_points(&base.triangles[g], e, n).map(|p| value(g, p)));
+        vertices.extend(edge_points(&base.triangles[g], e, n).map(|p| decode(g, p)));
+    }
+    let mut corner_of = vec![None; base.positions.len()];
+    for (g, t) in base.triangles.iter().enumerate() {
+        for (c, &v) in t.iter().enumerate() {
+            let lattice = corner_point(c as u32, n);
+            corner_of[v as usize].get_or_insert((g, lattice));
+        }
+    }
+    for &corner in &corner_of {
+        let (q, p) = corner.map_or((0, None), |(g, lattice)| (value(g, lattice), Some(decode(g, lattice))));
+        values.push(q);
+        vertices.push(p.unwrap_or(Vec3::ZERO));
+    }
+    (values, vertices)
+}
+
+/// The vertex buffer of displaced grids: their values' `shared` words at the shape's edge
+/// word, then each base vertex's position and direction as six `f32` words.
+fn value_buffer(shape: &GridShape, shared: &[u32], mesh: &DisplacedMesh) -> Vec<u32> {
+    let edge_word = shape.edge_word as usize;
+    let mut buffer = vec![0u32; shape.base_word as usize + 6 * mesh.positions.len()];
+    buffer[edge_word..edge_word + shared.len()].copy_from_slice(shared);
+    for (record, (p, d)) in buffer[shape.base_word as usize..]
+        .chunks_mut(6)
+        .zip(mesh.positions.iter().zip(&mesh.directions))
+    {
+        record[..3].copy_from_slice(&p.to_array().map(f32::to_bits));
+        record[3..].copy_from_slice(&d.to_array().map(f32::to_bits));
+    }
+    buffer
 }
 
 /// Plain values of grids of mixed levels, each block at its own level (see
