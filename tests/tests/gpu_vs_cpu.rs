@@ -8,8 +8,9 @@
 
 use gridrt::camera;
 use gridrt::image_io::{fraction_within, pixel_difference};
+use gridrt::input::load_mesh;
 use gridrt::mesh::scene::default_scene;
-use gridrt::mesh::{load_mesh, Mesh};
+use gridrt::mesh::Mesh;
 use gridrt::scene::{render_cpu, Scene};
 use gridrt::subdiv::Scheme;
 use gridrt_shared::layout::{SHADE_EYE_LIGHT, SHADE_NORMAL};
