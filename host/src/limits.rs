@@ -13,6 +13,14 @@ pub struct BufferSize {
     pub at_least: bool,
 }
 
+impl BufferSize {
+    /// Its size for messages: `N bytes`, or `at least N bytes` for a lower bound.
+    pub fn bytes_text(&self) -> String {
+        let least = if self.at_least { "at least " } else { "" };
+        format!("{least}{} bytes", self.bytes)
+    }
+}
+
 /// Peak host bytes per micro-triangle of subdividing the whole mesh and building each
 /// representation from it, measured (peak resident size over micro-triangles at several
 /// depths, see docs/RESULTS.md "Peak host memory") and rounded up.

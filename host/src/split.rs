@@ -74,12 +74,12 @@ pub fn check_chunks(sizes: &[BufferSize], chunk_words: u32, most: u32, device: &
     if needed <= most as u64 {
         return Ok(());
     }
-    let least = |yes: bool| if yes { "at least " } else { "" };
-    let at_least = least(sizes.iter().any(|b| b.at_least));
-    let sizes: Vec<String> = sizes
-        .iter()
-        .map(|b| format!("{} {}{} bytes", b.name, least(b.at_least), b.bytes))
-        .collect();
+    let at_least = if sizes.iter().any(|b| b.at_least) {
+        "at least "
+    } else {
+        ""
+    };
+    let sizes: Vec<String> = sizes.iter().map(|b| format!("{} {}", b.name, b.bytes_text())).collect();
     fail!(
         Limits,
         "the scene's buffers ({}) need {at_least}{needed} bindings of {} bytes, more than the {most} that \

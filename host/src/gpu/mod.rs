@@ -289,14 +289,7 @@ impl Gpu {
     fn refusing_split(&self, sizes: &[BufferSize]) -> Error {
         let too_large: Vec<String> = (sizes.iter())
             .filter(|b| b.bytes > self.binding_limit)
-            .map(|b| {
-                format!(
-                    "the {} buffer needs {}{} bytes",
-                    b.name,
-                    if b.at_least { "at least " } else { "" },
-                    b.bytes
-                )
-            })
+            .map(|b| format!("the {} buffer needs {}", b.name, b.bytes_text()))
             .collect();
         error!(
             Limits,
@@ -335,11 +328,8 @@ impl Gpu {
                 chunks: None,
             });
         }
-        if scene.needs_whole_bindings() {
-            return Err(self.refusing_split(&sizes));
-        }
+        self.check_fits(&sizes, scene.needs_whole_bindings())?;
         let split = split(scene, chunk_words(self.binding_limit), &self.describe_limits())?;
-        self.check_split_bindings()?;
         let mut chunks: Vec<wgpu::Buffer> = (split.chunks.iter())
             .map(|c| self.buffer("scene chunk", bytemuck::cast_slice(c)))
             .collect();
