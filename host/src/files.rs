@@ -101,10 +101,15 @@ fn refuse_folder(path: &Path) -> Result<()> {
     Ok(())
 }
 
+/// The extension of `path`, lower-cased: formats are named case-insensitively.
+pub fn extension(path: &Path) -> Option<String> {
+    path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase)
+}
+
 /// [`check_writable`] for a file of one format: the name must also end in `.extension`.
 pub fn check_output(path: &Path, extension: &str) -> Result<()> {
     refuse_folder(path)?;
-    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    let ext = self::extension(path);
     if ext.as_deref() != Some(extension) {
         let found = match &ext {
             Some(e) => format!("'.{e}'"),

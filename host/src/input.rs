@@ -175,8 +175,7 @@ pub fn files_read(paths: &[&Path]) -> Vec<std::path::PathBuf> {
     let mut files = Vec::new();
     for &path in paths {
         files.push(path.to_path_buf());
-        let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-        if matches!(ext.as_deref(), Some("gltf" | "glb")) {
+        if mesh::is_gltf(path) {
             files.extend(mesh::gltf::files_named(path));
         }
     }
@@ -193,9 +192,7 @@ enum Loaded {
 fn read_file(path: &Path) -> Result<Loaded> {
     let name = path.display().to_string();
     let bytes = mesh::read_mesh_bytes(path)?;
-    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-    let is_gltf = matches!(ext.as_deref(), Some("gltf" | "glb"));
-    if is_gltf && bytes.windows(24).any(|w| w == b"NV_displacement_micromap") {
+    if mesh::is_gltf(path) && bytes.windows(24).any(|w| w == b"NV_displacement_micromap") {
         let named = |e: crate::error::Error| error!(Input, "{name}: {}", one_line(&e.to_string()));
         if let Some(mut displaced) = gltf_micromap::parse_displaced(&bytes, path.parent()).map_err(named)? {
             for warning in &mut displaced.warnings {

@@ -1,13 +1,13 @@
 //! `gridrt bench`: the published Table 1 measured here, on the same rays for both
 //! representations: memory, build time and ray throughput of grids against the baseline.
 
-use super::chart::{write_chart, ChartRow};
 use std::fmt::Write as _;
 
 use anyhow::{bail, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
+use super::chart::{write_chart, ChartRow};
 use super::stats::{self, Stats};
 use super::{BenchArgs, BuildArgs};
 use gridrt::backend::{Backend, TimedTrace};

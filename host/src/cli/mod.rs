@@ -868,7 +868,7 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
     let options = args.build_options();
     let lod = options.lod.unwrap_or(args.build.levels);
     // A displaced micro-mesh has a level of its own, checked once it is loaded.
-    let displaced_file = args.meshes.iter().any(|m| is_gltf(m));
+    let displaced_file = args.meshes.iter().any(|m| mesh::is_gltf(m));
     if lod > args.build.levels && !displaced_file {
         bail!("--lod {lod} is deeper than --levels {}", args.build.levels);
     }
@@ -1013,12 +1013,6 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
     }
     stages.report();
     Ok(())
-}
-
-/// Whether `path` names a glTF file (which may hold a displaced micro-mesh).
-fn is_gltf(path: &Path) -> bool {
-    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-    matches!(ext.as_deref(), Some("gltf" | "glb"))
 }
 
 /// Triangles from which a mesh is taken for a detailed one (a scan, a sculpt, a CAD

@@ -286,8 +286,10 @@ pub fn read_world(path: &Path) -> Result<(WorldMesh, Cleaning)> {
 /// not one gridrt reads, when it cannot be read, or when it is empty.
 pub fn read_mesh_bytes(path: &Path) -> Result<Vec<u8>> {
     let name = path.display().to_string();
-    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-    if !matches!(ext.as_deref(), Some("obj" | "ply" | "gltf" | "glb")) {
+    if !matches!(
+        crate::files::extension(path).as_deref(),
+        Some("obj" | "ply" | "gltf" | "glb")
+    ) {
         fail!(Input, "{name}: unsupported format (expected .obj, .ply, .gltf or .glb)");
     }
     let bytes = crate::files::read_plain_file(path).map_err(|reason| error!(Input, "{name}: cannot open: {reason}"))?;
@@ -297,12 +299,16 @@ pub fn read_mesh_bytes(path: &Path) -> Result<Vec<u8>> {
     Ok(bytes)
 }
 
+/// Whether `path` names a glTF file (`.gltf` or `.glb`), which may hold a displaced micro-mesh.
+pub fn is_gltf(path: &Path) -> bool {
+    matches!(crate::files::extension(path).as_deref(), Some("gltf" | "glb"))
+}
+
 /// Parses `bytes`, read from `path` (whose extension says the format), as a plain mesh and
 /// validates it.
 pub fn parse_world(bytes: &[u8], path: &Path) -> Result<(WorldMesh, Cleaning)> {
     let name = path.display().to_string();
-    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-    let parsed = match ext.as_deref() {
+    let parsed = match crate::files::extension(path).as_deref() {
         Some("obj") => obj::parse_obj(bytes),
         Some("ply") => ply::parse_ply(bytes),
         Some("glb") => gltf::parse_glb(bytes, path.parent()),
