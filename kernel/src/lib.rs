@@ -81,30 +81,9 @@ macro_rules! split_kernel {
             #[spirv(storage_buffer, descriptor_set = 1, binding = 5)] c5: &[u32],
             #[spirv(storage_buffer, descriptor_set = 1, binding = 6)] c6: &[u32],
             #[spirv(storage_buffer, descriptor_set = 1, binding = 7)] c7: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 8)] c8: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 9)] c9: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 10)] c10: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 11)] c11: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 12)] c12: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 13)] c13: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 14)] c14: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 15)] c15: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 16)] c16: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 17)] c17: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 18)] c18: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 19)] c19: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 20)] c20: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 21)] c21: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 22)] c22: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 23)] c23: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 24)] c24: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 25)] c25: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 26)] c26: &[u32],
-            #[spirv(storage_buffer, descriptor_set = 1, binding = 27)] c27: &[u32],
         ) {
             let $chunks = Chunks {
-                c0, c1, c2, c3, c4, c5, c6, c7, c8, c9, c10, c11, c12, c13, c14, c15, c16, c17, c18, c19, c20,
-                c21, c22, c23, c24, c25, c26, c27,
+                c0, c1, c2, c3, c4, c5, c6, c7,
             };
             $body
         }

@@ -147,9 +147,11 @@ impl<B: Buffer<u32>, const MOST: u32> Buffer<u32> for KernelWords<B, MOST> {
 }
 
 /// Most chunks a split scene may use. Their bindings come after a kernel's own (parameters,
-/// static list, rays and hits, or image), in a set of their own: lavapipe allows 32 storage
-/// buffers per stage, and a ray-list kernel over grids binds four others.
-pub const SPLIT_CHUNKS: u32 = 28;
+/// static list, rays and hits, or image), in a set of their own. Every read of a split buffer
+/// chooses its chunk by a `match` with an arm per chunk, so the split kernels grow with this
+/// number (and lavapipe's compile of them, and the registers they hold): eight bind eight
+/// times a binding's bytes, gigabytes where bindings reach hundreds of megabytes.
+pub const SPLIT_CHUNKS: u32 = 8;
 
 /// Declares [`Chunks`] with one field per chunk, and the match that reads word `offset` of
 /// chunk `chunk`: a shader cannot index an array of buffer references, so each chunk is its
@@ -203,11 +205,7 @@ macro_rules! declare_chunks {
     };
 }
 
-declare_chunks!(
-    c0 = 0, c1 = 1, c2 = 2, c3 = 3, c4 = 4, c5 = 5, c6 = 6, c7 = 7, c8 = 8, c9 = 9, c10 = 10, c11 = 11,
-    c12 = 12, c13 = 13, c14 = 14, c15 = 15, c16 = 16, c17 = 17, c18 = 18, c19 = 19, c20 = 20, c21 = 21,
-    c22 = 22, c23 = 23, c24 = 24, c25 = 25, c26 = 26; c27
-);
+declare_chunks!(c0 = 0, c1 = 1, c2 = 2, c3 = 3, c4 = 4, c5 = 5, c6 = 6; c7);
 
 /// Buffer `buffer` of a split scene (its index in [`SplitParams`]), read as elements of `T`.
 #[derive(Copy, Clone)]

@@ -375,8 +375,8 @@ fn mixed_levels_with_decimated_edges_render_watertight() {
         let centre = triangles.bounds().center();
         let mut rng = Rng::new(17);
         let (mut rays, mut leaked) = (0, [0; 2]);
-        for t in 0..4 {
-            let n = grid_size(levels[t]);
+        for (t, &level) in levels.iter().enumerate().take(4) {
+            let n = grid_size(level);
             let points = micromesh.micro_vertices(t);
             let at = |p: [u32; 2]| points[gridrt_shared::grid_index::lattice_index(p[0], p[1], n) as usize];
             for s in 0..n {

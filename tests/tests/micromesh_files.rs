@@ -252,6 +252,7 @@ fn within(args: &[&str], seconds: u64) -> Option<std::process::Output> {
         std::thread::sleep(Duration::from_millis(50));
     }
     let _ = child.kill();
+    let _ = child.wait();
     None
 }
 

@@ -204,7 +204,7 @@ fn binding_limit_from_the_environment() {
     };
     let whole = run("1G", "whole.png", "triangles");
     assert!(whole.status.success(), "{}", String::from_utf8_lossy(&whole.stderr));
-    let cut = run("32K", "split.png", "triangles");
+    let cut = run("64K", "split.png", "triangles");
     assert!(cut.status.success(), "{}", String::from_utf8_lossy(&cut.stderr));
     let read = |f: &str| image::open(dir.join(f)).unwrap().to_rgba8().into_raw();
     assert_eq!(read("whole.png"), read("split.png"), "the split render differs");

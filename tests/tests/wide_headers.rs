@@ -4,17 +4,24 @@
 //! give the same pictures and hits, whole and split, on the CPU and on the GPU.
 
 use gridrt::camera;
+use gridrt::grid::{GridOptions, TopFormat};
 use gridrt::mesh::scene::default_scene;
 use gridrt::rays::{primary_rays, trace_cpu};
 use gridrt::scene::{render_cpu, Scene};
 use gridrt::split::{render_cpu_split, split};
 use gridrt::subdiv::Scheme;
 use gridrt_shared::layout::{FrameParams, SHADE_PRIMITIVE};
-use gridrt_tests::{build_pair, gpu_or_skip, Pair};
+use gridrt_tests::{build_pair_with, gpu_or_skip, Pair};
 
-/// The default scene's grids, packed and wide, and a frame of each.
+/// The default scene's grids, packed and wide, and a frame of each. One level and compact top
+/// nodes, so that the headers are among the largest buffers and a split scene's few chunks
+/// cut them.
 fn packed_and_wide() -> (Pair, Scene, [FrameParams; 2]) {
-    let pair = build_pair(&default_scene(), 3, 3, Scheme::Loop);
+    let options = GridOptions {
+        top: TopFormat::Compact,
+        ..GridOptions::default()
+    };
+    let pair = build_pair_with(&default_scene(), 1, 1, Scheme::Loop, &options);
     let Scene::Grids(grids) = &pair.grids else {
         unreachable!()
     };
