@@ -2,10 +2,11 @@
 //! [`Viewpoint`] given in part or in full.
 
 use crate::error::{fail, Result};
-use gridrt_shared::glam::Vec3;
+use gridrt_shared::glam::{DVec3, Vec3};
 use gridrt_shared::layout::Camera;
 
 use crate::bvh::Aabb;
+use crate::mesh::frame::LocalFrame;
 
 /// Vertical field of view of every auto-framed view, in degrees.
 pub const FOV_DEGREES: f32 = 40.0;
@@ -94,6 +95,49 @@ impl Default for Viewpoint {
             azimuth_degrees: 35.0,
             elevation_degrees: 25.0,
             distance: None,
+        }
+    }
+}
+
+/// A [`Viewpoint`] in a mesh file's units (double precision, far from the origin as the file
+/// may be): what a user gives, before it is moved into the mesh's local frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FileViewpoint {
+    pub eye: Option<DVec3>,
+    pub target: Option<DVec3>,
+    pub up: Vec3,
+    pub fov_degrees: f32,
+    pub azimuth_degrees: f32,
+    pub elevation_degrees: f32,
+    pub distance: Option<f64>,
+}
+
+impl Default for FileViewpoint {
+    fn default() -> Self {
+        let v = Viewpoint::default();
+        FileViewpoint {
+            eye: None,
+            target: None,
+            up: v.up,
+            fov_degrees: v.fov_degrees,
+            azimuth_degrees: v.azimuth_degrees,
+            elevation_degrees: v.elevation_degrees,
+            distance: None,
+        }
+    }
+}
+
+impl FileViewpoint {
+    /// The same viewpoint in the local frame `frame` maps the file's units to.
+    pub fn local(&self, frame: &LocalFrame) -> Viewpoint {
+        Viewpoint {
+            eye: self.eye.map(|p| frame.to_local(p)),
+            target: self.target.map(|p| frame.to_local(p)),
+            up: self.up,
+            fov_degrees: self.fov_degrees,
+            azimuth_degrees: self.azimuth_degrees,
+            elevation_degrees: self.elevation_degrees,
+            distance: self.distance.map(|d| (d * frame.scale) as f32),
         }
     }
 }

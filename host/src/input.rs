@@ -6,6 +6,8 @@
 
 use std::path::Path;
 
+use gridrt_shared::glam::DVec3;
+
 use crate::error::{error, fail, Result};
 use crate::mesh::frame::LocalFrame;
 use crate::mesh::{self, one_line, Cleaning, Mesh, WorldMesh};
@@ -78,9 +80,10 @@ pub fn open_all(paths: &[&Path]) -> Result<Input> {
         match (&mut loaded, next) {
             (Loaded::Plain(all, cleaning), Loaded::Plain(next, next_cleaning)) => {
                 let base = all.positions.len() as u32;
+                let before = (all.triangles.len() + cleaning.dropped) as u32;
                 all.positions.extend(next.positions);
                 all.triangles.extend(next.triangles.iter().map(|t| t.map(|i| base + i)));
-                cleaning.add(next_cleaning);
+                cleaning.add(next_cleaning, before);
             }
             (Loaded::Displaced(all), Loaded::Displaced(next)) => all.append(&next),
             (first_loaded, _) => {
@@ -104,6 +107,27 @@ pub fn open_all(paths: &[&Path]) -> Result<Input> {
     let (mesh, frame) = all.into_local();
     Ok(Input {
         name,
+        mesh,
+        frame,
+        cleaning,
+        displaced: None,
+        micromesh: None,
+        warnings: Vec::new(),
+    })
+}
+
+/// A mesh given as arrays (vertices in any units, triangles as vertex indices), checked
+/// and cleaned as a file's mesh is ([`WorldMesh::validate`]) and moved into its local frame;
+/// `name` stands for a file in messages.
+pub fn from_arrays(name: &str, positions: Vec<[f64; 3]>, triangles: Vec<[u32; 3]>) -> Result<Input> {
+    let world = WorldMesh {
+        positions: positions.into_iter().map(DVec3::from).collect(),
+        triangles,
+    };
+    let (world, cleaning) = world.validate(name)?;
+    let (mesh, frame) = world.into_local();
+    Ok(Input {
+        name: name.to_string(),
         mesh,
         frame,
         cleaning,

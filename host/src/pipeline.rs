@@ -13,6 +13,7 @@ use gridrt_shared::layout::{
 };
 
 use crate::grid::{self, GridBuild};
+use crate::input::Input;
 use crate::mesh::Mesh;
 use crate::micromesh::DisplacedMesh;
 use crate::rays::AO_RADIUS;
@@ -128,6 +129,22 @@ impl Scene {
     }
 }
 
+impl Scene {
+    /// Builds what `input` holds as `options` say: a displaced micro-mesh as displaced grids
+    /// ([`crate::grid::GridOptions::for_displaced`], at its own levels) or, for the baseline,
+    /// its decoded micro-triangles; any other mesh subdivided as `options.grid` says.
+    pub fn from_input(input: &Input, options: &BuildOptions) -> Result<Scene> {
+        match &input.micromesh {
+            Some(micromesh) if micromesh.deepest_level().is_some() => {
+                let mut displaced = *options;
+                displaced.grid.options = grid::GridOptions::for_displaced();
+                Scene::build_displaced(micromesh, &displaced)
+            }
+            _ => Scene::build(&input.mesh, options),
+        }
+    }
+}
+
 /// The depth `options` render at: their level of detail, or all `levels` built (`whose`
 /// names whose levels they are in the refusal of a deeper one).
 fn rendered_depth(options: &BuildOptions, levels: u32, whose: &str) -> Result<u32> {
@@ -179,6 +196,29 @@ impl Shading {
             Shading::Cost => SHADE_COST,
             Shading::Level => SHADE_LEVEL,
         }
+    }
+}
+
+impl std::str::FromStr for Shading {
+    type Err = crate::error::Error;
+
+    /// The names the CLI's `--shading` takes: eye, normal, primitive, ao, lit, depth, cost,
+    /// level.
+    fn from_str(name: &str) -> Result<Shading> {
+        Ok(match name {
+            "eye" => Shading::EyeLight,
+            "normal" => Shading::Normal,
+            "primitive" => Shading::Primitive,
+            "ao" => Shading::AmbientOcclusion,
+            "lit" => Shading::Lit,
+            "depth" => Shading::Depth,
+            "cost" => Shading::Cost,
+            "level" => Shading::Level,
+            _ => fail!(
+                Options,
+                "no shading is called {name:?}: eye, normal, primitive, ao, lit, depth, cost or level"
+            ),
+        })
     }
 }
 

@@ -175,6 +175,66 @@ pub fn trace_cpu(scene: &Scene, rays: &[RayRecord]) -> Vec<HitRecord> {
         .collect()
 }
 
+/// A ray's closest hit as a caller outside the kernels reads it: where it lies on which
+/// micro-triangle.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfaceHit {
+    /// Distance along the ray in units of its direction's length; infinite on a miss.
+    pub t: f32,
+    /// The micro-triangle, numbered as [`Scene::original_triangle`] numbers it; `NO_HIT` on a
+    /// miss.
+    pub triangle: u32,
+    /// Barycentric coordinates of the hit point: `(1 - u - v) a + u b + v c` for the
+    /// micro-triangle's corners `a, b, c` ([`Scene::triangle`]); zero on a miss.
+    pub u: f32,
+    pub v: f32,
+    /// The micro-triangle's unit geometric normal, `(b - a) x (c - a)` normalised; zero on a
+    /// miss.
+    pub normal: [f32; 3],
+}
+
+/// What each of `hits` (the closest hits of `rays` in `scene`, from any backend) lies on:
+/// the barycentrics and normal are those of the hit micro-triangle, worked out again in double
+/// precision from its corners, so both backends describe a hit alike.
+pub fn surface_hits(scene: &Scene, rays: &[RayRecord], hits: &[HitRecord]) -> Vec<SurfaceHit> {
+    use rayon::prelude::*;
+    rays.par_iter()
+        .zip(hits)
+        .with_min_len(256)
+        .map(|(ray, hit)| surface_hit(scene, ray, hit))
+        .collect()
+}
+
+fn surface_hit(scene: &Scene, ray: &RayRecord, hit: &HitRecord) -> SurfaceHit {
+    if hit.prim == gridrt_shared::layout::NO_HIT {
+        return SurfaceHit {
+            t: f32::INFINITY,
+            triangle: hit.prim,
+            u: 0.0,
+            v: 0.0,
+            normal: [0.0; 3],
+        };
+    }
+    let [a, b, c] = scene.triangle(hit.prim).map(|p| p.as_dvec3());
+    let point = Vec3::from(ray.origin).as_dvec3() + Vec3::from(ray.dir).as_dvec3() * hit.t as f64;
+    // The barycentrics of the point's projection on the triangle's plane.
+    let (e1, e2, p) = (b - a, c - a, point - a);
+    let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+    let (p1, p2) = (p.dot(e1), p.dot(e2));
+    let det = d11 * d22 - d12 * d12;
+    let (u, v) = match det > 0.0 {
+        true => ((d22 * p1 - d12 * p2) / det, (d11 * p2 - d12 * p1) / det),
+        false => (0.0, 0.0),
+    };
+    SurfaceHit {
+        t: hit.t,
+        triangle: scene.original_triangle(hit.prim),
+        u: u as f32,
+        v: v as f32,
+        normal: e1.cross(e2).normalize_or_zero().as_vec3().to_array(),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

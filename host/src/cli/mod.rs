@@ -6,7 +6,7 @@ use anyhow::{bail, Result};
 use clap::{Parser, Subcommand, ValueEnum};
 
 use gridrt::backend::{Backend, BackendChoice};
-use gridrt::camera::Viewpoint;
+use gridrt::camera::{FileViewpoint, Viewpoint};
 use gridrt::heat_map::CostSummary;
 use gridrt::input::{self, Input};
 use gridrt::lod::LodReport;
@@ -418,15 +418,16 @@ pub struct CameraArgs {
 impl CameraArgs {
     /// The viewpoint in the mesh's local frame.
     pub fn viewpoint(&self, frame: &LocalFrame) -> Viewpoint {
-        Viewpoint {
-            eye: self.eye.map(|p| frame.to_local(p)),
-            target: self.target.map(|p| frame.to_local(p)),
+        FileViewpoint {
+            eye: self.eye,
+            target: self.target,
             up: self.up.as_vec3(),
             fov_degrees: self.fov,
             azimuth_degrees: self.azimuth,
             elevation_degrees: self.elevation,
-            distance: self.distance.map(|d| (d * frame.scale) as f32),
+            distance: self.distance,
         }
+        .local(frame)
     }
 }
 

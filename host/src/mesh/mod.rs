@@ -34,7 +34,7 @@ pub struct WorldMesh {
 }
 
 /// What [`WorldMesh::validate`] changed or found.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct Cleaning {
     /// Vertices merged into an earlier vertex at the same position (a mesh split at UV or
     /// normal seams, or drawn without an index list).
@@ -43,14 +43,34 @@ pub struct Cleaning {
     pub dropped: usize,
     /// Triangles kept whose corners are (to `f32` precision) on one line: they have no area.
     pub zero_area: usize,
+    /// The dropped triangles, by their index in the file, in order.
+    pub dropped_triangles: Vec<u32>,
 }
 
 impl Cleaning {
-    /// Adds what cleaning another file changed.
-    pub fn add(&mut self, other: Cleaning) {
+    /// Adds what cleaning another file changed, whose triangles come after `before` of the
+    /// files so far.
+    pub fn add(&mut self, other: Cleaning, before: u32) {
         self.welded += other.welded;
         self.dropped += other.dropped;
         self.zero_area += other.zero_area;
+        (self.dropped_triangles).extend(other.dropped_triangles.iter().map(|&t| t + before));
+    }
+
+    /// The index in the file (or files, one after another) of the cleaned mesh's triangle
+    /// `kept`: triangles keep their order, so it lies past each dropped triangle that has at
+    /// most `kept` kept ones before it (`dropped_triangles[j] - j` of them, growing with `j`).
+    pub fn file_triangle(&self, kept: u32) -> u32 {
+        let dropped = &self.dropped_triangles;
+        let (mut lo, mut hi) = (0, dropped.len());
+        while lo < hi {
+            let mid = (lo + hi) / 2;
+            match dropped[mid] - mid as u32 <= kept {
+                true => lo = mid + 1,
+                false => hi = mid,
+            }
+        }
+        kept + lo as u32
     }
 }
 
@@ -139,10 +159,16 @@ impl WorldMesh {
         let welded = self.weld();
         let before = self.triangles.len();
         let mut seen = HashSet::with_capacity(before);
+        let (mut index, mut dropped_triangles) = (0u32, Vec::new());
         self.triangles.retain(|&[a, b, c]| {
             let mut key = [a, b, c];
             key.sort_unstable();
-            a != b && b != c && c != a && seen.insert(key)
+            let keep = a != b && b != c && c != a && seen.insert(key);
+            if !keep {
+                dropped_triangles.push(index);
+            }
+            index += 1;
+            keep
         });
         let dropped = before - self.triangles.len();
         if self.triangles.is_empty() {
@@ -164,6 +190,7 @@ impl WorldMesh {
                 welded,
                 dropped,
                 zero_area,
+                dropped_triangles,
             },
         ))
     }
@@ -432,6 +459,25 @@ pub(crate) mod test_util {
 mod tests {
     use super::test_util::*;
     use super::*;
+
+    #[test]
+    fn kept_triangles_know_their_index_in_the_file() {
+        let mesh = Mesh {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z],
+            triangles: vec![[0, 0, 1], [0, 1, 2], [2, 1, 0], [0, 1, 3], [3, 3, 3], [1, 2, 3]],
+        };
+        let (clean, cleaning) = WorldMesh::from(mesh.clone()).validate("m").unwrap();
+        assert_eq!(cleaning.dropped_triangles, vec![0, 2, 4]);
+        for kept in 0..clean.triangles.len() as u32 {
+            let file = cleaning.file_triangle(kept) as usize;
+            assert_eq!(clean.triangles[kept as usize], mesh.triangles[file]);
+        }
+        // A second file's triangles come after the first's, dropped ones included.
+        let mut both = cleaning.clone();
+        both.add(cleaning, 6);
+        assert_eq!(both.dropped_triangles, vec![0, 2, 4, 6, 8, 10]);
+        assert_eq!([3, 4, 5].map(|k| both.file_triangle(k)), [7, 9, 11]);
+    }
 
     #[test]
     fn validate_drops_degenerates_and_rejects_bad_meshes() {
