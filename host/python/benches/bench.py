@@ -7,8 +7,9 @@
 its box) per second from Python, best of three after a warm-up: Embree (trimesh + embreex)
 and gridrt on the file's triangles, then on the micro-triangles of L levels of Loop
 subdivision (Embree given them as `gridrt export` writes them; gridrt as grids and as its
-triangle baseline), with the structure's bytes (gridrt's own count) or the process's resident
-memory growth while Embree builds and first traces (Embree does not tell its size).
+triangle baseline). Memory: gridrt's structure (its own count), and for both the growth of a
+fresh process's resident memory while the tracer loads, builds and traces a first ray (Embree
+does not tell its size; gridrt's includes loading and subdividing the mesh).
 
 `views`: a turntable rendered through `gridrt.views.render_views` on a Dask LocalCluster of
 1 and then 2 workers (one thread each, the CPU backend on one thread each): seconds, and
@@ -16,6 +17,7 @@ whether the images are the same.
 """
 
 import argparse
+import multiprocessing
 import pathlib
 import subprocess
 import sys
@@ -64,18 +66,27 @@ def embree_row(path, origins, directions):
     intersector.intersects_first(origins[:1], directions[:1])
     grown = resident_bytes() - before
     rate = best_rate(lambda: intersector.intersects_first(origins, directions), len(origins))
-    return len(mesh.faces), rate, f"{grown / 1e6:.1f} MB RSS"
+    return len(mesh.faces), rate, "", grown, "CPU"
 
 
 def gridrt_row(path, origins, directions, **options):
+    before = resident_bytes()
     scene = gridrt.load(path, **options)
+    scene.intersect(origins[:1], directions[:1])
+    grown = resident_bytes() - before
     rate = best_rate(lambda: scene.intersect(origins, directions), len(origins))
-    return rate, f"{scene.memory / 1e6:.1f} MB", scene.device
+    return None, rate, f"{scene.memory / 1e6:.1f} MB", grown, scene.device
+
+
+def isolated(row, *args, **kwargs):
+    """`row` in a process of its own, so that its memory growth is its own."""
+    with multiprocessing.get_context("spawn").Pool(1) as pool:
+        return pool.apply(row, args, kwargs)
 
 
 def rays(args):
-    print("| mesh | micro-triangles | tracer | rays/s | memory | device |")
-    print("|---|---:|---|---:|---:|---|")
+    print("| mesh | micro-triangles | tracer | rays/s | structure | RSS growth | device |")
+    print("|---|---:|---|---:|---:|---:|---|")
     for path in args.meshes:
         lo, hi = np.array(gridrt.load(path, levels=0, backend="cpu").bounds)
         origins, directions = rays_through(lo, hi, args.rays)
@@ -84,16 +95,16 @@ def rays(args):
             micro = pathlib.Path(tmp) / "micro.ply"
             subprocess.run([GRIDRT, "-q", "export", path, "--levels", str(args.levels), "-o", micro], check=True)
             for levels, file in ((0, path), (args.levels, micro)):
-                count, rate, memory = embree_row(file, origins, directions)
-                print(f"| {name} | {count:,} | Embree (embreex) | {rate:,.0f} | {memory} | CPU |")
+                count, rate, structure, grown, device = isolated(embree_row, file, origins, directions)
+                print(f"| {name} | {count:,} | Embree (embreex) | {rate:,.0f} | | {grown / 1e6:.1f} MB | {device} |")
                 modes = ["triangles"] if levels == 0 else ["grid", "triangles"]
                 for mode in modes:
                     for backend in args.backends:
-                        rate, memory, device = gridrt_row(
-                            path, origins, directions, levels=levels, mode=mode, backend=backend
+                        _, rate, structure, grown, device = isolated(
+                            gridrt_row, path, origins, directions, levels=levels, mode=mode, backend=backend
                         )
                         tracer = f"gridrt {'grids' if mode == 'grid' else 'triangles'} L={levels} ({backend})"
-                        print(f"| {name} | {count:,} | {tracer} | {rate:,.0f} | {memory} | {device} |")
+                        print(f"| {name} | {count:,} | {tracer} | {rate:,.0f} | {structure} | {grown / 1e6:.1f} MB | {device} |")
         sys.stdout.flush()
 
 
