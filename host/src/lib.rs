@@ -51,6 +51,7 @@ pub mod lod;
 pub mod mesh;
 pub mod micromesh;
 pub mod pipeline;
+pub mod progress;
 pub mod quantize;
 pub mod rays;
 pub mod scene;

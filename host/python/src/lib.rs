@@ -14,7 +14,9 @@ use gridrt::grid::GridBuild;
 use gridrt::input::{self, Input};
 use gridrt::mesh::frame::LocalFrame;
 use gridrt::mesh::Cleaning;
+use gridrt::micromesh::bake::request::{bake_file, BakeRequest};
 use gridrt::pipeline::{BuildOptions, RenderOptions, Representation, Shading};
+use gridrt::progress::Progress;
 use gridrt::rays::{self, SurfaceHit};
 use gridrt::scene::Scene;
 use gridrt::subdiv::Scheme;
@@ -605,6 +607,75 @@ fn load(
     PyScene::build(py, input, build)
 }
 
+/// Collects what a library call reports, for the dict it returns.
+#[derive(Default)]
+struct Collected {
+    notes: Vec<String>,
+    warnings: Vec<String>,
+}
+
+impl Progress for Collected {
+    fn stage(&mut self, _name: &'static str, work: &mut dyn FnMut()) {
+        work()
+    }
+
+    fn note(&mut self, line: &str) {
+        self.notes.push(line.to_string());
+    }
+
+    fn warning(&mut self, line: &str) {
+        self.warnings.push(line.to_string());
+    }
+}
+
+/// Bakes the detailed mesh `reference` into a displaced micro-mesh written to `output` (glTF,
+/// with its .bin and .bary beside it), as `gridrt bake` does with the same options; returns
+/// the bake's summary (`gridrt bake --json`'s object) with its `notes` and `warnings`.
+#[pyfunction]
+#[pyo3(signature = (reference, output, *, levels=3, base=None, base_triangles=None, fit_rounds=None, compress_values=None, plain_values=false, max_bytes=None, max_error=None, within_bytes=None, nv_blocks=false, samples=1_000_000))]
+#[allow(clippy::too_many_arguments)] // Python keyword arguments
+fn bake<'py>(
+    py: Python<'py>,
+    reference: PathBuf,
+    output: PathBuf,
+    levels: u32,
+    base: Option<PathBuf>,
+    base_triangles: Option<usize>,
+    fit_rounds: Option<u32>,
+    compress_values: Option<f32>,
+    plain_values: bool,
+    max_bytes: Option<f64>,
+    max_error: Option<f32>,
+    within_bytes: Option<u64>,
+    nv_blocks: bool,
+    samples: usize,
+) -> PyResult<Bound<'py, PyAny>> {
+    let defaults = BakeRequest::new(&reference, &output);
+    let request = BakeRequest {
+        base,
+        base_triangles,
+        levels,
+        fit_rounds: fit_rounds.unwrap_or(defaults.fit_rounds),
+        compress_values,
+        plain_values,
+        max_bytes,
+        max_error,
+        within_bytes,
+        nv_blocks,
+        samples,
+        ..defaults
+    };
+    let mut collected = Collected::default();
+    let summary = py
+        .detach(|| bake_file(&request, &mut collected))
+        .map_err(gridrt_error)?;
+    let mut json = serde_json::to_value(&summary).map_err(|e| GridrtError::new_err(e.to_string()))?;
+    collected.warnings.extend(summary.shortfalls);
+    json["notes"] = collected.notes.into();
+    json["warnings"] = collected.warnings.into();
+    py.import("json")?.call_method1("loads", (json.to_string(),))
+}
+
 /// Writes an (height, width, 4) uint8 RGBA image as PNG (through a temporary file, so a
 /// failure leaves no partial one).
 #[pyfunction]
@@ -633,6 +704,7 @@ fn _gridrt(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Hits>()?;
     m.add_function(wrap_pyfunction!(load, m)?)?;
     m.add_function(wrap_pyfunction!(write_png, m)?)?;
+    m.add_function(wrap_pyfunction!(bake, m)?)?;
     m.add("GridrtError", m.py().get_type::<GridrtError>())?;
     Ok(())
 }

@@ -2,7 +2,6 @@
 
 import os
 import pathlib
-import subprocess
 
 import numpy as np
 import pytest
@@ -10,20 +9,18 @@ import pytest
 import gridrt
 from gridrt.views import render_views, turntable
 
-ROOT = pathlib.Path(__file__).resolve().parents[3]
-MESHES = ROOT.parent / "shared" / "meshes"
-GRIDRT = pathlib.Path(os.environ.get("GRIDRT_EXE", ROOT / "target" / "release" / "gridrt"))
+MESHES = pathlib.Path(__file__).resolve().parents[4] / "shared" / "meshes"
 
 
 @pytest.fixture(scope="module")
 def baked_scan(tmp_path_factory):
-    """dragon_res3 baked into a displaced micro-mesh by the CLI."""
-    if not (GRIDRT.is_file() and MESHES.is_dir()):
+    """dragon_res3 baked into a displaced micro-mesh at the defaults."""
+    if not MESHES.is_dir():
         if os.environ.get("CI"):
-            raise FileNotFoundError(f"{GRIDRT} or {MESHES} is missing")
-        pytest.skip("the gridrt binary or the shared meshes are missing")
+            raise FileNotFoundError(f"{MESHES} is missing")
+        pytest.skip("the shared meshes are not beside the project")
     out = tmp_path_factory.mktemp("baked") / "dragon.gltf"
-    subprocess.run([GRIDRT, "-q", "bake", MESHES / "dragon_res3.ply", "-o", out], check=True)
+    gridrt.bake(MESHES / "dragon_res3.ply", out)
     return out
 
 

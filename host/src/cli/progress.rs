@@ -99,3 +99,18 @@ impl Stages {
         self.say(format!("{} (total {:.2} s)", stages.join(", "), total.as_secs_f64()));
     }
 }
+
+/// The library's stages, notes and warnings as the command line shows them.
+impl gridrt::progress::Progress for Stages {
+    fn stage(&mut self, name: &'static str, work: &mut dyn FnMut()) {
+        self.run(name, work)
+    }
+
+    fn note(&mut self, line: &str) {
+        self.say(format!("note: {line}"));
+    }
+
+    fn warning(&mut self, line: &str) {
+        eprintln!("warning: {line}");
+    }
+}

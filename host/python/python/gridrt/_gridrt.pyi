@@ -1,7 +1,7 @@
 """Type stubs of gridrt's compiled module (see the package docstring)."""
 
 from os import PathLike
-from typing import Literal, Optional, Sequence, Tuple, TypedDict, Union
+from typing import Any, Dict, Literal, Optional, Sequence, Tuple, TypedDict, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -118,3 +118,23 @@ def load(
 
 def write_png(path: Union[str, PathLike[str]], image: npt.NDArray[np.uint8]) -> None:
     """Writes a (height, width, 4) uint8 RGBA image as PNG."""
+
+def bake(
+    reference: Union[str, PathLike[str]],
+    output: Union[str, PathLike[str]],
+    *,
+    levels: int = 3,
+    base: Union[None, str, PathLike[str]] = None,
+    base_triangles: Optional[int] = None,
+    fit_rounds: Optional[int] = None,
+    compress_values: Optional[float] = None,
+    plain_values: bool = False,
+    max_bytes: Optional[float] = None,
+    max_error: Optional[float] = None,
+    within_bytes: Optional[int] = None,
+    nv_blocks: bool = False,
+    samples: int = 1_000_000,
+) -> Dict[str, Any]:
+    """Bakes the detailed mesh `reference` into a displaced micro-mesh written to `output`
+    (glTF, with its .bin and .bary beside it), as `gridrt bake` does with the same options;
+    returns the bake's summary (`gridrt bake --json`'s object) with its notes and warnings."""

@@ -42,6 +42,7 @@ pub mod directions;
 pub mod fit;
 pub mod levels;
 pub mod refine;
+pub mod request;
 
 use gridrt_shared::displacement::{interpolated, u_major_index, DisplacedTriangle};
 use gridrt_shared::glam::Vec3;
