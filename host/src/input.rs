@@ -104,16 +104,7 @@ pub fn open_all(paths: &[&Path]) -> Result<Input> {
         Loaded::Displaced(all) => return open_displaced(all, name),
         Loaded::Plain(all, cleaning) => (all, cleaning),
     };
-    let (mesh, frame) = all.into_local();
-    Ok(Input {
-        name,
-        mesh,
-        frame,
-        cleaning,
-        displaced: None,
-        micromesh: None,
-        warnings: Vec::new(),
-    })
+    Ok(Input::plain(name, all, cleaning))
 }
 
 /// A mesh given as arrays (vertices in any units, triangles as vertex indices), checked
@@ -125,16 +116,23 @@ pub fn from_arrays(name: &str, positions: Vec<[f64; 3]>, triangles: Vec<[u32; 3]
         triangles,
     };
     let (world, cleaning) = world.validate(name)?;
-    let (mesh, frame) = world.into_local();
-    Ok(Input {
-        name: name.to_string(),
-        mesh,
-        frame,
-        cleaning,
-        displaced: None,
-        micromesh: None,
-        warnings: Vec::new(),
-    })
+    Ok(Input::plain(name.to_string(), world, cleaning))
+}
+
+impl Input {
+    /// A plain mesh, checked and cleaned, moved into its local frame.
+    fn plain(name: String, world: WorldMesh, cleaning: Cleaning) -> Input {
+        let (mesh, frame) = world.into_local();
+        Input {
+            name,
+            mesh,
+            frame,
+            cleaning,
+            displaced: None,
+            micromesh: None,
+            warnings: Vec::new(),
+        }
+    }
 }
 
 /// Displaced micro-meshes side by side, in the local frame of their base meshes: the
