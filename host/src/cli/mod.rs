@@ -1180,3 +1180,18 @@ fn check_render_memory(name: &str, mesh: &Mesh, args: &RenderArgs) -> Result<()>
         "use fewer --levels",
     )?)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `--shading` and the library's names (which Python takes) are one list.
+    #[test]
+    fn shading_names_are_the_librarys() {
+        for arg in ShadingArg::value_variants() {
+            let name = arg.to_possible_value().expect("a name").get_name().to_string();
+            assert_eq!(name.parse::<Shading>().ok(), Some(arg.shading()), "{name}");
+        }
+        assert!("toon".parse::<Shading>().is_err());
+    }
+}
