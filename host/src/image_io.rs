@@ -7,11 +7,21 @@ use crate::files::write_atomically;
 
 /// Writes packed RGBA8 pixels (red in the low byte) as a PNG.
 pub fn write_png(path: &Path, pixels: &[u32], width: u32, height: u32) -> Result<()> {
-    let bytes: Vec<u8> = pixels.iter().flat_map(|p| p.to_le_bytes()).collect();
+    write_png_bytes(path, &rgba_bytes(pixels), width, height)
+}
+
+/// Packed RGBA8 pixels (red in the low byte) as bytes, red first.
+pub fn rgba_bytes(pixels: &[u32]) -> Vec<u8> {
+    pixels.iter().flat_map(|p| p.to_le_bytes()).collect()
+}
+
+/// Writes RGBA8 bytes, row by row from the top, as a PNG (through a temporary file, so a
+/// failure leaves no partial one).
+pub fn write_png_bytes(path: &Path, bytes: &[u8], width: u32, height: u32) -> Result<()> {
     write_atomically(path, |temp| {
         image::save_buffer_with_format(
             temp,
-            &bytes,
+            bytes,
             width,
             height,
             image::ColorType::Rgba8,

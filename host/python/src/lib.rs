@@ -21,7 +21,7 @@ use gridrt::rays::{self, SurfaceHit};
 use gridrt::scene::Scene;
 use gridrt::subdiv::Scheme;
 use gridrt_shared::glam::{DVec3, Vec3};
-use gridrt_shared::layout::{RayRecord, NO_HIT};
+use gridrt_shared::layout::{HitRecord, RayRecord, NO_HIT};
 use gridrt_shared::ray::T_FAR;
 use numpy::ndarray::{Array2, Array3};
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyArray3, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3};
@@ -111,8 +111,8 @@ struct PyScene {
     frame: LocalFrame,
     /// The mesh's vertices, which cameras frame as the CLI frames them.
     positions: Vec<Vec3>,
-    /// Micro-triangles per base triangle in the hits' numbering (1 where base triangles
-    /// hold different counts: the decoded triangles of a micro-mesh of mixed levels).
+    /// Micro-triangles per base triangle in the hits' numbering (1 for a micro-mesh traced
+    /// as triangles, whose decoded triangles are numbered one by one).
     per_base: u32,
     /// The triangles loading dropped, so that hits name base triangles as the file numbers
     /// them.
@@ -196,13 +196,10 @@ impl PyScene {
             .collect()
     }
 
-    fn trace(&self, py: Python<'_>, rays: &[RayRecord]) -> PyResult<Vec<SurfaceHit>> {
-        py.detach(|| {
-            let backend = self.backend();
-            let hits = backend.trace(&self.scene, rays)?;
-            Ok(rays::surface_hits(&self.scene, rays, &hits))
-        })
-        .map_err(|e: gridrt::error::Error| gridrt_error(e.prefixed(&self.name)))
+    /// The closest hit of each ray (distance and primitive), the GIL released.
+    fn trace(&self, py: Python<'_>, rays: &[RayRecord]) -> PyResult<Vec<HitRecord>> {
+        py.detach(|| self.backend().trace(&self.scene, rays))
+            .map_err(|e| gridrt_error(e.prefixed(&self.name)))
     }
 
     fn camera(
@@ -318,35 +315,26 @@ fn distances(t: &Bound<'_, PyAny>, rays: usize) -> PyResult<Vec<f32>> {
     Ok(values.iter().map(|&x| (x as f32).min(T_FAR)).collect())
 }
 
+/// A 2-dimensional array of integers of type `T`: its shape and values; `None` for another
+/// dtype or dimension.
+fn integer_rows<T: numpy::Element + Copy + Into<i128>>(array: &Bound<'_, PyAny>) -> Option<(Vec<usize>, Vec<i128>)> {
+    let a = array.extract::<PyReadonlyArray2<'_, T>>().ok()?;
+    let a = a.as_array();
+    Some((a.shape().to_vec(), a.iter().map(|&x| x.into()).collect()))
+}
+
 /// An (M, 3) array of integers as triangles of vertex indices below `vertices`.
 fn faces(array: &Bound<'_, PyAny>, vertices: usize) -> PyResult<Vec<[u32; 3]>> {
-    let shape_and_values: (Vec<usize>, Vec<i128>) = if let Ok(a) = array.extract::<PyReadonlyArray2<'_, i64>>() {
-        (
-            a.as_array().shape().to_vec(),
-            a.as_array().iter().map(|&x| x as i128).collect(),
-        )
-    } else if let Ok(a) = array.extract::<PyReadonlyArray2<'_, i32>>() {
-        (
-            a.as_array().shape().to_vec(),
-            a.as_array().iter().map(|&x| x as i128).collect(),
-        )
-    } else if let Ok(a) = array.extract::<PyReadonlyArray2<'_, u32>>() {
-        (
-            a.as_array().shape().to_vec(),
-            a.as_array().iter().map(|&x| x as i128).collect(),
-        )
-    } else if let Ok(a) = array.extract::<PyReadonlyArray2<'_, u64>>() {
-        (
-            a.as_array().shape().to_vec(),
-            a.as_array().iter().map(|&x| x as i128).collect(),
-        )
-    } else {
+    let Some((shape, values)) = (integer_rows::<i64>(array))
+        .or_else(|| integer_rows::<i32>(array))
+        .or_else(|| integer_rows::<u32>(array))
+        .or_else(|| integer_rows::<u64>(array))
+    else {
         return Err(PyTypeError::new_err(format!(
             "faces must be a numpy array of shape (M, 3) and an integer dtype, not {}",
             describe_array(array)
         )));
     };
-    let (shape, values) = shape_and_values;
     if shape.len() != 2 || shape[1] != 3 {
         return Err(PyValueError::new_err(format!(
             "faces must have shape (M, 3), not {shape:?}"
@@ -455,28 +443,25 @@ impl PyScene {
         t_max: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Hits> {
         let rays = self.local_rays(&checked_rays(origins, directions, t_max)?);
-        let hits = self.trace(py, &rays)?;
-        let per_base = self.per_base;
-        let index = |h: &SurfaceHit, f: &dyn Fn(u32, u32) -> u32| match h.triangle {
-            NO_HIT => -1i64,
-            t => f(t, per_base) as i64,
-        };
+        let records = self.trace(py, &rays)?;
+        let hits = py.detach(|| rays::surface_hits(&self.scene, &rays, &records));
+        // The base triangle as the file numbers it, and the micro-triangle within it.
+        let (prim, micro): (Vec<i64>, Vec<i64>) = (hits.iter())
+            .map(|h| match h.triangle {
+                NO_HIT => (-1, -1),
+                t => (
+                    self.cleaning.file_triangle(t / self.per_base) as i64,
+                    (t % self.per_base) as i64,
+                ),
+            })
+            .unzip();
         let column = |f: &dyn Fn(&SurfaceHit) -> f32| hits.iter().map(f).collect::<Vec<_>>().into_pyarray(py).unbind();
         let normals = Array2::from_shape_vec((hits.len(), 3), hits.iter().flat_map(|h| h.normal).collect())
             .expect("three per hit");
         Ok(Hits {
             t: column(&|h| h.t),
-            prim: (hits.iter())
-                .map(|h| index(h, &|t, n| self.cleaning.file_triangle(t / n)))
-                .collect::<Vec<_>>()
-                .into_pyarray(py)
-                .unbind(),
-            micro: hits
-                .iter()
-                .map(|h| index(h, &|t, n| t % n))
-                .collect::<Vec<_>>()
-                .into_pyarray(py)
-                .unbind(),
+            prim: prim.into_pyarray(py).unbind(),
+            micro: micro.into_pyarray(py).unbind(),
             u: column(&|h| h.u),
             v: column(&|h| h.v),
             normal: normals.into_pyarray(py).unbind(),
@@ -496,7 +481,7 @@ impl PyScene {
         let hits = self.trace(py, &rays)?;
         Ok(hits
             .iter()
-            .map(|h| h.triangle != NO_HIT)
+            .map(|h| h.prim != NO_HIT)
             .collect::<Vec<_>>()
             .into_pyarray(py))
     }
@@ -523,7 +508,7 @@ impl PyScene {
         let image = py
             .detach(|| self.backend().render(&self.scene, &view, &options))
             .map_err(|e| gridrt_error(e.prefixed(&self.name)))?;
-        let bytes: Vec<u8> = image.pixels.iter().flat_map(|p| p.to_le_bytes()).collect();
+        let bytes = gridrt::image_io::rgba_bytes(&image.pixels);
         let array = Array3::from_shape_vec((height as usize, width as usize, 4), bytes).expect("four bytes a pixel");
         Ok(array.into_pyarray(py))
     }
@@ -688,13 +673,7 @@ fn write_png(py: Python<'_>, path: PathBuf, image: PyReadonlyArray3<'_, u8>) -> 
         )));
     };
     let bytes: Vec<u8> = array.iter().copied().collect();
-    let pixels: Vec<u32> = bytes
-        .as_chunks::<4>()
-        .0
-        .iter()
-        .map(|&p| u32::from_le_bytes(p))
-        .collect();
-    py.detach(|| gridrt::image_io::write_png(&path, &pixels, width as u32, height as u32))
+    py.detach(|| gridrt::image_io::write_png_bytes(&path, &bytes, width as u32, height as u32))
         .map_err(gridrt_error)
 }
 

@@ -17,8 +17,6 @@ The scene file must be readable at the same path on every worker.
 import os
 from typing import Any, Dict, List, Optional, Sequence
 
-import numpy as np
-
 from ._gridrt import Scene, load, write_png
 
 __all__ = ["render_views", "turntable"]

@@ -202,7 +202,7 @@ pub fn bake_file(request: &BakeRequest, progress: &mut dyn Progress) -> Result<B
         micromesh::gltf::write_keeping(&request.output, &mesh, &frame, &inputs)
     })?;
     let bytes = |p: &Path| std::fs::metadata(p).map_or(0, |m| m.len());
-    let summary = BakeSummary {
+    let mut summary = BakeSummary {
         reference: request.reference.display().to_string(),
         reference_triangles: reference_mesh.triangles.len(),
         output: request.output.display().to_string(),
@@ -228,10 +228,10 @@ pub fn bake_file(request: &BakeRequest, progress: &mut dyn Progress) -> Result<B
         symmetric: &summary.symmetric,
         max_error: request.max_error,
     };
-    let shortfalls = (super::shortfalls(&outcome).into_iter())
+    summary.shortfalls = (super::shortfalls(&outcome).into_iter())
         .map(|line| format!("{name} -> {}: {line}", request.output.display()))
         .collect();
-    Ok(BakeSummary { shortfalls, ..summary })
+    Ok(summary)
 }
 
 /// The bake's options: the base (the one given, moved into the reference's frame, or the
