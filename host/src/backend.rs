@@ -5,12 +5,12 @@
 use std::time::Instant;
 
 use crate::error::Result;
-use gridrt_shared::layout::{Camera, FrameParams, HitRecord, RayRecord};
+use gridrt_shared::layout::{Camera, FrameParams, HitRecord, RayRecord, SHADE_COST};
 use gridrt_shared::shade::{ao_accumulate, ao_pixel};
 use rayon::prelude::*;
 
 #[cfg(feature = "gpu")]
-use crate::gpu::{Gpu, TimedList, Timing};
+use crate::gpu::{Gpu, GpuScene, TimedList, Timing};
 use crate::heat_map::CostImage;
 use crate::limits::BufferSize;
 use crate::pipeline::{Image, RenderOptions, Shading};
@@ -49,6 +49,14 @@ pub struct TimedTrace {
     pub hits: Vec<HitRecord>,
     /// The seconds of each timed repetition (after the warm-up).
     pub seconds: Vec<f64>,
+}
+
+/// A scene where a backend reads it ([`Backend::upload`]): on a GPU its buffers, uploaded once
+/// for any number of traces and renders; on the CPU nothing (it reads the scene itself). It
+/// belongs to the scene and the backend it was made from.
+pub struct Uploaded {
+    #[cfg(feature = "gpu")]
+    gpu: Option<GpuScene>,
 }
 
 /// A CPU or a GPU, behind one interface: everything that traces takes a `&Backend`.
@@ -170,6 +178,24 @@ impl Backend {
         progress: &dyn Fn(u32),
     ) -> Result<Image> {
         options.check(scene)?;
+        let uploaded = match options.shading {
+            // Counted on the CPU whatever the backend (see `render_costs`).
+            Shading::Cost => Uploaded::nothing(),
+            _ => self.upload(scene)?,
+        };
+        self.render_uploaded(scene, &uploaded, camera, options, progress)
+    }
+
+    /// [`Backend::render_reporting`] of a scene already [`Backend::upload`]ed.
+    pub fn render_uploaded(
+        &self,
+        scene: &Scene,
+        uploaded: &Uploaded,
+        camera: &Camera,
+        options: &RenderOptions,
+        progress: &dyn Fn(u32),
+    ) -> Result<Image> {
+        options.check(scene)?;
         if options.shading == Shading::Cost {
             let costs = self.render_costs(scene, camera, options)?;
             let white = costs.summary().white(options.heat_white);
@@ -177,9 +203,9 @@ impl Backend {
         }
         let frame = options.frame(scene, camera);
         let pixels = if matches!(options.shading, Shading::AmbientOcclusion | Shading::Lit) {
-            self.render_ambient_occlusion(scene, &frame, progress)?
+            self.render_ambient_occlusion(scene, uploaded, &frame, progress)?
         } else {
-            self.render_frame(scene, &frame)?
+            self.render_frame_uploaded(scene, uploaded, &frame)?
         };
         Ok(Image {
             width: camera.width,
@@ -190,7 +216,13 @@ impl Backend {
 
     /// Ambient occlusion in passes of at most [`ao_samples_per_pass`] samples per pixel, the
     /// open rays of each pixel added up over them, then coloured.
-    fn render_ambient_occlusion(&self, scene: &Scene, frame: &FrameParams, progress: &dyn Fn(u32)) -> Result<Vec<u32>> {
+    fn render_ambient_occlusion(
+        &self,
+        scene: &Scene,
+        uploaded: &Uploaded,
+        frame: &FrameParams,
+        progress: &dyn Fn(u32),
+    ) -> Result<Vec<u32>> {
         let samples = frame.ao_samples;
         let per_pass = ao_samples_per_pass(scene);
         let passes: Vec<FrameParams> = (0..samples.div_ceil(per_pass).max(1))
@@ -204,13 +236,14 @@ impl Backend {
             })
             .collect();
         let mut open = vec![0u32; (frame.camera.width * frame.camera.height) as usize];
-        self.render_frames(scene, &passes, &mut |pass, counts| {
+        for pass in &passes {
+            let counts = self.render_frame_uploaded(scene, uploaded, pass)?;
             // A primary ray misses in every pass or in none.
             for (sum, pixel) in open.iter_mut().zip(counts) {
                 *sum = ao_accumulate(*sum, pixel);
             }
-            progress(passes[pass].ao_first_sample + passes[pass].ao_samples);
-        })?;
+            progress(pass.ao_first_sample + pass.ao_samples);
+        }
         let width = frame.camera.width;
         Ok(open
             .par_iter()
@@ -237,13 +270,11 @@ impl Backend {
     /// [`gridrt_shared::shade::render_pixel`]), row-major, top row first. The heat map's
     /// counts come from the CPU (see [`Backend::render_costs`]).
     pub fn render_frame(&self, scene: &Scene, frame: &FrameParams) -> Result<Vec<u32>> {
-        match self {
-            Backend::Cpu { .. } => Ok(render_cpu(scene, frame)),
-            #[cfg(feature = "gpu")]
-            Backend::Gpu(_) if frame.shading == gridrt_shared::layout::SHADE_COST => Ok(render_cpu(scene, frame)),
-            #[cfg(feature = "gpu")]
-            Backend::Gpu(gpu) => gpu.render(scene, frame),
-        }
+        let uploaded = match frame.shading {
+            SHADE_COST => Uploaded::nothing(),
+            _ => self.upload(scene)?,
+        };
+        self.render_frame_uploaded(scene, &uploaded, frame)
     }
 
     /// [`Backend::render_frame`] of each of `frames` of one scene (uploaded once), handing
@@ -254,29 +285,49 @@ impl Backend {
         frames: &[FrameParams],
         each: &mut dyn FnMut(usize, Vec<u32>),
     ) -> Result<()> {
-        match self {
-            Backend::Cpu { .. } => frames
-                .iter()
-                .enumerate()
-                .for_each(|(k, f)| each(k, render_cpu(scene, f))),
-            #[cfg(feature = "gpu")]
-            Backend::Gpu(gpu) => {
-                let uploaded = gpu.upload(scene)?;
-                for (k, f) in frames.iter().enumerate() {
-                    each(k, gpu.render_uploaded(&uploaded, f)?);
-                }
-            }
+        let uploaded = self.upload(scene)?;
+        for (k, frame) in frames.iter().enumerate() {
+            each(k, self.render_frame_uploaded(scene, &uploaded, frame)?);
         }
         Ok(())
+    }
+
+    /// [`Backend::render_frame`] of a scene already [`Backend::upload`]ed.
+    fn render_frame_uploaded(&self, scene: &Scene, uploaded: &Uploaded, frame: &FrameParams) -> Result<Vec<u32>> {
+        match (self, uploaded.on_gpu()) {
+            #[cfg(feature = "gpu")]
+            (Backend::Gpu(gpu), Some(on_gpu)) if frame.shading != SHADE_COST => gpu.render_uploaded(on_gpu, frame),
+            _ => Ok(render_cpu(scene, frame)),
+        }
+    }
+
+    /// Makes `scene` ready for this backend: on a GPU, uploads its buffers (refusing, naming
+    /// them, a scene this adapter cannot bind); on the CPU, nothing.
+    pub fn upload(&self, scene: &Scene) -> Result<Uploaded> {
+        match self {
+            Backend::Cpu { .. } => {
+                let _ = scene;
+                Ok(Uploaded::nothing())
+            }
+            #[cfg(feature = "gpu")]
+            Backend::Gpu(gpu) => Ok(Uploaded {
+                gpu: Some(gpu.upload(scene)?),
+            }),
+        }
     }
 
     /// The closest hit of each of `rays`, in order (a miss: `prim` is
     /// [`gridrt_shared::layout::NO_HIT`]).
     pub fn trace(&self, scene: &Scene, rays: &[RayRecord]) -> Result<Vec<HitRecord>> {
-        match self {
-            Backend::Cpu { .. } => Ok(trace_cpu(scene, rays)),
+        self.trace_uploaded(scene, &self.upload(scene)?, rays)
+    }
+
+    /// [`Backend::trace`] through a scene already [`Backend::upload`]ed.
+    pub fn trace_uploaded(&self, scene: &Scene, uploaded: &Uploaded, rays: &[RayRecord]) -> Result<Vec<HitRecord>> {
+        match (self, uploaded.on_gpu()) {
             #[cfg(feature = "gpu")]
-            Backend::Gpu(gpu) => gpu.trace(&gpu.upload(scene)?, rays),
+            (Backend::Gpu(gpu), Some(on_gpu)) => gpu.trace(on_gpu, rays),
+            _ => Ok(trace_cpu(scene, rays)),
         }
     }
 
@@ -321,6 +372,25 @@ impl Backend {
                     .collect())
             }
         }
+    }
+}
+
+impl Uploaded {
+    fn nothing() -> Uploaded {
+        Uploaded {
+            #[cfg(feature = "gpu")]
+            gpu: None,
+        }
+    }
+
+    #[cfg(feature = "gpu")]
+    fn on_gpu(&self) -> Option<&GpuScene> {
+        self.gpu.as_ref()
+    }
+
+    #[cfg(not(feature = "gpu"))]
+    fn on_gpu(&self) -> Option<&()> {
+        None
     }
 }
 

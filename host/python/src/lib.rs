@@ -8,7 +8,7 @@
 use std::path::PathBuf;
 use std::sync::Mutex;
 
-use gridrt::backend::{Backend, BackendChoice};
+use gridrt::backend::{Backend, BackendChoice, Uploaded};
 use gridrt::camera::{self, FileViewpoint};
 use gridrt::grid::GridBuild;
 use gridrt::input::{self, Input};
@@ -107,7 +107,8 @@ impl Build {
 #[pyclass(module = "gridrt", name = "Scene", frozen)]
 struct PyScene {
     scene: Scene,
-    backend: Mutex<Backend>,
+    /// The backend with the scene uploaded to it once, for every call after.
+    device: Mutex<(Backend, Uploaded)>,
     frame: LocalFrame,
     /// The mesh's vertices, which cameras frame as the CLI frames them.
     positions: Vec<Vec3>,
@@ -158,6 +159,7 @@ impl PyScene {
         py.detach(|| {
             let scene = Scene::from_input(&input, &options).map_err(|e| e.prefixed(&input.name))?;
             let backend = Backend::open(backend)?;
+            let uploaded = backend.upload(&scene)?;
             // The depth the hits number micro-triangles at (a micro-mesh's decoded triangles
             // are numbered one by one).
             let depth = match (&input.micromesh, options.representation) {
@@ -167,7 +169,7 @@ impl PyScene {
             };
             Ok(PyScene {
                 scene,
-                backend: Mutex::new(backend),
+                device: Mutex::new((backend, uploaded)),
                 frame: input.frame,
                 positions: input.mesh.positions,
                 per_base: 1 << (2 * depth),
@@ -178,8 +180,9 @@ impl PyScene {
         .map_err(gridrt_error)
     }
 
-    fn backend(&self) -> std::sync::MutexGuard<'_, Backend> {
-        self.backend.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+    /// The backend and the scene's upload to it, one caller at a time.
+    fn on_device(&self) -> std::sync::MutexGuard<'_, (Backend, Uploaded)> {
+        self.device.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
     }
 
     /// Rays in the local frame: origins moved, directions scaled alike, so that distances
@@ -198,8 +201,11 @@ impl PyScene {
 
     /// The closest hit of each ray (distance and primitive), the GIL released.
     fn trace(&self, py: Python<'_>, rays: &[RayRecord]) -> PyResult<Vec<HitRecord>> {
-        py.detach(|| self.backend().trace(&self.scene, rays))
-            .map_err(|e| gridrt_error(e.prefixed(&self.name)))
+        py.detach(|| {
+            let device = self.on_device();
+            device.0.trace_uploaded(&self.scene, &device.1, rays)
+        })
+        .map_err(|e| gridrt_error(e.prefixed(&self.name)))
     }
 
     fn camera(
@@ -506,7 +512,10 @@ impl PyScene {
             ..RenderOptions::default()
         };
         let image = py
-            .detach(|| self.backend().render(&self.scene, &view, &options))
+            .detach(|| {
+                let device = self.on_device();
+                (device.0).render_uploaded(&self.scene, &device.1, &view, &options, &|_| {})
+            })
             .map_err(|e| gridrt_error(e.prefixed(&self.name)))?;
         let bytes = gridrt::image_io::rgba_bytes(&image.pixels);
         let array = Array3::from_shape_vec((height as usize, width as usize, 4), bytes).expect("four bytes a pixel");
@@ -548,13 +557,13 @@ impl PyScene {
     /// Where rays are traced: "cpu" or "gpu".
     #[getter]
     fn backend_kind(&self) -> &'static str {
-        self.backend().kind()
+        self.on_device().0.kind()
     }
 
     /// One line naming the device.
     #[getter]
     fn device(&self) -> String {
-        self.backend().describe()
+        self.on_device().0.describe()
     }
 
     /// The scene's box in the file's units: ((x, y, z) min, (x, y, z) max).
@@ -568,7 +577,7 @@ impl PyScene {
     }
 
     fn __repr__(&self) -> String {
-        format!("<gridrt.Scene {} on {}>", self.name, self.backend().kind())
+        format!("<gridrt.Scene {} on {}>", self.name, self.on_device().0.kind())
     }
 }
 

@@ -10,7 +10,8 @@ use crate::error::{error, fail, Error, Result};
 use gridrt_shared::buffer::SPLIT_CHUNKS;
 use gridrt_shared::grid_index::MICRO_TRIANGLES;
 use gridrt_shared::layout::{
-    FrameParams, HitRecord, RayRecord, SplitParams, TraceParams, SHADE_COST, TRACE_WORKGROUP_SIZE, WORKGROUP_SIZE,
+    FrameParams, GridParams, HitRecord, RayRecord, SplitParams, TraceParams, SHADE_COST, TRACE_WORKGROUP_SIZE,
+    WORKGROUP_SIZE,
 };
 use wgpu::util::DeviceExt;
 
@@ -40,15 +41,18 @@ pub struct Gpu {
 }
 
 /// A scene's geometry in GPU buffers, uploaded once and traced many times.
-pub struct GpuScene<'a> {
-    scene: &'a Scene,
+pub struct GpuScene {
+    /// The kernel of each job ([`Job::Render`], [`Job::Trace`]) for this scene.
+    kernels: [Kernel; 2],
+    /// Plain and displaced grids' parameters (zeros for triangles).
+    grid: GridParams,
     /// The scene's bindings in set 0, after the kernel's own.
     buffers: Vec<wgpu::Buffer>,
     /// A split scene's chunks (set 1) and where its buffers lie among them.
     chunks: Option<(Vec<wgpu::Buffer>, SplitParams)>,
 }
 
-impl GpuScene<'_> {
+impl GpuScene {
     /// Whether the scene is split over several bindings per buffer.
     pub fn is_split(&self) -> bool {
         self.chunks.is_some()
@@ -56,6 +60,23 @@ impl GpuScene<'_> {
 
     fn split_params(&self) -> SplitParams {
         self.chunks.as_ref().map(|c| c.1).unwrap_or_default()
+    }
+
+    fn kernel(&self, job: Job) -> Kernel {
+        self.kernels[(job == Job::Trace) as usize]
+    }
+
+    fn new(scene: &Scene, buffers: Vec<wgpu::Buffer>, chunks: Option<(Vec<wgpu::Buffer>, SplitParams)>) -> GpuScene {
+        let split = chunks.is_some();
+        GpuScene {
+            kernels: [Job::Render, Job::Trace].map(|job| Kernel::of(scene, job, split)),
+            grid: match scene {
+                Scene::Triangles(_) => GridParams::default(),
+                Scene::Grids(grids) => grids.params,
+            },
+            buffers,
+            chunks,
+        }
     }
 }
 
@@ -204,7 +225,7 @@ impl Gpu {
 
     /// The pipeline that runs `job` on `scene` (see [`Kernel::of`]), made on first use.
     fn pipeline(&self, scene: &GpuScene, job: Job) -> Result<&wgpu::ComputePipeline> {
-        let kernel = Kernel::of(scene.scene, job, scene.is_split());
+        let kernel = scene.kernel(job);
         if let Some(p) = self.pipelines[kernel.slot].get() {
             return Ok(p);
         }
@@ -308,7 +329,7 @@ impl Gpu {
     /// Uploads a scene's geometry: each buffer in one binding when every one fits, otherwise
     /// all of them in chunks (see [`crate::split`]). What cannot be bound is refused, naming
     /// the buffers and this adapter's limits, before anything is uploaded.
-    pub fn upload<'a>(&self, scene: &'a Scene) -> Result<GpuScene<'a>> {
+    pub fn upload(&self, scene: &Scene) -> Result<GpuScene> {
         let buffers = scene_buffers(scene);
         let statics = match scene {
             Scene::Triangles(_) => vec![],
@@ -322,11 +343,7 @@ impl Gpu {
                     .iter()
                     .map(|b| self.buffer(b.name, bytemuck::cast_slice(b.words))),
             );
-            return Ok(GpuScene {
-                scene,
-                buffers: all,
-                chunks: None,
-            });
+            return Ok(GpuScene::new(scene, all, None));
         }
         self.check_fits(&sizes, scene.needs_whole_bindings())?;
         let split = split(scene, chunk_words(self.binding_limit), &self.describe_limits())?;
@@ -334,11 +351,7 @@ impl Gpu {
             .map(|c| self.buffer("scene chunk", bytemuck::cast_slice(c)))
             .collect();
         chunks.resize_with(SPLIT_CHUNKS as usize, || self.buffer("unused chunk", &[]));
-        Ok(GpuScene {
-            scene,
-            buffers: statics,
-            chunks: Some((chunks, split.params)),
-        })
+        Ok(GpuScene::new(scene, statics, Some((chunks, split.params))))
     }
 
     /// Bind groups of a dispatch: the kernel's own buffers `own`, then the scene's.
@@ -486,10 +499,7 @@ impl Gpu {
         let x = groups.min(self.limits.max_compute_workgroups_per_dimension.min(32768));
         let y = groups.div_ceil(x);
         let params = TraceParams {
-            grid: match scene.scene {
-                Scene::Triangles(_) => Default::default(),
-                Scene::Grids(s) => s.params,
-            },
+            grid: scene.grid,
             split: scene.split_params(),
             ray_count: count,
             threads_per_row: x * TRACE_WORKGROUP_SIZE,
