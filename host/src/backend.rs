@@ -43,6 +43,20 @@ pub enum BackendChoice {
     Cpu,
 }
 
+impl std::str::FromStr for BackendChoice {
+    type Err = crate::error::Error;
+
+    /// The names the CLI's `--backend` takes: auto, gpu, cpu.
+    fn from_str(name: &str) -> Result<BackendChoice> {
+        Ok(match name {
+            "auto" => BackendChoice::Auto,
+            "gpu" => BackendChoice::Gpu,
+            "cpu" => BackendChoice::Cpu,
+            _ => crate::error::fail!(Options, "no backend is called {name:?}: auto, gpu or cpu"),
+        })
+    }
+}
+
 /// What timing a list of rays through one scene gives ([`Backend::time_traces`]).
 pub struct TimedTrace {
     /// The hits of the last repetition.

@@ -30,6 +30,19 @@ pub enum Representation {
     Triangles,
 }
 
+impl std::str::FromStr for Representation {
+    type Err = crate::error::Error;
+
+    /// The names the CLI's `--mode` takes: grid, triangles.
+    fn from_str(name: &str) -> Result<Representation> {
+        Ok(match name {
+            "grid" => Representation::Grids,
+            "triangles" => Representation::Triangles,
+            _ => fail!(Options, "no mode is called {name:?}: grid or triangles"),
+        })
+    }
+}
+
 /// What [`Scene::build`] makes of a base mesh.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BuildOptions {
@@ -142,6 +155,21 @@ impl Scene {
             }
             _ => Scene::build(&input.mesh, options),
         }
+    }
+
+    /// How many micro-triangles of each base triangle the scene [`Scene::from_input`] builds
+    /// numbers in its hits: a hit's triangle `t` is micro-triangle `t % n` of base triangle
+    /// `t / n`. A displaced micro-mesh built as triangles numbers its decoded triangles one
+    /// by one (1).
+    pub fn micro_triangles_per_base(input: &Input, options: &BuildOptions) -> u32 {
+        let depth = match (&input.micromesh, options.representation) {
+            (Some(m), Representation::Grids) if m.deepest_level().is_some() => {
+                options.lod.or(m.deepest_level()).unwrap_or(0)
+            }
+            (Some(m), Representation::Triangles) if m.deepest_level().is_some() => 0,
+            _ => options.lod.unwrap_or(options.grid.levels),
+        };
+        1 << (2 * depth)
     }
 }
 

@@ -41,6 +41,11 @@ fn gridrt_error(e: gridrt::error::Error) -> PyErr {
     GridrtError::new_err(e.to_string())
 }
 
+/// A keyword argument the library refuses, as a `ValueError` naming it.
+fn bad_option(name: &str, value: &str, e: gridrt::error::Error) -> PyErr {
+    PyValueError::new_err(format!("{name}={value:?}: {e}"))
+}
+
 /// How a scene is built: the CLI's build options by their Python names.
 struct Build {
     options: BuildOptions,
@@ -59,35 +64,16 @@ impl Build {
         if levels > 6 {
             return Err(PyValueError::new_err(format!("levels={levels}: at most 6")));
         }
-        let scheme = match subdivision {
-            "loop" => Scheme::Loop,
-            "flat" => Scheme::Flat,
-            _ => {
-                return Err(PyValueError::new_err(format!(
-                    "subdivision={subdivision:?}: 'loop' or 'flat'"
-                )))
-            }
-        };
+        let scheme: Scheme = subdivision
+            .parse()
+            .map_err(|e| bad_option("subdivision", subdivision, e))?;
         if let Some(angle) = crease_angle.filter(|a| !(0.0..=180.0).contains(a)) {
             return Err(PyValueError::new_err(format!(
                 "crease_angle={angle}: between 0 and 180 degrees"
             )));
         }
-        let representation = match mode {
-            "grid" => Representation::Grids,
-            "triangles" => Representation::Triangles,
-            _ => return Err(PyValueError::new_err(format!("mode={mode:?}: 'grid' or 'triangles'"))),
-        };
-        let backend = match backend {
-            "auto" => BackendChoice::Auto,
-            "cpu" => BackendChoice::Cpu,
-            "gpu" => BackendChoice::Gpu,
-            _ => {
-                return Err(PyValueError::new_err(format!(
-                    "backend={backend:?}: 'auto', 'cpu' or 'gpu'"
-                )))
-            }
-        };
+        let representation: Representation = mode.parse().map_err(|e| bad_option("mode", mode, e))?;
+        let backend: BackendChoice = backend.parse().map_err(|e| bad_option("backend", backend, e))?;
         let mut grid = GridBuild::new(levels);
         grid.scheme = scheme;
         grid.crease_angle = crease_angle;
@@ -160,19 +146,13 @@ impl PyScene {
             let scene = Scene::from_input(&input, &options).map_err(|e| e.prefixed(&input.name))?;
             let backend = Backend::open(backend)?;
             let uploaded = backend.upload(&scene)?;
-            // The depth the hits number micro-triangles at (a micro-mesh's decoded triangles
-            // are numbered one by one).
-            let depth = match (&input.micromesh, options.representation) {
-                (Some(m), Representation::Grids) => options.lod.or(m.deepest_level()).unwrap_or(0),
-                (Some(_), Representation::Triangles) => 0,
-                (None, _) => options.lod.unwrap_or(options.grid.levels),
-            };
+            let per_base = Scene::micro_triangles_per_base(&input, &options);
             Ok(PyScene {
                 scene,
                 device: Mutex::new((backend, uploaded)),
                 frame: input.frame,
                 positions: input.mesh.positions,
-                per_base: 1 << (2 * depth),
+                per_base,
                 cleaning: input.cleaning,
                 name: input.name,
             })

@@ -79,15 +79,21 @@ pub enum BackendArg {
 /// The backend `arg` names; for `auto` on a machine without a GPU, a note saying the CPU does
 /// the `work`.
 pub fn open_backend(arg: BackendArg, work: &str) -> Result<Backend> {
-    let backend = Backend::open(match arg {
-        BackendArg::Auto => BackendChoice::Auto,
-        BackendArg::Gpu => BackendChoice::Gpu,
-        BackendArg::Cpu => BackendChoice::Cpu,
-    })?;
+    let backend = Backend::open(arg.choice())?;
     if let Some(reason) = backend.fallback() {
         note!("note: {reason}; {work} on the CPU");
     }
     Ok(backend)
+}
+
+impl BackendArg {
+    fn choice(self) -> BackendChoice {
+        match self {
+            BackendArg::Auto => BackendChoice::Auto,
+            BackendArg::Gpu => BackendChoice::Gpu,
+            BackendArg::Cpu => BackendChoice::Cpu,
+        }
+    }
 }
 
 /// The order a benchmark traces its rays in (see `gridrt::rays::RayOrder`).
@@ -114,6 +120,15 @@ pub enum Mode {
     Grid,
     /// The baseline: every micro-triangle in an indexed list under an SAH BVH.
     Triangles,
+}
+
+impl Mode {
+    fn representation(self) -> Representation {
+        match self {
+            Mode::Grid => Representation::Grids,
+            Mode::Triangles => Representation::Triangles,
+        }
+    }
 }
 
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -510,10 +525,7 @@ impl RenderArgs {
     /// The library's build options for these arguments.
     pub fn build_options(&self) -> BuildOptions {
         BuildOptions {
-            representation: match self.mode {
-                Mode::Grid => Representation::Grids,
-                Mode::Triangles => Representation::Triangles,
-            },
+            representation: self.mode.representation(),
             grid: self.build.grid_build(),
             lod: match self.lod {
                 Some(LodArg::Depth(depth)) => Some(depth),
@@ -1193,5 +1205,24 @@ mod tests {
             assert_eq!(name.parse::<Shading>().ok(), Some(arg.shading()), "{name}");
         }
         assert!("toon".parse::<Shading>().is_err());
+    }
+
+    /// `--backend`, `--mode` and `--subdivision` and the library's names: one list each.
+    #[test]
+    fn option_names_are_the_librarys() {
+        fn name<T: ValueEnum>(arg: &T) -> String {
+            arg.to_possible_value().expect("a name").get_name().to_string()
+        }
+        for arg in BackendArg::value_variants() {
+            assert_eq!(name(arg).parse::<BackendChoice>().ok(), Some(arg.choice()));
+        }
+        for arg in Mode::value_variants() {
+            assert_eq!(name(arg).parse::<Representation>().ok(), Some(arg.representation()));
+        }
+        for arg in SubdivisionArg::value_variants() {
+            assert_eq!(name(arg).parse::<Scheme>().ok(), Some(arg.scheme()));
+        }
+        assert!("vulkan".parse::<BackendChoice>().is_err() && "quads".parse::<Representation>().is_err());
+        assert!("catmull-clark".parse::<Scheme>().is_err());
     }
 }

@@ -27,6 +27,19 @@ pub enum Scheme {
     Flat,
 }
 
+impl std::str::FromStr for Scheme {
+    type Err = crate::error::Error;
+
+    /// The names the CLI's `--subdivision` takes: loop, flat.
+    fn from_str(name: &str) -> crate::error::Result<Scheme> {
+        Ok(match name {
+            "loop" => Scheme::Loop,
+            "flat" => Scheme::Flat,
+            _ => crate::error::fail!(Options, "no subdivision is called {name:?}: loop or flat"),
+        })
+    }
+}
+
 /// A base mesh subdivided `levels` times.
 #[derive(Clone, Debug)]
 pub struct Subdivided {
