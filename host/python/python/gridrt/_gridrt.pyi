@@ -46,7 +46,8 @@ class Hits:
 
 class Scene:
     """A mesh built as grids of micro-triangles (or the baseline's triangle list), ready to
-    trace on its backend."""
+    trace on its backend. On a GPU it is uploaded once, when built, and every call after
+    traces those buffers; a scene the adapter cannot bind is refused then."""
 
     @staticmethod
     def from_arrays(
