@@ -39,8 +39,6 @@ pub mod bvh;
 pub mod camera;
 pub mod error;
 pub mod files;
-#[cfg(feature = "gpu")]
-pub mod gpu;
 pub mod grid;
 pub mod heat_map;
 pub mod image_io;

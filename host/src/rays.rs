@@ -159,22 +159,6 @@ pub fn in_turn(repetition: usize, turn: usize, scenes: usize) -> usize {
     }
 }
 
-/// Traces a ray list on the CPU, in parallel: the closest hit of each.
-pub fn trace_cpu(scene: &Scene, rays: &[RayRecord]) -> Vec<HitRecord> {
-    use rayon::prelude::*;
-    rays.par_iter()
-        .with_min_len(256)
-        .map(|r| {
-            let ray = gridrt_shared::ray::Ray::new(Vec3::from(r.origin), Vec3::from(r.dir));
-            let hit = scene.trace(&ray, r.t_max);
-            HitRecord {
-                t: hit.t,
-                prim: hit.prim,
-            }
-        })
-        .collect()
-}
-
 /// A ray's closest hit as a caller outside the kernels reads it: where it lies on which
 /// micro-triangle.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -1,13 +1,10 @@
-//! A scene ready to trace, in either representation, and how to trace it on the CPU.
+//! A scene ready to trace, in either representation.
 
 use gridrt_shared::glam::Vec3;
-use gridrt_shared::layout::{Camera, FrameParams, GridParams, Hit, DISPLACED_COMPRESSED, SHADE_COST};
+use gridrt_shared::layout::{Camera, FrameParams, GridParams, Hit, DISPLACED_COMPRESSED};
 use gridrt_shared::ray::{Ray, T_FAR};
-use gridrt_shared::shade::{cost_pixel, render_pixel};
 use gridrt_shared::traverse::{trace, trace_triangles};
-use gridrt_shared::traverse::{Hierarchy, LeafPrimitives};
 use gridrt_shared::triangle::{intersect_triangle, triangle_normal};
-use rayon::prelude::*;
 
 use crate::bvh::Aabb;
 use crate::grid::GridScene;
@@ -183,39 +180,4 @@ fn reference_t(ray: &Ray, [a, b, c]: [Vec3; 3]) -> Option<f64> {
     let s = o - a.as_dvec3();
     let q = s.cross(e1);
     Some(e2.dot(q) / det)
-}
-
-/// Renders on the CPU, rows in parallel: packed RGBA8, row-major, top row first.
-pub fn render_cpu(scene: &Scene, frame: &FrameParams) -> Vec<u32> {
-    match scene {
-        Scene::Triangles(s) => render_pixels(frame, s.nodes.as_slice(), &s.view()),
-        // Read as the frame says (its level of detail), as the kernels do.
-        Scene::Grids(s) => render_pixels(frame, s.top(), &s.view_as(frame.grid)),
-    }
-}
-
-/// Every pixel of the frame as the kernels make it: coloured, or its ray's packed costs for
-/// the heat map.
-pub(crate) fn render_pixels<N: Hierarchy + Sync, P: LeafPrimitives + Sync>(
-    frame: &FrameParams,
-    nodes: N,
-    prims: &P,
-) -> Vec<u32> {
-    if frame.shading == SHADE_COST {
-        render_rows(frame, |x, y| cost_pixel(frame, nodes, prims, x, y))
-    } else {
-        render_rows(frame, |x, y| render_pixel(frame, nodes, prims, x, y))
-    }
-}
-
-/// Every pixel of the frame by `pixel(x, y)`, rows in parallel.
-fn render_rows(frame: &FrameParams, pixel: impl Fn(u32, u32) -> u32 + Sync) -> Vec<u32> {
-    let (w, h) = (frame.camera.width, frame.camera.height);
-    let mut image = vec![0u32; w as usize * h as usize];
-    image.par_chunks_mut(w as usize).enumerate().for_each(|(y, row)| {
-        for (x, px) in row.iter_mut().enumerate() {
-            *px = pixel(x as u32, y as u32);
-        }
-    });
-    image
 }

@@ -12,8 +12,9 @@ use gridrt_shared::layout::{BvhNode, FrameParams, SplitParams, GRID_NODES, TRIAN
 use gridrt_shared::top_nodes::TopNodes;
 use gridrt_shared::traverse::TriangleMesh;
 
+use crate::backend::cpu::render_pixels;
 use crate::limits::BufferSize;
-use crate::scene::{render_pixels, Scene};
+use crate::scene::Scene;
 
 /// One of a scene's large buffers, as words.
 pub struct SceneBuffer<'a> {
@@ -139,7 +140,7 @@ pub fn split<'a>(scene: &'a Scene, chunk_words: u32, device: &str) -> Result<Spl
 }
 
 /// Renders on the CPU from a scene's buffers cut into chunks, read the way the GPU reads a
-/// split scene: the same image as [`crate::scene::render_cpu`], by other addressing.
+/// split scene: the same image as [`crate::backend::cpu::render_cpu`], by other addressing.
 pub fn render_cpu_split(scene: &Scene, split: &SplitScene, frame: &FrameParams) -> Vec<u32> {
     let chunks = Chunks::from_slices(&split.chunks);
     let nodes = |b| Split::<BvhNode>::new(&chunks, &split.params, b);

@@ -3,9 +3,9 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+use gridrt::backend::gpu::Gpu;
 use gridrt::bvh::Aabb;
 use gridrt::error::ErrorKind;
-use gridrt::gpu::Gpu;
 use gridrt::grid;
 use gridrt::mesh::Mesh;
 use gridrt::micromesh::bake::{bake, BakeOptions, Base};

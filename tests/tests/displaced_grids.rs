@@ -4,6 +4,7 @@
 //! the CPU. Micro-meshes of mixed levels (a level per base triangle, decimated edges where
 //! levels step) likewise, and a file of them, as another tool writes it, watertight.
 
+use gridrt::backend::cpu::render_cpu;
 use gridrt::backend::Backend;
 use gridrt::bvh::Aabb;
 use gridrt::camera;
@@ -11,7 +12,7 @@ use gridrt::grid::TopFormat;
 use gridrt::image_io::fraction_within;
 use gridrt::micromesh::DisplacedMesh;
 use gridrt::pipeline::{BuildOptions, RenderOptions, Representation, Shading};
-use gridrt::scene::{render_cpu, Scene};
+use gridrt::scene::Scene;
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::layout::{RayRecord, NO_HIT, SHADE_EYE_LIGHT};
 use gridrt_shared::ray::{Ray, T_FAR};
@@ -193,7 +194,8 @@ fn displaced_ray_lists_gpu_equal_cpu() {
     let Some(gpu) = gpu_or_skip("displaced_ray_lists_gpu_equal_cpu") else {
         return;
     };
-    use gridrt::rays::{ao_rays, primary_rays, trace_cpu};
+    use gridrt::backend::cpu::trace_cpu;
+    use gridrt::rays::{ao_rays, primary_rays};
     let all = [3, 4].into_iter().flat_map(variants);
     for (variant, mesh) in all.chain(mixed_variants()) {
         let levels = mesh.deepest_level().unwrap();

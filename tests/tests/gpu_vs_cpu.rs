@@ -6,12 +6,13 @@
 //! a silhouette or a shared edge can resolve to the other side; the remaining 0.5% allows for
 //! those silhouette pixels, and no more.
 
+use gridrt::backend::cpu::render_cpu;
 use gridrt::camera;
 use gridrt::image_io::{fraction_within, pixel_difference};
 use gridrt::input::load_mesh;
 use gridrt::mesh::scene::default_scene;
 use gridrt::mesh::Mesh;
-use gridrt::scene::{render_cpu, Scene};
+use gridrt::scene::Scene;
 use gridrt::subdiv::Scheme;
 use gridrt_shared::layout::{SHADE_EYE_LIGHT, SHADE_NORMAL};
 use gridrt_tests::{build_pair, gpu_or_skip, meshes_dir_or_skip};
@@ -19,7 +20,7 @@ use gridrt_tests::{build_pair, gpu_or_skip, meshes_dir_or_skip};
 const TOLERANCE: u32 = 2;
 const MIN_FRACTION: f64 = 0.995;
 
-fn compare(gpu: &gridrt::gpu::Gpu, name: &str, scene: &Scene, bounds: &gridrt::bvh::Aabb, shading: u32) {
+fn compare(gpu: &gridrt::backend::gpu::Gpu, name: &str, scene: &Scene, bounds: &gridrt::bvh::Aabb, shading: u32) {
     let frame = scene.frame(camera::frame(bounds, 256, 192), shading);
     let cpu_image = render_cpu(scene, &frame);
     let gpu_image = gpu.render(scene, &frame).expect("GPU render");
@@ -50,7 +51,7 @@ fn compare(gpu: &gridrt::gpu::Gpu, name: &str, scene: &Scene, bounds: &gridrt::b
     );
 }
 
-fn both_modes(gpu: &gridrt::gpu::Gpu, name: &str, mesh: &Mesh, levels: u32) {
+fn both_modes(gpu: &gridrt::backend::gpu::Gpu, name: &str, mesh: &Mesh, levels: u32) {
     let pair = build_pair(mesh, levels, levels, Scheme::Loop);
     compare(
         gpu,
@@ -133,7 +134,8 @@ fn ray_lists_gpu_equal_cpu() {
     let Some(gpu) = gpu_or_skip("ray_lists_gpu_equal_cpu") else {
         return;
     };
-    use gridrt::rays::{ao_rays, primary_rays, trace_cpu};
+    use gridrt::backend::cpu::trace_cpu;
+    use gridrt::rays::{ao_rays, primary_rays};
     let pair = build_pair(&default_scene(), 3, 3, Scheme::Loop);
     let primary = primary_rays(&pair.bounds, 2, 96, 64);
     let first = trace_cpu(&pair.triangles, &primary);

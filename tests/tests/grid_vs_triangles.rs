@@ -1,13 +1,13 @@
 //! The grid traversal and the baseline traversal of the same micro-triangles must report the
 //! same closest hit.
 
+use gridrt::backend::cpu::render_cpu;
 use gridrt::bvh::Aabb;
 use gridrt::camera;
 use gridrt::grid::{GridOptions, RadiusFormat, TopFormat};
 use gridrt::image_io::fraction_within;
 use gridrt::input::load_mesh;
 use gridrt::mesh::{scene::default_scene, Mesh};
-use gridrt::scene::render_cpu;
 use gridrt::subdiv::Scheme;
 use gridrt_shared::layout::SHADE_NORMAL;
 use gridrt_shared::ray::{Ray, T_FAR};

@@ -1,11 +1,12 @@
 //! The library's front door, as an embedder uses it: open, build, frame, render.
 
+use gridrt::backend::cpu::render_cpu;
 use gridrt::backend::{Backend, BackendChoice, AO_SAMPLES_PER_PASS};
 use gridrt::camera;
 use gridrt::image_io::fraction_within;
 use gridrt::input;
 use gridrt::pipeline::{BuildOptions, RenderOptions, Representation, Shading};
-use gridrt::scene::{render_cpu, Scene};
+use gridrt::scene::Scene;
 use gridrt_shared::layout::{AO_MISS, AO_OPEN_MASK, NO_HIT};
 use gridrt_shared::shade::ao_pixel;
 use gridrt_tests::gpu_or_skip;

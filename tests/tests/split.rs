@@ -4,13 +4,14 @@
 //! the CPU and on the GPU, and what cannot be bound (too many chunks, or displaced grids,
 //! which are bound whole) must be refused with its sizes.
 
+use gridrt::backend::cpu::{render_cpu, trace_cpu};
 use gridrt::bvh::Aabb;
 use gridrt::camera;
 use gridrt::grid::{GridOptions, TopFormat};
 use gridrt::image_io::fraction_within;
 use gridrt::mesh::scene::default_scene;
-use gridrt::rays::{primary_rays, trace_cpu};
-use gridrt::scene::{render_cpu, Scene};
+use gridrt::rays::primary_rays;
+use gridrt::scene::Scene;
 use gridrt::split::{render_cpu_split, scene_buffers, split};
 use gridrt::subdiv::Scheme;
 use gridrt_shared::buffer::SPLIT_CHUNKS;

@@ -3,11 +3,12 @@
 //! are large, so the form is tried here on a small scene converted to it: the same scene must
 //! give the same pictures and hits, whole and split, on the CPU and on the GPU.
 
+use gridrt::backend::cpu::{render_cpu, trace_cpu};
 use gridrt::camera;
 use gridrt::grid::{GridOptions, TopFormat};
 use gridrt::mesh::scene::default_scene;
-use gridrt::rays::{primary_rays, trace_cpu};
-use gridrt::scene::{render_cpu, Scene};
+use gridrt::rays::primary_rays;
+use gridrt::scene::Scene;
 use gridrt::split::{render_cpu_split, split};
 use gridrt::subdiv::Scheme;
 use gridrt_shared::layout::{FrameParams, SHADE_PRIMITIVE};

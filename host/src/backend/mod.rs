@@ -1,21 +1,23 @@
-//! Where rays are traced: the CPU (rayon over the same `gridrt_shared` code the kernels run)
-//! or, built with the `gpu` feature (on by default), a wgpu adapter. One type, so that the
-//! choice between them is made in one place.
+//! Where rays are traced: the CPU ([`cpu`]: rayon over the same `gridrt_shared` code the
+//! kernels run) or, built with the `gpu` feature (on by default), a wgpu adapter ([`gpu`]).
+//! One type, so that the choice between them is made in one place.
 
-use std::time::Instant;
+pub mod cpu;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 
 use crate::error::Result;
 use gridrt_shared::layout::{Camera, FrameParams, HitRecord, RayRecord, SHADE_COST};
 use gridrt_shared::shade::{ao_accumulate, ao_pixel};
 use rayon::prelude::*;
 
-#[cfg(feature = "gpu")]
-use crate::gpu::{Gpu, GpuScene, TimedList, Timing};
 use crate::heat_map::CostImage;
 use crate::limits::BufferSize;
 use crate::pipeline::{Image, RenderOptions, Shading};
-use crate::rays::{in_turn, trace_cpu};
-use crate::scene::{render_cpu, Scene};
+use crate::scene::Scene;
+use cpu::{render_cpu, time_traces_cpu, trace_cpu};
+#[cfg(feature = "gpu")]
+use gpu::{Gpu, GpuScene, TimedList, Timing};
 
 /// Most ambient-occlusion samples per pixel one render pass casts.
 pub const AO_SAMPLES_PER_PASS: u32 = 8;
@@ -406,25 +408,4 @@ impl Uploaded {
     fn on_gpu(&self) -> Option<&()> {
         None
     }
-}
-
-/// [`Backend::time_traces`] on the CPU.
-fn time_traces_cpu(scenes: &[&Scene], rays: &[RayRecord], warmup: usize, repeats: usize) -> Vec<TimedTrace> {
-    let mut timed: Vec<TimedTrace> = (scenes.iter())
-        .map(|_| TimedTrace {
-            hits: Vec::new(),
-            seconds: Vec::new(),
-        })
-        .collect();
-    for k in 0..warmup + repeats {
-        for turn in 0..scenes.len() {
-            let s = in_turn(k, turn, scenes.len());
-            let start = Instant::now();
-            timed[s].hits = trace_cpu(scenes[s], rays);
-            if k >= warmup {
-                timed[s].seconds.push(start.elapsed().as_secs_f64());
-            }
-        }
-    }
-    timed
 }
