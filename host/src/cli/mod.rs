@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Result};
 use clap::{Parser, Subcommand, ValueEnum};
 
-use gridrt::backend::{Backend, BackendChoice};
+use gridrt::backend::{Backend, BackendChoice, Uploaded};
 use gridrt::camera::{FileViewpoint, Viewpoint};
 use gridrt::heat_map::CostSummary;
 use gridrt::input::{self, Input};
@@ -887,15 +887,8 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
     }
     args.check_mode()?;
     let frames = args.turntable.unwrap_or(1);
-    let outputs: Vec<PathBuf> = (0..frames)
-        .map(|k| frame_path(&args.output, k, args.turntable))
-        .collect();
     let paths: Vec<&Path> = args.meshes.iter().map(PathBuf::as_path).collect();
-    let inputs = input::files_read(&paths);
-    for output in &outputs {
-        files::check_png_path(output)?;
-        files::check_not_input(output, &inputs)?;
-    }
+    let outputs = render_outputs(args, &paths)?;
     let Input {
         name,
         mesh,
@@ -942,46 +935,23 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
     }
     let placed = camera::placement(&mesh.positions, &viewpoint, args.width, args.height)
         .map_err(naming_input(&name, gridrt::error::ErrorKind::Input))?;
-    let sizes = match (args.mode, &displaced_grids) {
-        (Mode::Grid, Some(m)) => {
-            grid::displaced::least_buffer_sizes(m, &args.build.grid_options()).map_err(|e| e.prefixed(&name))?
-        }
-        (Mode::Grid, None) => args.build.check_grid_limits(&name, &mesh)?,
-        (Mode::Triangles, _) => triangles::least_buffer_sizes(
-            mesh.positions.len() as u64,
-            limits::micro_triangles(mesh.triangles.len(), lod),
-        ),
-    };
+    let sizes = least_buffer_sizes(args, &name, &mesh, displaced_grids.as_ref(), lod)?;
     let backend = stages.run("device", || open_backend(args.backend, "rendering"))?;
     let displaced = args.mode == Mode::Grid && displaced_grids.is_some();
     backend.check_fits(&sizes, displaced).map_err(|e| e.prefixed(&name))?;
     check_upload_memory(&name, &sizes, &backend, args)?;
-    let scene = match (args.mode, &displaced_grids) {
-        (Mode::Grid, Some(m)) => stages.run("build", || Scene::build_displaced(m, &options))?,
-        (Mode::Grid, None) => stages.run_counted("build", mesh.triangles.len() as u64, |bar| {
-            Scene::build_reporting(&mesh, &options, &|n| bar.inc(n as u64))
-        })?,
-        (Mode::Triangles, _) => stages.run("build", || Scene::build(&mesh, &options))?,
-    };
-    // A displaced micro-mesh's triangles each have their own level.
-    let micro_at = |depth: u32| match &displaced_grids {
-        Some(m) => m.micro_triangles_at(depth),
-        None => limits::micro_triangles(base_triangles, depth),
-    };
-    let micro = micro_at(lod);
-    // Grids hold every level built, whatever depth renders.
-    let stored = match scene {
-        Scene::Grids(_) => micro_at(args.build.levels),
-        Scene::Triangles(_) => micro,
-    };
-    let up_to = if args.lod == Some(LodArg::Auto) { "up to " } else { "" };
-    stages.say(format!(
-        "{name}: {} base triangles, {micro} micro-triangles at depth {up_to}{lod}, {} ({:.2} B per micro-triangle)",
+    let scene = build_scene(stages, args, &mesh, displaced_grids.as_ref(), &options)?;
+    stages.say(scene_line(
+        &name,
+        &scene,
+        displaced_grids.as_ref(),
         base_triangles,
-        limits::human(scene.memory() as u64),
-        scene.memory() as f64 / stored as f64
+        lod,
+        args,
     ));
     let render = args.render_options(&frame);
+    // Uploaded once, by the first frame that needs it, for every frame of a turntable.
+    let uploaded = std::cell::OnceCell::new();
     for (k, output) in (0..frames).zip(&outputs) {
         // A turntable turns the orbit's azimuth by equal steps, the first frame the plain view.
         // The later frames turn about the first one's target, so the mesh does not wander.
@@ -995,37 +965,133 @@ fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
             let report = LodReport::measure(grids, &render.frame(&scene, &view));
             stages.say(describe_lod(&report, args.lod_pixels));
         }
-        let image = if render.shading == Shading::Cost {
-            let costs = stages.run("render", || {
-                (backend.render_costs(&scene, &view, &render))
-                    .map_err(naming_input(&name, gridrt::error::ErrorKind::Limits))
-            })?;
-            let summary = costs.summary();
-            let white = summary.white(render.heat_white);
-            stages.say(describe_costs(&summary, white, render.heat_white.is_none()));
-            costs.heat_map(white)
-        } else {
-            // Ambient occlusion renders in passes: a bar over its samples.
-            let samples = match render.shading {
-                Shading::AmbientOcclusion | Shading::Lit => render.ao_samples as u64,
-                _ => 0,
-            };
-            stages.run_counted("render", samples, |bar| {
-                (backend.render_reporting(&scene, &view, &render, &|done| bar.set_position(done as u64)))
-                    .map_err(naming_input(&name, gridrt::error::ErrorKind::Limits))
-            })?
-        };
+        let target = (&backend, &scene, &uploaded);
+        let image = render_image(stages, target, &view, &render, &name)?;
         stages.run("write", || image.write_png(output))?;
-        stages.say(format!(
-            "rendered {}x{} on {} -> {}",
-            args.width,
-            args.height,
-            backend.describe(),
-            output.display()
-        ));
+        let (width, height, device) = (args.width, args.height, backend.describe());
+        stages.say(format!("rendered {width}x{height} on {device} -> {}", output.display()));
     }
     stages.report();
     Ok(())
+}
+
+/// The PNG files a render writes (one per turntable frame), checked before any work: each
+/// a writable `.png` path, none of them an input.
+fn render_outputs(args: &RenderArgs, paths: &[&Path]) -> Result<Vec<PathBuf>> {
+    let frames = args.turntable.unwrap_or(1);
+    let outputs: Vec<PathBuf> = (0..frames)
+        .map(|k| frame_path(&args.output, k, args.turntable))
+        .collect();
+    let inputs = input::files_read(paths);
+    for output in &outputs {
+        files::check_png_path(output)?;
+        files::check_not_input(output, &inputs)?;
+    }
+    Ok(outputs)
+}
+
+/// The least sizes of the scene's buffers, from the mesh's counts, before it is built.
+fn least_buffer_sizes(
+    args: &RenderArgs,
+    name: &str,
+    mesh: &Mesh,
+    displaced_grids: Option<&gridrt::micromesh::DisplacedMesh>,
+    lod: u32,
+) -> Result<Vec<limits::BufferSize>> {
+    Ok(match (args.mode, displaced_grids) {
+        (Mode::Grid, Some(m)) => {
+            grid::displaced::least_buffer_sizes(m, &args.build.grid_options()).map_err(|e| e.prefixed(name))?
+        }
+        (Mode::Grid, None) => args.build.check_grid_limits(name, mesh)?,
+        (Mode::Triangles, _) => triangles::least_buffer_sizes(
+            mesh.positions.len() as u64,
+            limits::micro_triangles(mesh.triangles.len(), lod),
+        ),
+    })
+}
+
+/// The scene `render` traces: displaced grids, grids (a bar over the base triangles) or the
+/// baseline's triangles.
+fn build_scene(
+    stages: &mut Stages,
+    args: &RenderArgs,
+    mesh: &Mesh,
+    displaced_grids: Option<&gridrt::micromesh::DisplacedMesh>,
+    options: &BuildOptions,
+) -> Result<Scene> {
+    Ok(match (args.mode, displaced_grids) {
+        (Mode::Grid, Some(m)) => stages.run("build", || Scene::build_displaced(m, options))?,
+        (Mode::Grid, None) => stages.run_counted("build", mesh.triangles.len() as u64, |bar| {
+            Scene::build_reporting(mesh, options, &|n| bar.inc(n as u64))
+        })?,
+        (Mode::Triangles, _) => stages.run("build", || Scene::build(mesh, options))?,
+    })
+}
+
+/// The line that says what the scene holds: its triangles at the depth rendered and bytes.
+fn scene_line(
+    name: &str,
+    scene: &Scene,
+    displaced_grids: Option<&gridrt::micromesh::DisplacedMesh>,
+    base_triangles: usize,
+    lod: u32,
+    args: &RenderArgs,
+) -> String {
+    // A displaced micro-mesh's triangles each have their own level.
+    let micro_at = |depth: u32| match displaced_grids {
+        Some(m) => m.micro_triangles_at(depth),
+        None => limits::micro_triangles(base_triangles, depth),
+    };
+    let micro = micro_at(lod);
+    // Grids hold every level built, whatever depth renders.
+    let stored = match scene {
+        Scene::Grids(_) => micro_at(args.build.levels),
+        Scene::Triangles(_) => micro,
+    };
+    let up_to = if args.lod == Some(LodArg::Auto) { "up to " } else { "" };
+    format!(
+        "{name}: {} base triangles, {micro} micro-triangles at depth {up_to}{lod}, {} ({:.2} B per micro-triangle)",
+        base_triangles,
+        limits::human(scene.memory() as u64),
+        scene.memory() as f64 / stored as f64
+    )
+}
+
+/// One frame of `render`: the cost heat map (counted on the CPU), or the image on the
+/// backend, the scene uploaded to it the first time.
+fn render_image(
+    stages: &mut Stages,
+    (backend, scene, uploaded): (&Backend, &Scene, &std::cell::OnceCell<Uploaded>),
+    view: &gridrt_shared::layout::Camera,
+    render: &RenderOptions,
+    name: &str,
+) -> Result<gridrt::pipeline::Image> {
+    let limits = naming_input(name, gridrt::error::ErrorKind::Limits);
+    if render.shading == Shading::Cost {
+        let costs = stages.run("render", || backend.render_costs(scene, view, render).map_err(&limits))?;
+        let summary = costs.summary();
+        let white = summary.white(render.heat_white);
+        stages.say(describe_costs(&summary, white, render.heat_white.is_none()));
+        return Ok(costs.heat_map(white));
+    }
+    // Ambient occlusion renders in passes: a bar over its samples.
+    let samples = match render.shading {
+        Shading::AmbientOcclusion | Shading::Lit => render.ao_samples as u64,
+        _ => 0,
+    };
+    stages
+        .run_counted("render", samples, |bar| {
+            let uploaded = match uploaded.get() {
+                Some(u) => u,
+                None => {
+                    let u = backend.upload(scene).map_err(&limits)?;
+                    uploaded.get_or_init(|| u)
+                }
+            };
+            (backend.render_uploaded(scene, uploaded, view, render, &|done| bar.set_position(done as u64)))
+                .map_err(&limits)
+        })
+        .map_err(Into::into)
 }
 
 /// Triangles from which a mesh is taken for a detailed one (a scan, a sculpt, a CAD
