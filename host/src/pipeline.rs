@@ -162,12 +162,11 @@ impl Scene {
     /// `t / n`. A displaced micro-mesh built as triangles numbers its decoded triangles one
     /// by one (1).
     pub fn micro_triangles_per_base(input: &Input, options: &BuildOptions) -> u32 {
-        let depth = match (&input.micromesh, options.representation) {
-            (Some(m), Representation::Grids) if m.deepest_level().is_some() => {
-                options.lod.or(m.deepest_level()).unwrap_or(0)
-            }
-            (Some(m), Representation::Triangles) if m.deepest_level().is_some() => 0,
-            _ => options.lod.unwrap_or(options.grid.levels),
+        // The same test as `from_input`: a micro-mesh with levels is built from them.
+        let depth = match input.micromesh.as_ref().and_then(|m| m.deepest_level()) {
+            Some(_) if options.representation == Representation::Triangles => 0,
+            Some(deepest) => options.lod.unwrap_or(deepest),
+            None => options.lod.unwrap_or(options.grid.levels),
         };
         1 << (2 * depth)
     }

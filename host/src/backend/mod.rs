@@ -194,11 +194,7 @@ impl Backend {
         progress: &dyn Fn(u32),
     ) -> Result<Image> {
         options.check(scene)?;
-        let uploaded = match options.shading {
-            // Counted on the CPU whatever the backend (see `render_costs`).
-            Shading::Cost => Uploaded::nothing(),
-            _ => self.upload(scene)?,
-        };
+        let uploaded = self.upload_to_render(scene, options.shading.code())?;
         self.render_uploaded(scene, &uploaded, camera, options, progress)
     }
 
@@ -286,26 +282,17 @@ impl Backend {
     /// [`gridrt_shared::shade::render_pixel`]), row-major, top row first. The heat map's
     /// counts come from the CPU (see [`Backend::render_costs`]).
     pub fn render_frame(&self, scene: &Scene, frame: &FrameParams) -> Result<Vec<u32>> {
-        let uploaded = match frame.shading {
-            SHADE_COST => Uploaded::nothing(),
-            _ => self.upload(scene)?,
-        };
+        let uploaded = self.upload_to_render(scene, frame.shading)?;
         self.render_frame_uploaded(scene, &uploaded, frame)
     }
 
-    /// [`Backend::render_frame`] of each of `frames` of one scene (uploaded once), handing
-    /// `each` the frame's index and pixels as they are done.
-    pub fn render_frames(
-        &self,
-        scene: &Scene,
-        frames: &[FrameParams],
-        each: &mut dyn FnMut(usize, Vec<u32>),
-    ) -> Result<()> {
-        let uploaded = self.upload(scene)?;
-        for (k, frame) in frames.iter().enumerate() {
-            each(k, self.render_frame_uploaded(scene, &uploaded, frame)?);
+    /// [`Backend::upload`] for a render of `shading` (a `SHADE_*` code): nothing for the cost
+    /// heat map, which is counted on the CPU whatever the backend (see `render_costs`).
+    fn upload_to_render(&self, scene: &Scene, shading: u32) -> Result<Uploaded> {
+        match shading {
+            SHADE_COST => Ok(Uploaded::nothing()),
+            _ => self.upload(scene),
         }
-        Ok(())
     }
 
     /// [`Backend::render_frame`] of a scene already [`Backend::upload`]ed.
