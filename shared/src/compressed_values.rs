@@ -434,19 +434,19 @@ impl CodedGrid {
     /// `corners`, into `out` at [`lattice_index`]`(la, lb, 2^k)`. Only the points of `window`
     /// (`[la_lo, la_hi, lb_lo, lb_hi]`, as a leaf test reads them) are decoded, with the
     /// coarser points they are predicted from; `out` holds what it held before elsewhere.
-    pub fn decode_lattice<B: Buffer<u32>, const N: usize>(
+    pub fn decode_lattice<B: Buffer<u32>, const WORDS: usize>(
         &self,
         buffer: B,
         lattice: SubLattice,
         corners: [u32; 3],
         window: [u32; 4],
-        out: &mut [u32; N],
+        out: &mut PackedValues<WORDS>,
     ) {
         let SubLattice { first, step, k } = lattice;
         let m = 1u32 << k;
-        out[lattice_index(0, 0, m) as usize] = corners[0];
-        out[lattice_index(m, 0, m) as usize] = corners[1];
-        out[lattice_index(0, m, m) as usize] = corners[2];
+        out.set(lattice_index(0, 0, m), corners[0]);
+        out.set(lattice_index(m, 0, m), corners[1]);
+        out.set(lattice_index(0, m, m), corners[2]);
         let mut s = m;
         while s > 1 {
             let h = s / 2;
@@ -467,9 +467,9 @@ impl CodedGrid {
                             (first[0] + la as i32 * step) as u32,
                             (first[1] + lb as i32 * step) as u32,
                         ];
-                        let qa = out[lattice_index(a[0], a[1], m) as usize];
-                        let qb = out[lattice_index(b[0], b[1], m) as usize];
-                        out[lattice_index(la, lb, m) as usize] = self.midpoint(buffer, p, qa, qb);
+                        let qa = out.get(lattice_index(a[0], a[1], m));
+                        let qb = out.get(lattice_index(b[0], b[1], m));
+                        out.set(lattice_index(la, lb, m), self.midpoint(buffer, p, qa, qb));
                     }
                     lb += h;
                 }
@@ -477,6 +477,34 @@ impl CodedGrid {
             }
             s = h;
         }
+    }
+}
+
+/// Decoded values of a lattice, two to a word in 16-bit halves (values are at most 16 bits
+/// wide): a GPU keeps an array it indexes at run time in registers only while it is small,
+/// and this one is read at every point of a leaf.
+#[derive(Copy, Clone)]
+pub struct PackedValues<const WORDS: usize>([u32; WORDS]);
+
+impl<const WORDS: usize> PackedValues<WORDS> {
+    /// Every value `value`.
+    #[inline(always)]
+    pub fn filled(value: u32) -> Self {
+        PackedValues([value | value << 16; WORDS])
+    }
+
+    /// Value `i`.
+    #[inline(always)]
+    pub fn get(&self, i: u32) -> u32 {
+        (self.0[(i >> 1) as usize] >> (16 * (i & 1))) & 0xffff
+    }
+
+    /// Sets value `i` to `value` (below `2^16`).
+    #[inline(always)]
+    pub fn set(&mut self, i: u32, value: u32) {
+        let shift = 16 * (i & 1);
+        let word = &mut self.0[(i >> 1) as usize];
+        *word = (*word & !(0xffff << shift)) | value << shift;
     }
 }
 

@@ -4,7 +4,7 @@
 
 use crate::bit_fields::read_bits;
 use crate::buffer::{carries, element, Buffer, Chunks, Split};
-use crate::compressed_values::{CodedGrid, CodedScene, SubLattice, ValueCode};
+use crate::compressed_values::{CodedGrid, CodedScene, PackedValues, SubLattice, ValueCode};
 use crate::cost::Tally;
 use crate::displacement::{decimated_grid_point, displaced_point, unorm11_displacement, DisplacedTriangle};
 use crate::footprint::FootprintFrame;
@@ -25,7 +25,7 @@ use crate::sphere::{
     byte_thickness, decode_radius, intersect_sphere_scaled, leaf_radius, leaf_thickness, relative_radius,
     relative_radius_at,
 };
-use crate::traverse::{load_vec3_bits, record_hit, LeafPrimitives};
+use crate::traverse::{load_vec3_bits, record_hit, LeafPrimitives, TopStack};
 use crate::triangle::{intersect_sheared, shear};
 use crate::value_tables::{block_bit, leveled_edge, LeveledEdge};
 
@@ -103,7 +103,7 @@ const INNER_CODES: u32 = 1 << 31;
 pub struct GridScratch {
     /// A compressed leaf's values, decoded at their lattice slots (see
     /// [`GridScene::decode_leaf`]); never read by kernels without the decoder.
-    values: [u32; LEAF_VERTICES],
+    values: PackedValues<LEAF_WORDS>,
     /// `1 / |dir|^2`, for the sphere tests.
     inv_dir_len2: f32,
     frame: FootprintFrame,
@@ -111,6 +111,9 @@ pub struct GridScratch {
 
 /// Most vertices a leaf can hold: a sub-triangle subdivided `MAX_LEAF_DEPTH` times.
 const LEAF_VERTICES: usize = vertex_count(MAX_LEAF_DEPTH) as usize;
+
+/// Words of a leaf's decoded values, two to a word.
+const LEAF_WORDS: usize = LEAF_VERTICES.div_ceil(2);
 
 /// Slot in a leaf's vertex list of corner `v` of a packed static-list entry.
 #[inline]
@@ -758,7 +761,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             (corner[1] + l[1] as i32 * step) as u32,
         ];
         let v = if self.compressed() {
-            let q = scratch.values[lattice_index(l[0], l[1], 1 << k) as usize];
+            let q = scratch.values.get(lattice_index(l[0], l[1], 1 << k));
             self.displaced_at(open, self.snapped(open, p), q)
         } else {
             self.stored_vertex(open, p)
@@ -1071,14 +1074,14 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     /// the leaf test indexes its points. Kept out of line on the CPU, so grids of other
     /// formats trace the same code as before.
     #[cfg_attr(not(target_arch = "spirv"), inline(never))]
-    fn decode_leaf<const N: usize>(
+    fn decode_leaf<const WORDS: usize>(
         &self,
         open: &OpenGrid,
         sub: &SubTriangle,
         step: i32,
         k: u32,
         window: [u32; 4],
-        values: &mut [u32; N],
+        values: &mut PackedValues<WORDS>,
     ) {
         let corners = open.coded.sub_triangle_values(self.vertices, sub.level, sub.index);
         let lattice = SubLattice {
@@ -1097,12 +1100,12 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     /// that a decimated edge moves the value of the point it moves to: one step along the
     /// edge, an even point, which stays, lies in the same leaf (whose corners are even), and
     /// was decoded with the window (which the decoder rounds outward to each spacing).
-    fn snap_leaf_values<const N: usize>(
+    fn snap_leaf_values<const WORDS: usize>(
         &self,
         open: &OpenGrid,
         lattice: SubLattice,
         window: [u32; 4],
-        values: &mut [u32; N],
+        values: &mut PackedValues<WORDS>,
     ) {
         let SubLattice { first, step, k } = lattice;
         let m = 1u32 << k;
@@ -1119,8 +1122,10 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                 if on[0] != p[0] || on[1] != p[1] {
                     let to_a = (on[0] as i32 - first[0]) / step;
                     let to_b = (on[1] as i32 - first[1]) / step;
-                    values[lattice_index(la, lb, m) as usize] =
-                        values[lattice_index(to_a as u32, to_b as u32, m) as usize];
+                    values.set(
+                        lattice_index(la, lb, m),
+                        values.get(lattice_index(to_a as u32, to_b as u32, m)),
+                    );
                 }
                 la += 1;
             }
@@ -1364,7 +1369,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     /// Working memory of one ray's grid visits.
     fn new_scratch(ray: &Ray) -> GridScratch {
         GridScratch {
-            values: [0; LEAF_VERTICES],
+            values: PackedValues::filled(0),
             inv_dir_len2: 1.0 / ray.dir.dot(ray.dir),
             frame: FootprintFrame::new(ray),
         }
@@ -1397,6 +1402,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
 /// [`GridScene::intersect_grid`]).
 impl<H: Buffer<GridHeader>, W: Buffer<u32>> LeafPrimitives for GridScene<'_, H, W> {
     const WIDE_WALK: bool = W::MOST & carries::DISPLACED_GRIDS != 0;
+    type Stack = TopStack;
     type Scratch = GridScratch;
 
     #[inline(always)]

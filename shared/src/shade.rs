@@ -134,23 +134,29 @@ pub fn pack_rgba8(color: Vec3) -> u32 {
 /// the scene is split over bindings.
 #[inline]
 pub fn render_pixel<N: Hierarchy, P: LeafPrimitives>(frame: &FrameParams, nodes: N, prims: &P, x: u32, y: u32) -> u32 {
-    let primary = primary_ray(&frame.camera, x, y);
-    let pixel = y * frame.camera.width + x;
-    let mut ray = primary;
-    let mut t_max = T_FAR;
-    let (mut origin, mut n, mut t1, mut t2) = (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO, Vec3::ZERO);
+    // What one ray leaves the next: the primary hit's shifted point and the normal on the
+    // side the primary came from, the lights and the open rays so far. Each ray is made at
+    // the top of the loop from these, so that no ray and no basis is held across the
+    // traversal, where every register counts.
+    let (mut origin, mut n) = (Vec3::ZERO, Vec3::ZERO);
     let mut open = 0u32;
     let mut lights = 0u32;
     // Ray 0 is the primary; under ambient occlusion ray `k > 0` is sample
-    // `ao_first_sample + k - 1`, cosine-distributed from the primary hit (on the side the
-    // primary came from) and looking `ao_distance` far; the directions come from a hash of
-    // the pixel and the sample, so every run, every split into passes and both backends draw
-    // the same ones.
+    // `ao_first_sample + k - 1` (see [`ao_ray`]).
     let mut k = 0u32;
     loop {
+        let (ray, t_max) = if k == 0 {
+            (primary_ray(&frame.camera, x, y), T_FAR)
+        } else {
+            (
+                ao_ray(frame, origin, n, y * frame.camera.width + x, k - 1),
+                frame.ao_distance,
+            )
+        };
         // Occlusion rays ask only whether they hit: no normal.
         let mut hit = closest_hit(nodes, prims, &ray, t_max, &mut Uncounted);
         if k == 0 {
+            let primary = ray;
             hit = with_normal(prims, hit);
             // One call site of the smooth normal, whatever the mode: a shader inlines each.
             let mut lit = hit;
@@ -177,19 +183,26 @@ pub fn render_pixel<N: Hierarchy, P: LeafPrimitives>(frame: &FrameParams, nodes:
                 n = -n;
             }
             origin = primary.origin + primary.dir * hit.t + n * frame.ao_offset;
-            (t1, t2) = orthonormal_basis(n);
-            t_max = frame.ao_distance;
         } else if !hit.is_hit() {
             open += 1;
         }
         if k == frame.ao_samples {
             return lights | open;
         }
-        let sample = frame.ao_first_sample + k;
-        let h = hash(hash(pixel) ^ sample.wrapping_mul(0x9e37_79b9));
-        ray = Ray::new(origin, cosine_direction(n, t1, t2, unit_float(h), unit_float(hash(h))));
         k += 1;
     }
+}
+
+/// Ambient-occlusion sample `ao_first_sample + i` of pixel `pixel` (its index in the image),
+/// from `origin` on the surface of unit normal `n`: cosine-distributed about `n`, its
+/// direction a hash of the pixel and the sample, so every run, every split into passes and
+/// both backends draw the same ones.
+#[inline(always)]
+fn ao_ray(frame: &FrameParams, origin: Vec3, n: Vec3, pixel: u32, i: u32) -> Ray {
+    let sample = frame.ao_first_sample + i;
+    let h = hash(hash(pixel) ^ sample.wrapping_mul(0x9e37_79b9));
+    let (t1, t2) = orthonormal_basis(n);
+    Ray::new(origin, cosine_direction(n, t1, t2, unit_float(h), unit_float(hash(h))))
 }
 
 /// Pixel `sum` of the passes so far with pixel `pass` of one more pass added: their open rays

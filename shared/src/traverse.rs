@@ -10,8 +10,15 @@ use crate::layout::{BvhNode, Hit, SplitParams, TRIANGLE_INDICES, TRIANGLE_POSITI
 use crate::ray::{Ray, T_FAR};
 use crate::triangle::{intersect_triangle, triangle_normal};
 
-/// Deepest BVH the traversal can walk; the builder never makes a deeper one.
+/// Deepest triangle BVH the traversal can walk; the builder never makes a deeper one.
 pub const MAX_BVH_DEPTH: usize = 64;
+
+/// Entries the stack of the grids' top-level walk holds, binary or wide: the builder keeps
+/// the grids' hierarchy within it (see `TOP_STACK - 2` in the host's builder settings, and
+/// `crate::wide_nodes::STACK_ENTRIES`). Half the baseline's: a GPU keeps the stack in
+/// registers, which the grids' bottom level needs, and a scene of `4^L` micro-triangles a
+/// grid has `4^L` times fewer primitives at its top level.
+pub const TOP_STACK: usize = 32;
 
 /// What a BVH leaf refers to.
 pub trait LeafPrimitives {
@@ -25,6 +32,9 @@ pub trait LeafPrimitives {
     fn displaced_grids(&self) -> bool {
         true
     }
+
+    /// The walk's stack, as deep as the builder keeps hierarchies over these primitives.
+    type Stack: WalkStack + Default;
 
     /// Working memory of the leaf tests and the per-ray constants they need, made once per
     /// ray rather than once per leaf: on GPUs every fresh local array costs a store per element.
@@ -198,7 +208,7 @@ pub fn traverse_bvh<W: LeafWalk, P: LeafPrimitives, T: Tally>(
         // the box test.
         return;
     }
-    let mut stack = LocalStack::new();
+    let mut stack = P::Stack::default();
     // The root's entry distance is kept for the walks that read it (see `WalkStack`).
     stack.push(0, ROOT, t_root);
     let mut sp = 1usize;
@@ -247,7 +257,7 @@ fn descend<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
                 } else {
                     (n.first + 1, n.first, tl)
                 };
-                if t_far < T_FAR && *sp < MAX_BVH_DEPTH {
+                if t_far < T_FAR && *sp < S::CAPACITY {
                     stack.push_node(*sp, far);
                     *sp += 1;
                 }
@@ -311,6 +321,8 @@ fn pop_until(sp: &mut usize, mut takes: impl FnMut(usize) -> bool) -> bool {
 /// Where a walk keeps the entries it passes: a node per slot, and the entry distance where
 /// the walk keeps it (the wide walk, whose leaf entries have no box of their own).
 pub trait WalkStack {
+    /// Entries it holds.
+    const CAPACITY: usize;
     fn push(&mut self, at: usize, node: u32, t: f32);
     /// A node alone: its distance is never read.
     fn push_node(&mut self, at: usize, node: u32);
@@ -327,33 +339,49 @@ pub trait WalkStack {
     }
 }
 
-/// A ray's stack in private memory, for the one-pass walk.
-pub struct LocalStack {
-    nodes: [u32; MAX_BVH_DEPTH],
-    t: [f32; MAX_BVH_DEPTH],
+/// A ray's stack in private memory: `N` entries, their distances in `HALF = N / 2` words
+/// (see [`TopStack`] and [`BaselineStack`]). Entry distances are kept as their
+/// top 16 bits, two to a word: truncating a distance (never negative, see
+/// [`crate::aabb::intersect_aabb`]) rounds it down, so a popped entry is still taken wherever
+/// it could hold a closer hit, and the distances take a third of the stack's registers
+/// rather than half of them.
+pub struct LocalStack<const N: usize, const HALF: usize> {
+    nodes: [u32; N],
+    t: [u32; HALF],
 }
 
-impl LocalStack {
+/// The stack of the grids' top-level walk.
+pub type TopStack = LocalStack<TOP_STACK, { TOP_STACK / 2 }>;
+
+/// The stack of the baseline's walk.
+pub type BaselineStack = LocalStack<MAX_BVH_DEPTH, { MAX_BVH_DEPTH / 2 }>;
+
+impl<const N: usize, const HALF: usize> Default for LocalStack<N, HALF> {
     #[inline(always)]
-    pub fn new() -> Self {
+    fn default() -> Self {
         LocalStack {
-            nodes: [0u32; MAX_BVH_DEPTH],
-            t: [0f32; MAX_BVH_DEPTH],
+            nodes: [0u32; N],
+            t: [0u32; HALF],
         }
     }
 }
 
-impl Default for LocalStack {
-    fn default() -> Self {
-        Self::new()
-    }
+/// The word and shift of slot `at`'s distance.
+#[inline(always)]
+fn distance_slot(at: usize) -> (usize, u32) {
+    (at >> 1, 16 * (at as u32 & 1))
 }
 
-impl WalkStack for LocalStack {
+impl<const N: usize, const HALF: usize> WalkStack for LocalStack<N, HALF> {
+    const CAPACITY: usize = {
+        assert!(2 * HALF == N, "a distance word holds two entries");
+        N
+    };
     #[inline(always)]
     fn push(&mut self, at: usize, node: u32, t: f32) {
         self.nodes[at] = node;
-        self.t[at] = t;
+        let (word, shift) = distance_slot(at);
+        self.t[word] = (self.t[word] & !(0xffff << shift)) | (t.to_bits() >> 16) << shift;
     }
     #[inline(always)]
     fn push_node(&mut self, at: usize, node: u32) {
@@ -365,7 +393,8 @@ impl WalkStack for LocalStack {
     }
     #[inline(always)]
     fn t(&self, at: usize) -> f32 {
-        self.t[at]
+        let (word, shift) = distance_slot(at);
+        f32::from_bits(((self.t[word] >> shift) & 0xffff) << 16)
     }
 }
 
@@ -426,6 +455,7 @@ impl<F: Buffer<f32>, I: Buffer<u32>> TriangleMesh<F, I> {
 }
 
 impl<F: Buffer<f32>, I: Buffer<u32>> LeafPrimitives for TriangleMesh<F, I> {
+    type Stack = BaselineStack;
     type Scratch = ();
 
     fn scratch(&self, _ray: &Ray) {}

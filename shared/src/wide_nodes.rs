@@ -43,7 +43,7 @@ use crate::cost::Tally;
 use crate::glam::Vec3;
 use crate::layout::BvhNode;
 use crate::ray::{Ray, T_FAR};
-use crate::traverse::{WalkStack, MAX_BVH_DEPTH, NO_NODE};
+use crate::traverse::{WalkStack, NO_NODE, TOP_STACK};
 
 /// `count` of the header element of a wide hierarchy (never a node's count).
 pub const WIDE: u32 = u32::MAX - 1;
@@ -64,7 +64,7 @@ pub const ORIGIN_CODE_MAX: u32 = 0x7f7f;
 pub const CODE_MAX: u32 = 255;
 
 /// Entries the walk's stack holds; the builder keeps to it (see [`stack_need`]).
-pub const STACK_ENTRIES: usize = MAX_BVH_DEPTH;
+pub const STACK_ENTRIES: usize = TOP_STACK;
 
 /// Exponents (biased) a frame may use: steps of `2^-118` to `2^127`, so that no product of a
 /// code and a step, nor any decoded coordinate, is a denormal (which GPUs may flush).
@@ -282,7 +282,7 @@ impl OpenNode {
             } else {
                 LEAF | self.grid << LEAF_SHIFT | kind
             };
-            if t_enter < T_FAR && *sp < STACK_ENTRIES {
+            if t_enter < T_FAR && *sp < S::CAPACITY {
                 push_sorted(stack, self.bottom, sp, child, t_enter);
             }
             if kind == INNER {

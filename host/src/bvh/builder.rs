@@ -2,14 +2,11 @@
 
 use gridrt_shared::glam::{BVec3A, Vec3A};
 use gridrt_shared::layout::BvhNode;
-use gridrt_shared::traverse::MAX_BVH_DEPTH;
 use rayon::prelude::*;
 
 use super::{Aabb, BuildParams, Bvh};
 
 const BINS: usize = 16;
-/// Leaves are forced below this depth so traversal stacks never overflow.
-const DEPTH_LIMIT: usize = MAX_BVH_DEPTH - 2;
 /// Subtrees at least this large go to another rayon task; below it the task costs more than it saves.
 const PARALLEL_SUBTREE: usize = 256;
 /// Nodes of at least two chunks bin and bound their primitives chunk by chunk in parallel, so the first levels,
@@ -335,6 +332,20 @@ impl<'a> Task<'a> {
     /// Partition on `left(doubled centroid)`; returns the left count and both sides' centroid bounds, which cost
     /// little here. Branch-free (Lomuto with an unconditional swap): the side of a primitive is a coin toss to the
     /// branch predictor, and a mispredicted branch costs more than the swap.
+    /// Reorders the primitives so that the first half's centroids lie below the second
+    /// half's along `axis`; the half's size.
+    fn halve(&mut self, axis: usize) -> usize {
+        let mid = self.boxes.len() / 2;
+        let mut keyed: Vec<(f32, Bounds, u32)> = (self.boxes.iter().zip(self.index.iter()))
+            .map(|(b, &i)| (b.centroid2()[axis], *b, i))
+            .collect();
+        keyed.select_nth_unstable_by(mid, |a, b| a.0.total_cmp(&b.0));
+        for (k, (_, b, i)) in keyed.into_iter().enumerate() {
+            (self.boxes[k], self.index[k]) = (b, i);
+        }
+        mid
+    }
+
     fn partition(&mut self, left: impl Fn(Vec3A) -> bool) -> (usize, Bounds, Bounds) {
         let (mut i, mut lc, mut rc) = (0, Bounds::EMPTY, Bounds::EMPTY);
         for k in 0..self.boxes.len() {
@@ -351,13 +362,21 @@ impl<'a> Task<'a> {
     }
 }
 
+/// Most primitives a subtree whose leaves lie at most `height` levels below its root holds when every split
+/// halves: leaves of `max_leaf_size`.
+fn halving_capacity(params: &BuildParams, height: usize) -> usize {
+    (params.max_leaf_size as usize).saturating_mul(1usize.checked_shl(height as u32).unwrap_or(usize::MAX))
+}
+
 /// Builds the subtree of `task`, whose boxes and doubled centroids are bounded by `bounds`; returns its node
-/// count.
+/// count. A subtree is kept within `params.max_depth`: where the SAH's split leaves a side more primitives than
+/// halving splits can hold in the depth left, the primitives are halved at their centroids' median instead, so
+/// leaves stay small at any depth limit a scene's size allows.
 fn subtree(params: &BuildParams, mut task: Task, bounds: (Bounds, Bounds), depth: usize) -> usize {
     let (node, centroids) = bounds;
     let count = task.boxes.len();
     let leaf = node.to_node(task.first, count as u32);
-    if count == 1 || depth >= DEPTH_LIMIT {
+    if count == 1 || depth >= params.max_depth {
         *task.node = leaf;
         return 1;
     }
@@ -390,6 +409,16 @@ fn subtree(params: &BuildParams, mut task: Task, bounds: (Bounds, Bounds), depth
             let mid = count / 2;
             (mid, bounds_of(&task.boxes[..mid]), bounds_of(&task.boxes[mid..]))
         }
+    };
+    let room = halving_capacity(params, params.max_depth - depth - 1);
+    let (mid, left, right) = if mid.max(count - mid) > room {
+        let extent = centroids.max - centroids.min;
+        let axis = (extent.y > extent.x) as usize;
+        let axis = if extent.z > extent[axis] { 2 } else { axis };
+        let mid = task.halve(axis);
+        (mid, bounds_of(&task.boxes[..mid]), bounds_of(&task.boxes[mid..]))
+    } else {
+        (mid, left, right)
     };
     *task.node = node.to_node(task.at, 0);
     let (l, r) = task.split(mid);

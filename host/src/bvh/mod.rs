@@ -17,6 +17,7 @@ pub use builder::build;
 
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::layout::BvhNode;
+use gridrt_shared::traverse::MAX_BVH_DEPTH;
 
 /// An axis-aligned box; `EMPTY` is the identity of `union`.
 #[derive(Copy, Clone, Debug, PartialEq)]
@@ -85,6 +86,9 @@ impl Aabb {
 #[derive(Copy, Clone, Debug)]
 pub struct BuildParams {
     pub max_leaf_size: u32,
+    /// Deepest a leaf may lie below the root (the root at 0): a walk's stack holds one entry a
+    /// level, so the stack of the walk reading the hierarchy sets it.
+    pub max_depth: usize,
     pub traversal_cost: f32,
     pub intersection_cost: f32,
 }
@@ -93,6 +97,7 @@ impl Default for BuildParams {
     fn default() -> Self {
         BuildParams {
             max_leaf_size: 4,
+            max_depth: MAX_BVH_DEPTH - 2,
             traversal_cost: 1.0,
             intersection_cost: 1.0,
         }

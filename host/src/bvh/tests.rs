@@ -143,3 +143,46 @@ fn traversal_equals_brute_force() {
         }
     }
 }
+
+/// Boxes on a geometric progression, each twice as far out as the last: the SAH peels them off
+/// one or a few at a time, a chain far deeper than the count calls for. Under a depth limit the
+/// builder halves at the median where the SAH would go too deep, so every leaf stays small,
+/// and the tree stays a valid one that finds every box.
+#[test]
+fn depth_limit_keeps_leaves_small() {
+    let boxes: Vec<Aabb> = (0..1000)
+        .map(|k| {
+            let x = 1.02f32.powi(k);
+            Aabb {
+                min: Vec3::new(x, 0.0, 0.0),
+                max: Vec3::new(x * 1.01, 1.0, 1.0),
+            }
+        })
+        .collect();
+    let unlimited = build(&boxes, &BuildParams::default());
+    let params = BuildParams {
+        max_depth: 9,
+        ..BuildParams::default()
+    };
+    assert!(
+        depth(&unlimited.nodes) > params.max_depth + 1,
+        "the SAH alone goes deep here"
+    );
+    let bvh = build(&boxes, &params);
+    assert!(depth(&bvh.nodes) <= params.max_depth + 1);
+    let leaves: Vec<&BvhNode> = bvh.nodes.iter().filter(|n| n.is_leaf()).collect();
+    assert!(leaves.iter().all(|n| n.count <= params.max_leaf_size));
+    let mut sorted = bvh.order.clone();
+    sorted.sort();
+    assert_eq!(sorted, (0..boxes.len() as u32).collect::<Vec<_>>());
+    for n in leaves {
+        for k in n.first..n.first + n.count {
+            let b = &boxes[bvh.order[k as usize] as usize];
+            let leaf = Aabb {
+                min: Vec3::from(n.min),
+                max: Vec3::from(n.max),
+            };
+            assert!(leaf.contains(b), "a box outside its leaf");
+        }
+    }
+}

@@ -873,7 +873,7 @@ mod tests {
     /// its points to the value the single-point path reads (the rest of the lattice is left
     /// as it was).
     fn windows_decode_their_points(grid: &gridrt_shared::compressed_values::CodedGrid, buffer: &[u32], n: u32) {
-        use gridrt_shared::compressed_values::SubLattice;
+        use gridrt_shared::compressed_values::{PackedValues, SubLattice};
         use gridrt_shared::grid_index::lattice_index;
         let corners = grid.sub_triangle_values(buffer, 0, 0);
         let whole = SubLattice {
@@ -888,11 +888,11 @@ mod tests {
                 for &lb_lo in &bounds {
                     for &lb_hi in bounds.iter().filter(|&&h| h >= lb_lo) {
                         let window = [la_lo, la_hi, lb_lo, lb_hi];
-                        let mut out = [u32::MAX; 561];
+                        let mut out = PackedValues::<281>::filled(0xffff);
                         grid.decode_lattice(buffer, whole, corners, window, &mut out);
                         for &(p, value) in &points {
                             if (la_lo..=la_hi).contains(&p[0]) && (lb_lo..=lb_hi).contains(&p[1]) {
-                                let decoded = out[lattice_index(p[0], p[1], n) as usize];
+                                let decoded = out.get(lattice_index(p[0], p[1], n));
                                 assert_eq!(decoded, value, "window {window:?} {p:?}");
                             }
                         }

@@ -423,6 +423,7 @@ mod tests {
     }
 
     impl LeafPrimitives for Boxes {
+        type Stack = gridrt_shared::traverse::TopStack;
         type Scratch = ();
         fn scratch(&self, _ray: &Ray) {}
         fn intersect_leaf<T: Tally>(&self, first: u32, count: u32, ray: &Ray, hit: &mut Hit, _: &mut (), _: &mut T) {

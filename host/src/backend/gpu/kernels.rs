@@ -31,9 +31,9 @@ pub(super) struct Kernel {
     pub slot: usize,
 }
 
-/// How many pipelines can be made: triangles 4, split plain grids 2 jobs x 2 walks, grids on
-/// whole buffers 2 jobs x 3 formats x 2 walks.
-pub(super) const PIPELINES: usize = 4 + 4 + 12;
+/// How many pipelines can be made: triangles 4, split plain grids 2 jobs x 2 formats x 2
+/// walks, grids on whole buffers 2 jobs x 3 formats x 2 walks.
+pub(super) const PIPELINES: usize = 4 + 8 + 12;
 
 /// What the formats of displaced grids add, by format of the grids on whole buffers: plain
 /// grids', displaced grids' with plain values, and with compressed ones.
@@ -60,12 +60,20 @@ impl Kernel {
             };
             return Kernel::grids(job, format, one_visit);
         }
-        // `Gpu::upload` binds displaced grids' formats whole.
+        // `Gpu::upload` binds displaced grids' formats whole; tight headers and relative radii
+        // may be split, and cost a pipeline that reads them registers.
         debug_assert!(!scene.needs_whole_bindings());
+        Kernel::split_grids(job, scene.uses_displaced_formats() as usize, one_visit)
+    }
+
+    /// The grid kernel of `job` (0 render, 1 trace) on a split scene, for grids of plain
+    /// grids' formats (0) or with tight headers and relative radii (1), walked by one visit or
+    /// with the stack.
+    fn split_grids(job: usize, format: usize, one_visit: bool) -> Kernel {
         Kernel {
             entry: pick(job, "render_grids_split", "trace_grids_rays_split"),
-            carries: Some(carries::DISPLACED_FORMATS | walk(one_visit)),
-            slot: 4 + 2 * one_visit as usize + job,
+            carries: Some((FORMATS[format] & carries::DISPLACED_FORMATS) | walk(one_visit)),
+            slot: 4 + 4 * format + 2 * one_visit as usize + job,
         }
     }
 
@@ -87,7 +95,7 @@ impl Kernel {
         Kernel {
             entry: pick(job, "render_grids", "trace_grids_rays"),
             carries: Some(FORMATS[format] | walk(one_visit)),
-            slot: 8 + 4 * format + 2 * one_visit as usize + job,
+            slot: 12 + 4 * format + 2 * one_visit as usize + job,
         }
     }
 }
@@ -120,5 +128,30 @@ fn walk(one_visit: bool) -> u32 {
         carries::ONE_VISIT
     } else {
         carries::STACK
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every kernel and specialisation the host can ask for keeps a pipeline slot of its own.
+    #[test]
+    fn each_pipeline_has_its_own_slot() {
+        let mut kernels = Vec::new();
+        for job in 0..2 {
+            kernels.extend([false, true].map(|split| Kernel::triangles(job, split)));
+            for one_visit in [false, true] {
+                kernels.extend((0..2).map(|format| Kernel::split_grids(job, format, one_visit)));
+                kernels.extend((0..FORMATS.len()).map(|format| Kernel::grids(job, format, one_visit)));
+            }
+        }
+        assert_eq!(kernels.len(), PIPELINES);
+        for (i, a) in kernels.iter().enumerate() {
+            assert!(a.slot < PIPELINES);
+            for b in &kernels[i + 1..] {
+                assert!(a.slot != b.slot || a == b, "{a:?} and {b:?} share a slot");
+            }
+        }
     }
 }
