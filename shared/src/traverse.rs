@@ -14,11 +14,11 @@ use crate::triangle::{intersect_triangle, triangle_normal};
 pub const MAX_BVH_DEPTH: usize = 64;
 
 /// Entries the stack of the grids' top-level walk holds, binary or wide: the builder keeps
-/// the grids' hierarchy within it (see `TOP_STACK - 2` in the host's builder settings, and
-/// `crate::wide_nodes::STACK_ENTRIES`). Half the baseline's: a GPU keeps the stack in
-/// registers, which the grids' bottom level needs, and a scene of `4^L` micro-triangles a
-/// grid has `4^L` times fewer primitives at its top level.
-pub const TOP_STACK: usize = 32;
+/// the grids' hierarchy within it (`TOP_STACK - 2` levels, see the host's builder settings,
+/// and `crate::wide_nodes::STACK_ENTRIES`). As deep as the baseline's: a wide top level's walk
+/// leaves up to six entries waiting a level, and a shorter stack makes a large scene's wide
+/// nodes narrower, many more of them (docs/RESULTS.md).
+pub const TOP_STACK: usize = 64;
 
 /// What a BVH leaf refers to.
 pub trait LeafPrimitives {

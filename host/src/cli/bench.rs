@@ -14,7 +14,7 @@ use gridrt::backend::cpu::trace_cpu;
 use gridrt::backend::{Backend, TimedTrace};
 use gridrt::bvh::Aabb;
 use gridrt::input::Input;
-use gridrt::mesh::Mesh;
+use gridrt::mesh::{Mesh, WorldMesh};
 use gridrt::rays::{ao_rays, primary_rays, reorder, RayOrder};
 use gridrt::scene::Scene;
 use gridrt::{limits, triangles};
@@ -184,11 +184,29 @@ fn check_device(name: &str, mesh: &Mesh, device: &Backend, build: &BuildArgs, ra
 }
 
 pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
+    let (meshes, reference) = load_inputs(args)?;
+    let device = open_checked(args, &meshes)?;
+    // Per mesh: load+subdivide, stats, rays, then 4 timed runs.
+    let steps = 7;
+    let bar = match quiet {
+        true => ProgressBar::hidden(),
+        false => ProgressBar::new((args.meshes.len() * steps) as u64),
+    };
+    bar.set_style(ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}").unwrap());
+    let results = (meshes.iter())
+        .map(|input| measure_mesh(args, input, reference.as_ref(), &device, &bar))
+        .collect::<Result<Vec<_>>>()?;
+    bar.finish_and_clear();
+    write_outputs(args, &results)
+}
+
+/// Every mesh, loaded before the first is measured (a bad file is reported at once), and the
+/// reference, checked against the arguments.
+fn load_inputs(args: &BenchArgs) -> Result<(Vec<Input>, Option<WorldMesh>)> {
     if args.meshes.is_empty() {
         bail!("name at least one mesh to benchmark");
     }
     check_outputs(args)?;
-    // Every mesh loaded before the first is measured: a bad file is reported at once.
     let meshes = args
         .meshes
         .iter()
@@ -208,13 +226,23 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
         Some(path) => Some(gridrt::input::load_world(path)?.0),
         None => None,
     };
+    Ok((meshes, reference))
+}
+
+/// Host bytes the rays of one mesh take.
+fn ray_bytes(args: &BenchArgs) -> u64 {
     let rays_per_view = args.width as u64 * args.height as u64 * (1 + args.ao_samples as u64);
-    let ray_bytes = (args.views as u64 * rays_per_view).saturating_mul(RAY_BYTES);
-    for input in &meshes {
+    (args.views as u64 * rays_per_view).saturating_mul(RAY_BYTES)
+}
+
+/// The backend, once every mesh is known to fit in memory and on it.
+fn open_checked(args: &BenchArgs, meshes: &[Input]) -> Result<Backend> {
+    let ray_bytes = ray_bytes(args);
+    for input in meshes {
         stats::check_work(&input.name, &input.mesh, &build_of(input, &args.build), ray_bytes)?;
     }
     let device = super::open_backend(args.backend, "benchmarking")?;
-    for input in &meshes {
+    for input in meshes {
         check_device(
             &input.name,
             &input.mesh,
@@ -223,148 +251,188 @@ pub fn run(args: &BenchArgs, quiet: bool) -> Result<()> {
             ray_bytes,
         )?;
     }
-    let (backend, device_name, timing) = (device.kind(), device.describe(), device.timing().to_string());
-    // Per mesh: load+subdivide, stats, rays, then 4 timed runs.
-    let steps = 7;
-    let bar = match quiet {
-        true => ProgressBar::hidden(),
-        false => ProgressBar::new((args.meshes.len() * steps) as u64),
+    Ok(device)
+}
+
+/// One mesh's row: both representations built and measured, then traced on the same rays.
+fn measure_mesh(
+    args: &BenchArgs,
+    input: &Input,
+    reference: Option<&WorldMesh>,
+    device: &Backend,
+    bar: &ProgressBar,
+) -> Result<BenchResult> {
+    let Input { name, mesh, .. } = input;
+    let (stats, grids, tris, bounds) = build_both(args, input, bar)?;
+    bar.inc(1);
+    bar.set_message(format!("{name}: generating rays"));
+    let (primary, ao) = bench_rays(args, &tris, &bounds);
+    bar.inc(1);
+    // The reference in this mesh's frame, under the baseline's BVH.
+    let reference = reference.map(|world| {
+        let mesh = world.in_frame(&input.frame);
+        let (seconds, scene) = stats::median_time(args.build_repeats, || {
+            triangles::build(&mesh.positions, &mesh.triangles)
+        });
+        (Scene::Triangles(scene), mesh, seconds)
+    });
+    let contenders = Contenders {
+        grids: &grids,
+        tris: &tris,
+        reference: reference.as_ref().map(|(scene, ..)| scene),
     };
-    bar.set_style(ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}").unwrap());
-    let mut results = Vec::new();
-    for input in &meshes {
-        let Input { name, mesh, .. } = input;
-        let step = |step: &str| bar.set_message(format!("{name}: {step}"));
-        // A displaced micro-mesh: displaced grids against its decoded micro-triangles.
-        let (stats, grids, tris, bounds) = match grids_of(input) {
-            Some(micromesh) => {
-                bar.inc(1);
-                let measured =
-                    stats::measure_displaced(name, (micromesh, mesh), &args.build, args.build_repeats, &step)?;
-                let bounds = Aabb::from_points(mesh.positions.iter().copied());
-                (measured.0, measured.1, measured.2, bounds)
-            }
-            None => {
-                step("subdividing");
-                let sub = super::subdivide(mesh, &args.build);
-                bar.inc(1);
-                let measured = stats::measure(name, mesh, &sub, &args.build, args.build_repeats, &step)?;
-                let bounds = Aabb::from_points(sub.positions.iter().copied());
-                (measured.0, measured.1, measured.2, bounds)
-            }
-        };
-        bar.inc(1);
-        bar.set_message(format!("{name}: generating rays"));
-        let mut primary = primary_rays(&bounds, args.views, args.width, args.height);
-        // AO rays start from the baseline's hits (the same as the grids' up to ties).
-        let tris = Scene::Triangles(tris);
-        let grids = Scene::Grids(grids);
-        let first_hits = trace_cpu(&tris, &primary);
-        let mut ao = ao_rays(&primary, &first_hits, args.ao_samples, &bounds, |p| tris.normal(p));
-        reorder(
-            args.ray_order.order(),
-            &mut primary,
-            &mut ao,
-            args.views,
-            args.width,
-            args.height,
-            &bounds,
-        );
-        bar.inc(1);
-        // The reference in this mesh's frame, under the baseline's BVH.
-        let reference_scene = reference.as_ref().map(|world| {
-            let mesh = world.in_frame(&input.frame);
-            let (seconds, scene) = stats::median_time(args.build_repeats, || {
-                triangles::build(&mesh.positions, &mesh.triangles)
-            });
-            (Scene::Triangles(scene), (mesh, seconds))
-        });
-        let mut reference_rates = reference_scene.as_ref().map(|_| PerKind::default());
-        let mut mrays = PerRepresentation::default();
-        let mut spread = PerRepresentation::default();
-        let mut agree = PerKind::default();
-        for (kind, rays) in [("primary", &primary), ("ao", &ao)] {
-            bar.set_message(format!(
-                "{name}: {} {kind} rays through grids and triangles",
-                rays.len()
-            ));
-            // The two take turns at every repetition.
-            let mut contenders = vec![&grids, &tris];
-            if let Some((scene, _)) = &reference_scene {
-                contenders.push(scene);
-            }
-            let mut timed = (device.time_traces(&contenders, rays, args.warmup, args.repeats))
-                .map_err(super::naming_input(name, gridrt::error::ErrorKind::Limits))?;
-            if let (Some(t), Some(r)) = (timed.get(2), reference_rates.as_mut()) {
-                let rate = rays.len() as f64 / summarize(t.seconds.clone()).0 / 1e6;
-                match kind {
-                    "primary" => r.primary = rate,
-                    _ => r.ao = rate,
-                }
-            }
-            timed.truncate(2);
-            let [grid, triangles]: [TimedTrace; 2] =
-                timed.try_into().map_err(|_| anyhow::anyhow!("one timing per scene"))?;
-            let rate = |t: &TimedTrace| {
-                let (median, rel) = summarize(t.seconds.clone());
-                (rays.len() as f64 / median / 1e6, rel)
-            };
-            let (g, t) = (rate(&grid), rate(&triangles));
-            let a = agreement(&grids, &grid.hits, &tris, &triangles.hits);
-            match kind {
-                "primary" => {
-                    (mrays.grid.primary, spread.grid.primary) = g;
-                    (mrays.triangles.primary, spread.triangles.primary) = t;
-                    agree.primary = a;
-                }
-                _ => {
-                    (mrays.grid.ao, spread.grid.ao) = g;
-                    (mrays.triangles.ao, spread.triangles.ao) = t;
-                    agree.ao = a;
-                }
-            }
-            bar.inc(2);
-        }
-        let impact = |g: f64, t: f64| (t / g - 1.0) * 100.0;
-        results.push(BenchResult {
-            stats,
-            backend: backend.to_string(),
-            device: device_name.clone(),
-            timing: timing.clone(),
-            views: args.views,
-            width: args.width,
-            height: args.height,
-            ray_order: args.ray_order.order(),
-            rays: PerKind {
-                primary: primary.len() as f64,
-                ao: ao.len() as f64,
-            },
-            rt_impact_percent: PerKind {
-                primary: impact(mrays.grid.primary, mrays.triangles.primary),
-                ao: impact(mrays.grid.ao, mrays.triangles.ao),
-            },
-            mrays_per_s: mrays,
-            spread,
-            hit_agreement: agree,
-            reference: reference_scene.map(|(scene, (reference, seconds))| {
-                bar.set_message(format!("{name}: measuring the distance to the reference"));
-                let d = gridrt::surface_distance::measure(&reference, mesh, &Default::default());
-                ReferenceResult {
-                    mesh: args
-                        .reference
-                        .as_ref()
-                        .map_or(String::new(), |p| p.display().to_string()),
-                    triangles: reference.triangles.len(),
-                    bytes: scene.memory(),
-                    build_seconds: seconds,
-                    mrays_per_s: reference_rates.unwrap_or_default(),
-                    distance: d.symmetric.relative_to(d.a_diagonal),
-                }
-            }),
-        });
+    let mut timed = Timed::default();
+    for (is_primary, rays) in [(true, &primary), (false, &ao)] {
+        let kind = if is_primary { "primary" } else { "ao" };
+        bar.set_message(format!(
+            "{name}: {} {kind} rays through grids and triangles",
+            rays.len()
+        ));
+        time_kind(args, name, device, &contenders, rays, is_primary, &mut timed)?;
+        bar.inc(2);
     }
-    bar.finish_and_clear();
-    let table = markdown(&results);
+    let impact = |g: f64, t: f64| (t / g - 1.0) * 100.0;
+    let mrays = timed.mrays;
+    Ok(BenchResult {
+        stats,
+        backend: device.kind().to_string(),
+        device: device.describe(),
+        timing: device.timing().to_string(),
+        views: args.views,
+        width: args.width,
+        height: args.height,
+        ray_order: args.ray_order.order(),
+        rays: PerKind {
+            primary: primary.len() as f64,
+            ao: ao.len() as f64,
+        },
+        rt_impact_percent: PerKind {
+            primary: impact(mrays.grid.primary, mrays.triangles.primary),
+            ao: impact(mrays.grid.ao, mrays.triangles.ao),
+        },
+        mrays_per_s: mrays,
+        spread: timed.spread,
+        hit_agreement: timed.agree,
+        reference: reference.map(|(scene, reference, seconds)| {
+            bar.set_message(format!("{name}: measuring the distance to the reference"));
+            let d = gridrt::surface_distance::measure(&reference, mesh, &Default::default());
+            ReferenceResult {
+                mesh: (args.reference.as_ref()).map_or(String::new(), |p| p.display().to_string()),
+                triangles: reference.triangles.len(),
+                bytes: scene.memory(),
+                build_seconds: seconds,
+                mrays_per_s: timed.reference,
+                distance: d.symmetric.relative_to(d.a_diagonal),
+            }
+        }),
+    })
+}
+
+/// Both representations of one mesh, measured as `gridrt stats` measures them, and the box
+/// their rays are aimed at. A displaced micro-mesh: displaced grids against its decoded
+/// micro-triangles.
+fn build_both(args: &BenchArgs, input: &Input, bar: &ProgressBar) -> Result<(Stats, Scene, Scene, Aabb)> {
+    let Input { name, mesh, .. } = input;
+    let step = |step: &str| bar.set_message(format!("{name}: {step}"));
+    let (measured, bounds) = match grids_of(input) {
+        Some(micromesh) => {
+            bar.inc(1);
+            let measured = stats::measure_displaced(name, (micromesh, mesh), &args.build, args.build_repeats, &step)?;
+            (measured, Aabb::from_points(mesh.positions.iter().copied()))
+        }
+        None => {
+            step("subdividing");
+            let sub = super::subdivide(mesh, &args.build);
+            bar.inc(1);
+            let measured = stats::measure(name, mesh, &sub, &args.build, args.build_repeats, &step)?;
+            (measured, Aabb::from_points(sub.positions.iter().copied()))
+        }
+    };
+    let (stats, grids, tris) = measured;
+    Ok((stats, Scene::Grids(grids), Scene::Triangles(tris), bounds))
+}
+
+/// The primary rays of the orbit views and their AO rays, in the order asked for. AO rays
+/// start from the baseline's hits (the same as the grids' up to ties).
+fn bench_rays(args: &BenchArgs, tris: &Scene, bounds: &Aabb) -> (Vec<RayRecord>, Vec<RayRecord>) {
+    let mut primary = primary_rays(bounds, args.views, args.width, args.height);
+    let first_hits = trace_cpu(tris, &primary);
+    let mut ao = ao_rays(&primary, &first_hits, args.ao_samples, bounds, |p| tris.normal(p));
+    reorder(
+        args.ray_order.order(),
+        &mut primary,
+        &mut ao,
+        args.views,
+        args.width,
+        args.height,
+        bounds,
+    );
+    (primary, ao)
+}
+
+/// The scenes timed against each other: the grids, the baseline, and the reference if any.
+struct Contenders<'a> {
+    grids: &'a Scene,
+    tris: &'a Scene,
+    reference: Option<&'a Scene>,
+}
+
+/// What the timed runs found, per ray kind.
+#[derive(Default)]
+struct Timed {
+    mrays: PerRepresentation,
+    spread: PerRepresentation,
+    agree: PerKind,
+    reference: PerKind,
+}
+
+impl<T> PerKind<T> {
+    fn kind_mut(&mut self, primary: bool) -> &mut T {
+        match primary {
+            true => &mut self.primary,
+            false => &mut self.ao,
+        }
+    }
+}
+
+/// Times one kind of rays through the contenders, which take turns at every repetition.
+fn time_kind(
+    args: &BenchArgs,
+    name: &str,
+    device: &Backend,
+    contenders: &Contenders,
+    rays: &[RayRecord],
+    primary: bool,
+    timed: &mut Timed,
+) -> Result<()> {
+    let mut scenes = vec![contenders.grids, contenders.tris];
+    scenes.extend(contenders.reference);
+    let mut traces = (device.time_traces(&scenes, rays, args.warmup, args.repeats))
+        .map_err(super::naming_input(name, gridrt::error::ErrorKind::Limits))?;
+    let rate = |t: &TimedTrace| {
+        let (median, rel) = summarize(t.seconds.clone());
+        (rays.len() as f64 / median / 1e6, rel)
+    };
+    if let Some(t) = traces.get(2) {
+        *timed.reference.kind_mut(primary) = rate(t).0;
+    }
+    traces.truncate(2);
+    let [grid, triangles]: [TimedTrace; 2] = traces.try_into().map_err(|_| anyhow::anyhow!("one timing per scene"))?;
+    (
+        *timed.mrays.grid.kind_mut(primary),
+        *timed.spread.grid.kind_mut(primary),
+    ) = rate(&grid);
+    (
+        *timed.mrays.triangles.kind_mut(primary),
+        *timed.spread.triangles.kind_mut(primary),
+    ) = rate(&triangles);
+    *timed.agree.kind_mut(primary) = agreement(contenders.grids, &grid.hits, contenders.tris, &triangles.hits);
+    Ok(())
+}
+
+/// The table printed and written, the JSON and the chart, as asked.
+fn write_outputs(args: &BenchArgs, results: &[BenchResult]) -> Result<()> {
+    let table = markdown(results);
     print!("{table}");
     if let Some(path) = &args.json {
         std::fs::write(path, serde_json::to_string_pretty(&results)? + "\n")

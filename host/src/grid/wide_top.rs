@@ -46,7 +46,7 @@ pub fn pack(bvh: &Bvh) -> Option<WideTop> {
     let (groups, first_inner) = (2..=WIDTH as usize)
         .rev()
         .map(|width| {
-            let groups = collapse(binary, width);
+            let groups = collapse(binary, width, STACK_ENTRIES);
             let first_inner = first_inner_children(&groups, binary);
             (groups, first_inner)
         })
@@ -100,20 +100,56 @@ fn merge_sibling_leaves(binary: &[BvhNode]) -> Vec<BvhNode> {
 }
 
 /// The wide nodes of at most `width` children as lists of binary nodes (their children),
-/// breadth first from the root.
-fn collapse(binary: &[BvhNode], width: usize) -> Vec<Vec<u32>> {
+/// breadth first from the root, each as wide as the walk's stack of `capacity` entries leaves
+/// room for (see [`Plan::children_within`]).
+fn collapse(binary: &[BvhNode], width: usize, capacity: usize) -> Vec<Vec<u32>> {
     let plan = Plan::new(binary, width);
+    let needs = Needs::of(binary, &plan);
     let mut groups = vec![];
-    let mut queue = std::collections::VecDeque::from([0u32]);
-    while let Some(n) = queue.pop_front() {
+    let mut queue = std::collections::VecDeque::from([(0u32, 0usize)]);
+    while let Some((n, waiting)) = queue.pop_front() {
         let children = match binary[n as usize].is_leaf() {
             true => vec![n],
-            false => plan.children(binary, n),
+            false => plan.children_within(binary, n, waiting, &needs, capacity),
         };
-        queue.extend(children.iter().filter(|&&c| !binary[c as usize].is_leaf()));
+        let after = waiting + children.len() - 1;
+        queue.extend(
+            (children.iter())
+                .filter(|&&c| !binary[c as usize].is_leaf())
+                .map(|&c| (c, after)),
+        );
         groups.push(children);
     }
     groups
+}
+
+/// For each binary node, the stack entries its subtree's walk needs (none waiting above it)
+/// when collapsed as planned, and when kept binary (two children a node: the floor a collapse
+/// can always fall back to).
+struct Needs {
+    planned: Vec<usize>,
+    binary: Vec<usize>,
+}
+
+impl Needs {
+    fn of(binary: &[BvhNode], plan: &Plan) -> Needs {
+        let (mut planned, mut kept) = (vec![0; binary.len()], vec![0; binary.len()]);
+        let mut children = vec![];
+        // Children come after their parent (depth-first order), so backwards is bottom-up.
+        for n in (0..binary.len()).rev() {
+            let node = &binary[n];
+            if node.is_leaf() {
+                continue;
+            }
+            let (l, r) = (node.first as usize, node.first as usize + 1);
+            kept[n] = 2.max(1 + kept[l].max(kept[r]));
+            children.clear();
+            let k = plan.choice[n][1] as usize;
+            plan.fill(binary, n as u32, k, &mut children);
+            planned[n] = (children.iter()).fold(k, |most, &c| most.max(k - 1 + planned[c as usize]));
+        }
+        Needs { planned, binary: kept }
+    }
 }
 
 /// Slots a subtree can fill in its wide parent: 1 (itself) to [`WIDTH`].
@@ -129,6 +165,9 @@ const UNREACHABLE: u32 = u32::MAX / 4;
 struct Plan {
     /// For `k > 1`, the slots given to the left child; for `k = 1`, the slots of its own node.
     choice: Vec<[u8; SLOTS]>,
+    /// The fewest wide nodes, per node and slots ([`UNREACHABLE`] where a subtree has fewer
+    /// leaves than slots).
+    nodes: Vec<[u32; SLOTS]>,
 }
 
 impl Plan {
@@ -161,13 +200,31 @@ impl Plan {
                 }
             }
         }
-        Plan { choice }
+        Plan { choice, nodes }
     }
 
-    /// The children of inner node `n`'s wide node.
-    fn children(&self, binary: &[BvhNode], n: u32) -> Vec<u32> {
+    /// The children of inner node `n`'s wide node, `waiting` entries already on the stack
+    /// when it is opened: the widest the plan allows whose children's subtrees, collapsed as
+    /// planned, then keep within the stack; failing that, the widest whose children's subtrees
+    /// keep within it walked binary. Binary children (`k = 2`) always pass the second test
+    /// when the parent's choice did, so a hierarchy whose binary walk keeps within `capacity`
+    /// collapses within it, narrowing its nodes near the root first, where there are fewest.
+    fn children_within(&self, binary: &[BvhNode], n: u32, waiting: usize, needs: &Needs, capacity: usize) -> Vec<u32> {
+        let preferred = self.choice[n as usize][1] as usize;
         let mut children = vec![];
-        self.fill(binary, n, self.choice[n as usize][1] as usize, &mut children);
+        for need in [&needs.planned, &needs.binary] {
+            for k in (2..=preferred).rev() {
+                if self.nodes[n as usize][k] >= UNREACHABLE {
+                    continue;
+                }
+                children.clear();
+                self.fill(binary, n, k, &mut children);
+                let fits = |c: &u32| waiting + k - 1 + need[*c as usize] <= capacity;
+                if waiting + k <= capacity && children.iter().all(fits) {
+                    return children;
+                }
+            }
+        }
         children
     }
 
@@ -580,7 +637,7 @@ mod tests {
             .collect();
         let bvh = build(&boxes, &top_level_params());
         let merged = merge_sibling_leaves(&bvh.nodes);
-        let widest = collapse(&merged, WIDTH as usize);
+        let widest = collapse(&merged, WIDTH as usize, usize::MAX);
         let need = stack_need(&widest, &merged, &first_inner_children(&widest, &merged));
         assert!(need > STACK_ENTRIES, "{need}");
         let wide = pack(&bvh).expect("packs narrower");
