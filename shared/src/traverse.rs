@@ -15,10 +15,11 @@ pub const MAX_BVH_DEPTH: usize = 64;
 
 /// Entries the stack of the grids' top-level walk holds, binary or wide: the builder keeps
 /// the grids' hierarchy within it (`TOP_STACK - 2` levels, see the host's builder settings,
-/// and `crate::wide_nodes::STACK_ENTRIES`). As deep as the baseline's: a wide top level's walk
+/// and `crate::wide_nodes::STACK_ENTRIES`). Three quarters of the baseline's: a GPU keeps the
+/// stack in registers, which the grids' bottom level needs, while a wide top level's walk
 /// leaves up to six entries waiting a level, and a shorter stack makes a large scene's wide
 /// nodes narrower, many more of them (docs/RESULTS.md).
-pub const TOP_STACK: usize = 64;
+pub const TOP_STACK: usize = 48;
 
 /// What a BVH leaf refers to.
 pub trait LeafPrimitives {
