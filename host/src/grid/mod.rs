@@ -24,7 +24,7 @@ use gridrt_shared::traverse::TOP_STACK;
 use gridrt_shared::wide_nodes::{WIDE, WIDTH};
 use rayon::prelude::*;
 
-use crate::bvh::{self, Aabb, BuildParams};
+use crate::bvh::{self, Aabb, BuildParams, Bvh};
 use crate::limits::BufferSize;
 
 pub mod compact_top;
@@ -847,14 +847,7 @@ impl PerGridTask<'_> {
 /// `vertices` holds the inner areas in base-triangle order, reordered where they lie.
 fn assemble(shape: &GridShape, ids: &[GridIds], per_grid: &PerGrid, mut vertices: Vec<u32>) -> GridScene {
     let grids = ids.len();
-    let mut top = bvh::build(&per_grid.boxes, &top_level_params());
-    let wide = match shape.top {
-        TopFormat::Wide => wide_top::pack(&top),
-        _ => None,
-    };
-    if let Some(wide) = &wide {
-        top.order = wide.order.iter().map(|&k| top.order[k as usize]).collect();
-    }
+    let top = top_level(shape, &per_grid.boxes);
     let words = shape.inner_words as usize;
     reorder_records(&mut vertices[..grids * words], words, &top.order);
 
@@ -916,46 +909,68 @@ fn assemble(shape: &GridShape, ids: &[GridIds], per_grid: &PerGrid, mut vertices
     if shape.header_bits != 0 {
         leaf_headers = tight_headers(ids, &top.order, shape.header_bits);
     }
+    GridScene {
+        nodes: top.nodes,
+        headers: leaf_headers,
+        vertices,
+        radii,
+        params: grid_params(shape, spheres, radius_scale, thickness_word),
+        base_triangle: top.order,
+    }
+}
+
+/// The grids' top level over their boxes, in the shape's format: its nodes, and the order the
+/// grids are stored in.
+fn top_level(shape: &GridShape, boxes: &[Aabb]) -> Bvh {
+    let mut top = bvh::build(boxes, &top_level_params());
+    let wide = match shape.top {
+        TopFormat::Wide => wide_top::pack(&top),
+        _ => None,
+    };
+    if let Some(wide) = &wide {
+        top.order = wide.order.iter().map(|&k| top.order[k as usize]).collect();
+    }
     let nodes = match (wide, shape.top) {
         (Some(wide), _) => wide.nodes,
         (None, TopFormat::Full) => top.nodes,
         (None, _) => compact_top::pack(&top.nodes).unwrap_or(top.nodes),
     };
-    GridScene {
+    Bvh {
         nodes,
-        headers: leaf_headers,
-        vertices,
-        radii,
-        params: GridParams {
-            levels: shape.levels,
-            lod: shape.levels,
-            leaf_level: shape.leaf_level,
-            sphere_count: spheres as u32,
-            inner_count: inner_vertex_count(shape.levels),
-            edge_offset: shape.edge_offset,
-            corner_offset: shape.corner_offset,
-            quantized_inner: shape.quantized_inner as u32,
-            inner_words: shape.inner_words,
-            edge_word: shape.edge_word,
-            radius_format: shape.radii.code(),
-            leaf_footprint: shape.leaf_footprint as u32,
-            radius_scale,
-            thickness_word,
-            wide_headers: shape.wide_headers as u32,
-            header_bits: shape.header_bits,
-            displaced: match (shape.base_word, shape.value_code) {
-                (0, _) => 0,
-                (_, None) => DISPLACED_PLAIN,
-                (_, Some(_)) => DISPLACED_COMPRESSED,
-            },
-            base_word: shape.base_word,
-            value_widths: shape.value_code.map_or(0, |c| c.widths),
-            edge_block_bits: shape.value_code.map_or(0, |c| c.edge_block_bits()),
-            corner_bit: shape.corner_bit,
-            block_offset_bits: shape.block_offset_bits,
-            ..Default::default()
+        order: top.order,
+    }
+}
+
+/// The parameters the traversal reads grids of `shape` with.
+fn grid_params(shape: &GridShape, spheres: usize, radius_scale: f32, thickness_word: u32) -> GridParams {
+    GridParams {
+        levels: shape.levels,
+        lod: shape.levels,
+        leaf_level: shape.leaf_level,
+        sphere_count: spheres as u32,
+        inner_count: inner_vertex_count(shape.levels),
+        edge_offset: shape.edge_offset,
+        corner_offset: shape.corner_offset,
+        quantized_inner: shape.quantized_inner as u32,
+        inner_words: shape.inner_words,
+        edge_word: shape.edge_word,
+        radius_format: shape.radii.code(),
+        leaf_footprint: shape.leaf_footprint as u32,
+        radius_scale,
+        thickness_word,
+        wide_headers: shape.wide_headers as u32,
+        header_bits: shape.header_bits,
+        displaced: match (shape.base_word, shape.value_code) {
+            (0, _) => 0,
+            (_, None) => DISPLACED_PLAIN,
+            (_, Some(_)) => DISPLACED_COMPRESSED,
         },
-        base_triangle: top.order,
+        base_word: shape.base_word,
+        value_widths: shape.value_code.map_or(0, |c| c.widths),
+        edge_block_bits: shape.value_code.map_or(0, |c| c.edge_block_bits()),
+        corner_bit: shape.corner_bit,
+        block_offset_bits: shape.block_offset_bits,
+        ..Default::default()
     }
 }
 

@@ -190,43 +190,91 @@ fn children(faces: &[Face], mids: &[[u32; 3]]) -> Vec<Face> {
 /// the ids of the new vertices on its edges `(v0 v1)`, `(v1 v2)`, `(v2 v0)`.
 fn refine(positions: &[Vec3], faces: &[Face], scheme: Scheme) -> (Vec<Vec3>, Vec<[u32; 3]>) {
     let nv = positions.len();
-    // Group the face edges by their undirected vertex pair.
-    let mut keys: Vec<(u64, u32)> = Vec::with_capacity(faces.len() * 3);
-    for (f, face) in faces.iter().enumerate() {
-        for e in 0..3 {
-            let (a, b) = (face.v[e], face.v[(e + 1) % 3]);
-            let key = ((a.min(b) as u64) << 32) | a.max(b) as u64;
-            keys.push((key, (f * 3 + e) as u32));
+    let edges = Edges::of(faces, nv);
+    let single_fan = single_fans(faces, &edges, nv);
+    let mut around = Around::new(nv);
+    let mut new_positions = positions.to_vec();
+    new_positions.reserve(edges.list.len());
+    for (a, b, range) in &edges.list {
+        let (pa, pb) = (positions[*a as usize], positions[*b as usize]);
+        let manifold = range.len() == 2;
+        let chosen = edges.keys[range.clone()]
+            .iter()
+            .any(|&(_, fe)| faces[fe as usize / 3].is_crease(fe as usize % 3));
+        let smooth = manifold && !chosen;
+        around.add_edge([*a as usize, *b as usize], [pa, pb], smooth, manifold);
+        let p = if smooth && scheme == Scheme::Loop {
+            let opposite = |fe: u32| {
+                let face = &faces[fe as usize / 3];
+                let e = fe as usize % 3;
+                positions[face.v[(e + 2) % 3] as usize]
+            };
+            let (k0, k1) = (edges.keys[range.start].1, edges.keys[range.start + 1].1);
+            (pa + pb) * 0.375 + (opposite(k0) + opposite(k1)) * 0.125
+        } else {
+            (pa + pb) * 0.5
+        };
+        new_positions.push(p);
+    }
+    if scheme == Scheme::Loop {
+        for v in 0..nv {
+            new_positions[v] = around.vertex_point(v, positions[v], single_fan[v]);
         }
     }
-    keys.sort_unstable();
-    let mut mids = vec![[0u32; 3]; faces.len()];
-    let mut edges: Vec<(u32, u32, std::ops::Range<usize>)> = Vec::new();
-    let mut start = 0;
-    while start < keys.len() {
-        let mut end = start + 1;
-        while end < keys.len() && keys[end].0 == keys[start].0 {
-            end += 1;
-        }
-        let id = (nv + edges.len()) as u32;
-        for &(_, fe) in &keys[start..end] {
-            mids[fe as usize / 3][fe as usize % 3] = id;
-        }
-        let key = keys[start].0;
-        edges.push(((key >> 32) as u32, key as u32, start..end));
-        start = end;
-    }
+    (new_positions, edges.mids)
+}
 
-    // Fans: corners of faces at the same vertex are joined across every edge they share, so a
-    // vertex whose corners end up in one set has one connected fan.
+/// The faces' edges, each undirected vertex pair once: `keys` lists every face edge
+/// (`3 * face + edge`) by its pair, sorted; `list` holds each pair's vertices and its run of
+/// `keys`; `mids[face][edge]` the new vertex on that edge (numbered after the `nv` old ones).
+struct Edges {
+    keys: Vec<(u64, u32)>,
+    list: Vec<(u32, u32, std::ops::Range<usize>)>,
+    mids: Vec<[u32; 3]>,
+}
+
+impl Edges {
+    fn of(faces: &[Face], nv: usize) -> Edges {
+        let mut keys: Vec<(u64, u32)> = Vec::with_capacity(faces.len() * 3);
+        for (f, face) in faces.iter().enumerate() {
+            for e in 0..3 {
+                let (a, b) = (face.v[e], face.v[(e + 1) % 3]);
+                let key = ((a.min(b) as u64) << 32) | a.max(b) as u64;
+                keys.push((key, (f * 3 + e) as u32));
+            }
+        }
+        keys.sort_unstable();
+        let mut mids = vec![[0u32; 3]; faces.len()];
+        let mut list: Vec<(u32, u32, std::ops::Range<usize>)> = Vec::new();
+        let mut start = 0;
+        while start < keys.len() {
+            let mut end = start + 1;
+            while end < keys.len() && keys[end].0 == keys[start].0 {
+                end += 1;
+            }
+            let id = (nv + list.len()) as u32;
+            for &(_, fe) in &keys[start..end] {
+                mids[fe as usize / 3][fe as usize % 3] = id;
+            }
+            let key = keys[start].0;
+            list.push(((key >> 32) as u32, key as u32, start..end));
+            start = end;
+        }
+        Edges { keys, list, mids }
+    }
+}
+
+/// Per vertex, whether its corners form one connected fan: corners of faces at the same vertex
+/// are joined across every edge they share.
+fn single_fans(faces: &[Face], edges: &Edges, nv: usize) -> Vec<bool> {
     let mut fans = UnionFind::new(faces.len() * 3);
     let corner_at = |fe: u32, v: u32| {
         let f = fe as usize / 3;
         let c = faces[f].v.iter().position(|&x| x == v).unwrap();
         f * 3 + c
     };
-    for (a, b, range) in &edges {
-        let group = &keys[range.clone()];
+    for (a, b, range) in &edges.list {
+        let group = &edges.keys[range.clone()];
         for w in group.windows(2) {
             fans.union(corner_at(w[0].1, *a), corner_at(w[1].1, *a));
             fans.union(corner_at(w[0].1, *b), corner_at(w[1].1, *b));
@@ -245,66 +293,64 @@ fn refine(positions: &[Vec3], faces: &[Face], scheme: Scheme) -> (Vec<Vec3>, Vec
             }
         }
     }
+    single_fan
+}
 
-    let mut neighbour_sum = vec![Vec3::ZERO; nv];
-    let mut valence = vec![0u32; nv];
-    let mut crease_sum = vec![Vec3::ZERO; nv];
-    let mut creases = vec![0u32; nv];
-    // Creases that are boundaries or non-manifold, not chosen ones.
-    let mut open = vec![0u32; nv];
-    let mut new_positions = positions.to_vec();
-    new_positions.reserve(edges.len());
-    for (a, b, range) in &edges {
-        let (pa, pb) = (positions[*a as usize], positions[*b as usize]);
-        let (a, b) = (*a as usize, *b as usize);
-        neighbour_sum[a] += pb;
-        neighbour_sum[b] += pa;
-        valence[a] += 1;
-        valence[b] += 1;
-        let manifold = range.len() == 2;
-        let chosen = keys[range.clone()]
-            .iter()
-            .any(|&(_, fe)| faces[fe as usize / 3].is_crease(fe as usize % 3));
-        let smooth = manifold && !chosen;
+/// What Loop's rule for an old vertex reads of its edges: its neighbours, and those across
+/// crease edges (boundaries, non-manifold edges and chosen creases).
+struct Around {
+    neighbour_sum: Vec<Vec3>,
+    valence: Vec<u32>,
+    crease_sum: Vec<Vec3>,
+    creases: Vec<u32>,
+    /// Crease edges that are boundaries or non-manifold, not chosen ones.
+    open: Vec<u32>,
+}
+
+impl Around {
+    fn new(nv: usize) -> Around {
+        Around {
+            neighbour_sum: vec![Vec3::ZERO; nv],
+            valence: vec![0; nv],
+            crease_sum: vec![Vec3::ZERO; nv],
+            creases: vec![0; nv],
+            open: vec![0; nv],
+        }
+    }
+
+    /// Edge `[a, b]` at positions `[pa, pb]`.
+    fn add_edge(&mut self, [a, b]: [usize; 2], [pa, pb]: [Vec3; 2], smooth: bool, manifold: bool) {
+        self.neighbour_sum[a] += pb;
+        self.neighbour_sum[b] += pa;
+        self.valence[a] += 1;
+        self.valence[b] += 1;
         if !smooth {
-            crease_sum[a] += pb;
-            crease_sum[b] += pa;
-            creases[a] += 1;
-            creases[b] += 1;
+            self.crease_sum[a] += pb;
+            self.crease_sum[b] += pa;
+            self.creases[a] += 1;
+            self.creases[b] += 1;
         }
         if !manifold {
-            open[a] += 1;
-            open[b] += 1;
+            self.open[a] += 1;
+            self.open[b] += 1;
         }
-        let p = if smooth && scheme == Scheme::Loop {
-            let opposite = |fe: u32| {
-                let face = &faces[fe as usize / 3];
-                let e = fe as usize % 3;
-                positions[face.v[(e + 2) % 3] as usize]
-            };
-            (pa + pb) * 0.375 + (opposite(keys[range.start].1) + opposite(keys[range.start + 1].1)) * 0.125
+    }
+
+    /// Old vertex `v`'s new position, from its old one `p`.
+    fn vertex_point(&self, v: usize, p: Vec3, single_fan: bool) -> Vec3 {
+        let (valence, creases) = (self.valence[v], self.creases[v]);
+        if valence == 0 {
+            p
+        } else if single_fan && (creases == 0 || (creases == 1 && self.open[v] == 0)) {
+            // Smooth, or a dart: one chosen crease ending inside a smooth surface.
+            let beta = loop_beta(valence);
+            p * (1.0 - valence as f32 * beta) + self.neighbour_sum[v] * beta
+        } else if creases == 2 && single_fan {
+            p * 0.75 + self.crease_sum[v] * 0.125
         } else {
-            (pa + pb) * 0.5
-        };
-        new_positions.push(p);
-    }
-    if scheme == Scheme::Loop {
-        for v in 0..nv {
-            let p = positions[v];
-            new_positions[v] = if valence[v] == 0 {
-                p
-            } else if single_fan[v] && (creases[v] == 0 || (creases[v] == 1 && open[v] == 0)) {
-                // Smooth, or a dart: one chosen crease ending inside a smooth surface.
-                let beta = loop_beta(valence[v]);
-                p * (1.0 - valence[v] as f32 * beta) + neighbour_sum[v] * beta
-            } else if creases[v] == 2 && single_fan[v] {
-                p * 0.75 + crease_sum[v] * 0.125
-            } else {
-                p
-            };
+            p
         }
     }
-    (new_positions, mids)
 }
 
 /// Loop's vertex weight for valence `n`: `(5/8 - (3/8 + 1/4 cos(2 pi / n))^2) / n`.
