@@ -332,20 +332,6 @@ impl<'a> Task<'a> {
     /// Partition on `left(doubled centroid)`; returns the left count and both sides' centroid bounds, which cost
     /// little here. Branch-free (Lomuto with an unconditional swap): the side of a primitive is a coin toss to the
     /// branch predictor, and a mispredicted branch costs more than the swap.
-    /// Reorders the primitives so that the first half's centroids lie below the second
-    /// half's along `axis`; the half's size.
-    fn halve(&mut self, axis: usize) -> usize {
-        let mid = self.boxes.len() / 2;
-        let mut keyed: Vec<(f32, Bounds, u32)> = (self.boxes.iter().zip(self.index.iter()))
-            .map(|(b, &i)| (b.centroid2()[axis], *b, i))
-            .collect();
-        keyed.select_nth_unstable_by(mid, |a, b| a.0.total_cmp(&b.0));
-        for (k, (_, b, i)) in keyed.into_iter().enumerate() {
-            (self.boxes[k], self.index[k]) = (b, i);
-        }
-        mid
-    }
-
     fn partition(&mut self, left: impl Fn(Vec3A) -> bool) -> (usize, Bounds, Bounds) {
         let (mut i, mut lc, mut rc) = (0, Bounds::EMPTY, Bounds::EMPTY);
         for k in 0..self.boxes.len() {
@@ -359,6 +345,20 @@ impl<'a> Task<'a> {
             i += l as usize;
         }
         (i, lc, rc)
+    }
+
+    /// Reorders the primitives so that the first half's centroids lie below the second
+    /// half's along `axis`; the half's size.
+    fn halve(&mut self, axis: usize) -> usize {
+        let mid = self.boxes.len() / 2;
+        let mut keyed: Vec<(f32, Bounds, u32)> = (self.boxes.iter().zip(self.index.iter()))
+            .map(|(b, &i)| (b.centroid2()[axis], *b, i))
+            .collect();
+        keyed.select_nth_unstable_by(mid, |a, b| a.0.total_cmp(&b.0));
+        for (k, (_, b, i)) in keyed.into_iter().enumerate() {
+            (self.boxes[k], self.index[k]) = (b, i);
+        }
+        mid
     }
 }
 

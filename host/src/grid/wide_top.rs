@@ -40,17 +40,15 @@ pub fn pack(bvh: &Bvh) -> Option<WideTop> {
     }
     let merged = merge_sibling_leaves(binary);
     let binary = merged.as_slice();
-    // The widest nodes whose walk keeps within its stack: each wide level leaves up to its
-    // width less one entries waiting, so a deep hierarchy takes narrower nodes, which are
-    // still far fewer bytes than binary ones.
-    let (groups, first_inner) = (2..=WIDTH as usize)
-        .rev()
-        .map(|width| {
-            let groups = collapse(binary, width, STACK_ENTRIES);
-            let first_inner = first_inner_children(&groups, binary);
-            (groups, first_inner)
-        })
-        .find(|(groups, first_inner)| stack_need(groups, binary, first_inner) <= STACK_ENTRIES)?;
+    // Each wide level leaves up to its width less one entries waiting, so the collapse
+    // narrows the nodes of a deep hierarchy where the stack needs it (narrower nodes are still
+    // far fewer bytes than binary ones); a hierarchy too deep for even binary nodes within the
+    // stack stays binary.
+    let groups = collapse(binary, WIDTH as usize, STACK_ENTRIES);
+    let first_inner = first_inner_children(&groups, binary);
+    if stack_need(&groups, binary, &first_inner) > STACK_ENTRIES {
+        return None;
+    }
     let scene = scene_frame_of(&aabb(root))?;
     let mut nodes = vec![BvhNode {
         min: scene.origin.to_array(),
