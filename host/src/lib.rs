@@ -32,6 +32,18 @@
 //! triangle) have one home, [`micromesh`]: the type and its decoding, baking, and the `.bary`
 //! and glTF files. [`surface_distance`] measures how far apart two surfaces are (`gridrt
 //! compare`).
+//!
+//! Every `gridrt` command is one call of [`request`], which makes the decisions the command
+//! line would (a request struct in, an answer out, progress through [`progress::Progress`]):
+//!
+//! ```no_run
+//! use gridrt::request::render::{render_files, RenderRequest};
+//!
+//! let request = RenderRequest::new(vec!["bunny.obj".into()], "bunny.png");
+//! let rendered = render_files(&request, &mut gridrt::progress::Silent)?;
+//! println!("{:?} on {}", rendered.outputs, rendered.device);
+//! # Ok::<(), gridrt::error::Error>(())
+//! ```
 
 pub mod backend;
 pub mod bit_writer;
@@ -52,6 +64,7 @@ pub mod pipeline;
 pub mod progress;
 pub mod quantize;
 pub mod rays;
+pub mod request;
 pub mod scene;
 pub mod split;
 pub mod subdiv;

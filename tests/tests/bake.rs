@@ -1,7 +1,7 @@
 //! `gridrt bake` end to end: a detailed mesh in, a displaced micro-mesh (glTF + .bin + .bary)
 //! out, its report, and the files read back by the other commands.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use gridrt::mesh::Mesh;
 use gridrt_tests::{bumpy_ball, fails_with, gridrt, render_small, scratch, side_files, stderr, TINY_BENCH};
@@ -74,24 +74,7 @@ fn a_mesh_bakes_into_files_the_other_commands_read() {
     assert_eq!(report["file_bytes"].as_u64().unwrap(), files);
     reads_back_as_measured(&reference, &out, &report);
 
-    // The benchmark against the reference: the same distance, the reference's bytes.
-    let json_path = dir.join("bench.json");
-    let mut args = vec!["bench", out.to_str().unwrap(), "--reference", r];
-    args.extend(TINY_BENCH);
-    args.extend(["--json", json_path.to_str().unwrap()]);
-    let o = gridrt(&args);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let bench: serde_json::Value = serde_json::from_slice(&std::fs::read(&json_path).unwrap()).unwrap();
-    let against = &bench[0]["reference"];
-    assert_eq!(against["triangles"].as_u64(), Some(8192), "{bench}");
-    assert!(against["bytes"].as_u64().unwrap() > 10 * bench[0]["grid"]["bytes"].as_u64().unwrap());
-    // What the GPU gets, as bake reported it, is what bench built from the file.
-    assert_eq!(bench[0]["grid"]["bytes"], report["grid_bytes"], "{bench} vs {report}");
-    assert!(
-        (against["distance"]["rms"].as_f64().unwrap() - rms).abs() < 0.05 * rms,
-        "{bench}"
-    );
-    assert!(String::from_utf8_lossy(&o.stdout).contains("Against the mesh it was baked from, ball.obj"));
+    bench_measures_as_bake_did(&dir, (&reference, &out), &report);
 
     // The file says how its values compress: `stats` builds them compressed, and plain when
     // asked, from the same values.
@@ -145,6 +128,29 @@ fn a_mesh_bakes_into_files_the_other_commands_read() {
     ]);
     assert_eq!(report["base_triangles"].as_u64().unwrap(), 128, "{report}");
     assert!(report["symmetric"]["rms"].as_f64().unwrap() < 2e-3, "{report}");
+}
+
+/// The benchmark of a bake against its reference: the same distance and bytes as `bake`
+/// reported, the reference's bytes far above the grids'.
+fn bench_measures_as_bake_did(dir: &Path, (reference, out): (&Path, &Path), report: &serde_json::Value) {
+    let rms = report["symmetric"]["rms"].as_f64().unwrap();
+    let json_path = dir.join("bench.json");
+    let mut args = vec!["bench", o_str(out), "--reference", o_str(reference)];
+    args.extend(TINY_BENCH);
+    args.extend(["--json", json_path.to_str().unwrap()]);
+    let o = gridrt(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let bench: serde_json::Value = serde_json::from_slice(&std::fs::read(&json_path).unwrap()).unwrap();
+    let against = &bench[0]["reference"];
+    assert_eq!(against["triangles"].as_u64(), Some(8192), "{bench}");
+    assert!(against["bytes"].as_u64().unwrap() > 10 * bench[0]["grid"]["bytes"].as_u64().unwrap());
+    // What the GPU gets, as bake reported it, is what bench built from the file.
+    assert_eq!(bench[0]["grid"]["bytes"], report["grid_bytes"], "{bench} vs {report}");
+    assert!(
+        (against["distance"]["rms"].as_f64().unwrap() - rms).abs() < 0.05 * rms,
+        "{bench}"
+    );
+    assert!(String::from_utf8_lossy(&o.stdout).contains("Against the mesh it was baked from, ball.obj"));
 }
 
 /// `--nv-blocks` writes the values in NVIDIA's compressed blocks, 128 bytes a level-4
@@ -242,6 +248,31 @@ fn bake_keeps_to_a_byte_budget_and_mixes_levels() {
         (json(&args.iter().map(String::as_str).collect::<Vec<_>>()), out)
     };
     let (free, _) = bake("free.gltf", &["--max-bytes", "100"]);
+    let free_bytes = free["grid_bytes"].as_u64().unwrap() as f64;
+    check_value_budgets(&bake, &free);
+    check_mixed_levels(&bake, &dir);
+    // Levels per triangle for a budget of everything the GPU gets: within it and near it,
+    // of mixed levels; one out of reach is said to be.
+    let budget = (0.9 * free_bytes) as u64;
+    let (within, _) = bake("within.gltf", &["--within-bytes", &budget.to_string()]);
+    let bytes = within["grid_bytes"].as_u64().unwrap();
+    assert!(bytes <= budget && 10 * bytes >= 8 * budget, "{budget}: {within}");
+    let levels = within["level_micro_triangles"].as_array().unwrap();
+    assert!(levels.iter().filter(|c| c.as_u64() > Some(0)).count() >= 2, "{within}");
+    assert_eq!(within["compression"]["budget_met"], true, "{within}");
+    let args = args(&dir.join("unreachable.gltf"), &["--within-bytes", "100"]);
+    let o = gridrt(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("over the budget of 100 B (--within-bytes)"), "{text}");
+}
+
+/// A bake of the test's ball with more arguments, as JSON, and the glTF it wrote.
+type Bake<'a> = &'a dyn Fn(&str, &[&str]) -> (serde_json::Value, PathBuf);
+
+/// `--max-bytes`: a budget below the `free` bake's bytes binds and is met; one the rest of
+/// the bytes alone exceed is out of reach; the level's default is met or not worth the error.
+fn check_value_budgets(bake: Bake, free: &serde_json::Value) {
     let micro = free["micro_triangles"].as_u64().unwrap() as f64;
     let free_bytes = free["grid_bytes"].as_u64().unwrap() as f64;
     assert_eq!(free["compression"]["budget_binds"], false, "{free}");
@@ -278,8 +309,11 @@ fn bake_keeps_to_a_byte_budget_and_mixes_levels() {
         true => assert!(default["grid_bytes"].as_f64().unwrap() <= micro, "{default}"),
         false => assert!(c["added_error"].as_f64() <= c["max_added_error"].as_f64(), "{default}"),
     }
+}
 
-    // Levels per triangle, values plain: the levels take the whole bound.
+/// `--max-error`: levels per triangle, with the values plain, compressed as asked and
+/// compressed by default; rendered watertight.
+fn check_mixed_levels(bake: Bake, dir: &Path) {
     let (mixed, out) = bake("mixed.gltf", &["--max-error", "2e-3", "--plain-values"]);
     let levels: Vec<u64> = (mixed["level_micro_triangles"].as_array().unwrap().iter())
         .map(|c| c.as_u64().unwrap())
@@ -331,18 +365,4 @@ fn bake_keeps_to_a_byte_budget_and_mixes_levels() {
         default["micro_triangles"].as_u64() > mixed["micro_triangles"].as_u64(),
         "{default}\n{mixed}"
     );
-    // Levels per triangle for a budget of everything the GPU gets: within it and near it,
-    // of mixed levels; one out of reach is said to be.
-    let budget = (0.9 * free_bytes) as u64;
-    let (within, _) = bake("within.gltf", &["--within-bytes", &budget.to_string()]);
-    let bytes = within["grid_bytes"].as_u64().unwrap();
-    assert!(bytes <= budget && 10 * bytes >= 8 * budget, "{budget}: {within}");
-    let levels = within["level_micro_triangles"].as_array().unwrap();
-    assert!(levels.iter().filter(|c| c.as_u64() > Some(0)).count() >= 2, "{within}");
-    assert_eq!(within["compression"]["budget_met"], true, "{within}");
-    let args = args(&dir.join("unreachable.gltf"), &["--within-bytes", "100"]);
-    let o = gridrt(&args.iter().map(String::as_str).collect::<Vec<_>>());
-    assert!(o.status.success(), "{}", stderr(&o));
-    let text = String::from_utf8_lossy(&o.stdout);
-    assert!(text.contains("over the budget of 100 B (--within-bytes)"), "{text}");
 }

@@ -906,17 +906,13 @@ fn compare_measures_the_distance_between_surfaces() {
     assert!(max < 1e-12 && both.ends_with("| 4000 |"), "{table}");
 }
 
-/// A displaced micro-mesh (glTF + .bin + .bary as gridrt writes them) renders, measures and
-/// benchmarks as displaced grids, and exports as its decoded micro-triangles, welded along
-/// the shared base edge.
-#[test]
-fn displaced_micro_meshes_are_decoded_not_subdivided() {
+/// A displaced micro-mesh of two level-3 triangles sharing an edge, written to `gltf`.
+fn two_displaced_triangles(gltf: &std::path::Path) -> std::path::PathBuf {
     use gridrt::mesh::frame::LocalFrame;
     use gridrt::micromesh::bary::{values_per_triangle, Micromap};
     use gridrt::micromesh::DisplacedMesh;
     use gridrt_shared::glam::Vec3;
 
-    let dir = scratch("displaced");
     let level = 3;
     let values = |seed: u32| -> Vec<u16> {
         (0..values_per_triangle(level) as u32)
@@ -943,8 +939,17 @@ fn displaced_micro_meshes_are_decoded_not_subdivided() {
         micromap: Micromap::from_triangles(-0.1, 0.2, &[(level, first), (level, second)]),
         decimated_edges: Vec::new(),
     };
-    let gltf = dir.join("baked.gltf");
-    gridrt::micromesh::gltf::write(&gltf, &mesh, &LocalFrame::IDENTITY).unwrap();
+    gridrt::micromesh::gltf::write(gltf, &mesh, &LocalFrame::IDENTITY).unwrap();
+    gltf.to_path_buf()
+}
+
+/// A displaced micro-mesh (glTF + .bin + .bary as gridrt writes them) renders, measures and
+/// benchmarks as displaced grids, and exports as its decoded micro-triangles, welded along
+/// the shared base edge.
+#[test]
+fn displaced_micro_meshes_are_decoded_not_subdivided() {
+    let dir = scratch("displaced");
+    let gltf = two_displaced_triangles(&dir.join("baked.gltf"));
     let g = gltf.to_str().unwrap();
 
     let png = dir.join("baked.png");

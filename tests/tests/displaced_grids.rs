@@ -302,13 +302,6 @@ fn mixed_levels_with_decimated_edges_render_watertight() {
     use gridrt_shared::displacement::u_major_index;
     use gridrt_shared::grid_index::{grid_size, lattice_points};
 
-    let positions = [
-        [1.0f32, 1.0, 1.0],
-        [1.0, -1.0, -1.0],
-        [-1.0, 1.0, -1.0],
-        [-1.0, -1.0, 1.0],
-    ];
-    let faces: [[u32; 3]; 4] = [[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]];
     let (levels, flags) = ([2, 2, 1, 1], [0b110u8, 0b011, 0, 0]);
     let values = |face: usize| -> Vec<u16> {
         let n = grid_size(levels[face]);
@@ -330,81 +323,94 @@ fn mixed_levels_with_decimated_edges_render_watertight() {
     let map = Micromap::from_triangles(0.0, 0.3, &(0..4).map(|f| (levels[f], values(f))).collect::<Vec<_>>());
     let dir = gridrt_tests::scratch("mixed-levels");
     std::fs::write(dir.join("tetra.bary"), write(&map)).unwrap();
-    let write_gltf = |flags: [u8; 4]| {
-        let floats = |v: &[[f32; 3]]| v.iter().flatten().flat_map(|f| f.to_le_bytes()).collect::<Vec<u8>>();
-        let mut bin = floats(&positions);
-        let directions = positions.map(|p| (Vec3::from(p).normalize()).to_array());
-        bin.extend(floats(&directions));
-        bin.extend(faces.iter().flatten().flat_map(|i| i.to_le_bytes()));
-        bin.extend(flags);
-        std::fs::write(dir.join("tetra.bin"), &bin).unwrap();
-        let json = serde_json::json!({
-            "asset": {"version": "2.0"},
-            "extensionsUsed": ["NV_micromaps", "NV_displacement_micromap"],
-            "extensions": {"NV_micromaps": {"micromaps": [{"uri": "tetra.bary"}]}},
-            "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
-            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 2, "extensions": {
-                "NV_displacement_micromap": {"micromap": 0, "directions": 1, "primitiveFlags": 3}}}]}],
-            "buffers": [{"uri": "tetra.bin", "byteLength": bin.len()}],
-            "bufferViews": [
-                {"buffer": 0, "byteOffset": 0, "byteLength": 48},
-                {"buffer": 0, "byteOffset": 48, "byteLength": 48},
-                {"buffer": 0, "byteOffset": 96, "byteLength": 48},
-                {"buffer": 0, "byteOffset": 144, "byteLength": 4},
-            ],
-            "accessors": [
-                {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
-                 "min": [-1, -1, -1], "max": [1, 1, 1]},
-                {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC3"},
-                {"bufferView": 2, "componentType": 5125, "count": 12, "type": "SCALAR"},
-                {"bufferView": 3, "componentType": 5121, "count": 4, "type": "SCALAR"},
-            ],
-        });
-        let path = dir.join("tetra.gltf");
-        std::fs::write(&path, serde_json::to_vec(&json).unwrap()).unwrap();
-        path
-    };
-    // Rays from outside through each base edge's decoded points and the midpoints between
-    // them, aimed at the centre: how many pass through the surface, as decoded triangles and
-    // as displaced grids.
-    let leaks = |flags: [u8; 4]| {
-        let input = gridrt::input::open(Some(&write_gltf(flags))).unwrap();
-        let micromesh = input.micromesh.as_ref().unwrap();
-        let expected = if flags == [0; 4] { vec![] } else { flags.to_vec() };
-        assert_eq!(micromesh.decimated_edges, expected);
-        let triangles = Scene::Triangles(gridrt::triangles::build(&input.mesh.positions, &input.mesh.triangles));
-        let grids = build(micromesh, Representation::Grids, None);
-        let centre = triangles.bounds().center();
-        let mut rng = Rng::new(17);
-        let (mut rays, mut leaked) = (0, [0; 2]);
-        for (t, &level) in levels.iter().enumerate().take(4) {
-            let n = grid_size(level);
-            let points = micromesh.micro_vertices(t);
-            let at = |p: [u32; 2]| points[gridrt_shared::grid_index::lattice_index(p[0], p[1], n) as usize];
-            for s in 0..n {
-                for (a, b) in [
-                    ([s, 0], [s + 1, 0]),
-                    ([n - s, s], [n - s - 1, s + 1]),
-                    ([0, n - s], [0, n - s - 1]),
-                ] {
-                    for target in [at(a), (at(a) + at(b)) * 0.5] {
-                        for _ in 0..4 {
-                            let dir = (centre - target).normalize() + rng.direction() * 0.3;
-                            let origin = target - dir * 3.0;
-                            rays += 1;
-                            for (scene, leaked) in [&triangles, &grids].into_iter().zip(&mut leaked) {
-                                let hit = scene.trace(&Ray::new(origin, dir), T_FAR);
-                                *leaked += (!hit.is_hit() || hit.t > 3.0 * 1.0001) as u32;
-                            }
+    let leaks = |flags: [u8; 4]| leaks_through_seams(&write_tetra_gltf(&dir, flags), levels, flags);
+    assert_eq!(leaks(flags), [0, 0], "decoded triangles, displaced grids");
+    let [triangles, grids] = leaks([0; 4]);
+    assert!(triangles > 0 && grids > 0, "without the flags the seams should crack");
+}
+
+/// The corners of the tetrahedron the seam test displaces.
+const TETRA_POSITIONS: [[f32; 3]; 4] = [[1.0, 1.0, 1.0], [1.0, -1.0, -1.0], [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0]];
+
+/// Its faces, outwards.
+const TETRA_FACES: [[u32; 3]; 4] = [[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]];
+
+/// The tetrahedron as a glTF displaced micro-mesh in `dir`, over the micromap `tetra.bary`
+/// there, with `flags` as its primitive flags.
+fn write_tetra_gltf(dir: &std::path::Path, flags: [u8; 4]) -> std::path::PathBuf {
+    let floats = |v: &[[f32; 3]]| v.iter().flatten().flat_map(|f| f.to_le_bytes()).collect::<Vec<u8>>();
+    let mut bin = floats(&TETRA_POSITIONS);
+    let directions = TETRA_POSITIONS.map(|p| (Vec3::from(p).normalize()).to_array());
+    bin.extend(floats(&directions));
+    bin.extend(TETRA_FACES.iter().flatten().flat_map(|i| i.to_le_bytes()));
+    bin.extend(flags);
+    std::fs::write(dir.join("tetra.bin"), &bin).unwrap();
+    let json = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "extensionsUsed": ["NV_micromaps", "NV_displacement_micromap"],
+        "extensions": {"NV_micromaps": {"micromaps": [{"uri": "tetra.bary"}]}},
+        "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 2, "extensions": {
+            "NV_displacement_micromap": {"micromap": 0, "directions": 1, "primitiveFlags": 3}}}]}],
+        "buffers": [{"uri": "tetra.bin", "byteLength": bin.len()}],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": 48},
+            {"buffer": 0, "byteOffset": 48, "byteLength": 48},
+            {"buffer": 0, "byteOffset": 96, "byteLength": 48},
+            {"buffer": 0, "byteOffset": 144, "byteLength": 4},
+        ],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+             "min": [-1, -1, -1], "max": [1, 1, 1]},
+            {"bufferView": 1, "componentType": 5126, "count": 4, "type": "VEC3"},
+            {"bufferView": 2, "componentType": 5125, "count": 12, "type": "SCALAR"},
+            {"bufferView": 3, "componentType": 5121, "count": 4, "type": "SCALAR"},
+        ],
+    });
+    let path = dir.join("tetra.gltf");
+    std::fs::write(&path, serde_json::to_vec(&json).unwrap()).unwrap();
+    path
+}
+
+/// Rays from outside through each base edge's decoded points and the midpoints between
+/// them, aimed at the centre: how many pass through the surface, as decoded triangles and
+/// as displaced grids.
+fn leaks_through_seams(path: &std::path::Path, levels: [u32; 4], flags: [u8; 4]) -> [u32; 2] {
+    use gridrt_shared::grid_index::grid_size;
+
+    let input = gridrt::input::open(Some(path)).unwrap();
+    let micromesh = input.micromesh.as_ref().unwrap();
+    let expected = if flags == [0; 4] { vec![] } else { flags.to_vec() };
+    assert_eq!(micromesh.decimated_edges, expected);
+    let triangles = Scene::Triangles(gridrt::triangles::build(&input.mesh.positions, &input.mesh.triangles));
+    let grids = build(micromesh, Representation::Grids, None);
+    let centre = triangles.bounds().center();
+    let mut rng = Rng::new(17);
+    let (mut rays, mut leaked) = (0, [0; 2]);
+    for (t, &level) in levels.iter().enumerate().take(4) {
+        let n = grid_size(level);
+        let points = micromesh.micro_vertices(t);
+        let at = |p: [u32; 2]| points[gridrt_shared::grid_index::lattice_index(p[0], p[1], n) as usize];
+        for s in 0..n {
+            for (a, b) in [
+                ([s, 0], [s + 1, 0]),
+                ([n - s, s], [n - s - 1, s + 1]),
+                ([0, n - s], [0, n - s - 1]),
+            ] {
+                for target in [at(a), (at(a) + at(b)) * 0.5] {
+                    for _ in 0..4 {
+                        let dir = (centre - target).normalize() + rng.direction() * 0.3;
+                        let origin = target - dir * 3.0;
+                        rays += 1;
+                        for (scene, leaked) in [&triangles, &grids].into_iter().zip(&mut leaked) {
+                            let hit = scene.trace(&Ray::new(origin, dir), T_FAR);
+                            *leaked += (!hit.is_hit() || hit.t > 3.0 * 1.0001) as u32;
                         }
                     }
                 }
             }
         }
-        assert!(rays >= 100, "{rays}");
-        leaked
-    };
-    assert_eq!(leaks(flags), [0, 0], "decoded triangles, displaced grids");
-    let [triangles, grids] = leaks([0; 4]);
-    assert!(triangles > 0 && grids > 0, "without the flags the seams should crack");
+    }
+    assert!(rays >= 100, "{rays}");
+    leaked
 }

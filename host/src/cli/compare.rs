@@ -1,54 +1,16 @@
-//! `gridrt compare`: how far apart two surfaces are (see `gridrt::surface_distance`), as
-//! fractions of the reference's bounding-box diagonal.
+//! `gridrt compare`: one library call (`gridrt::request::compare::compare_files`), then its
+//! table or JSON printed.
 
 use std::path::Path;
 
-use anyhow::Result;
-use serde::Serialize;
-
+use super::progress::Stages;
 use super::CompareArgs;
-use gridrt::input;
-use gridrt::surface_distance::{self, DistanceSummary, Sampling};
+use anyhow::Result;
+use gridrt::request::compare::{compare_files, Comparison};
+use gridrt::surface_distance::DistanceSummary;
 
-#[derive(Serialize)]
-struct Report {
-    reference: String,
-    other: String,
-    /// The reference's bounding-box diagonal, in its file's units; every distance below is a
-    /// fraction of it.
-    diagonal: f64,
-    reference_to_other: DistanceSummary,
-    other_to_reference: DistanceSummary,
-    symmetric: DistanceSummary,
-}
-
-pub fn run(args: &CompareArgs) -> Result<()> {
-    surface_distance::check_samples(args.samples, "--samples")?;
-    let (reference, _, mut warnings) = input::load_world_warning(&args.reference)?;
-    let (other, _, more) = input::load_world_warning(&args.other)?;
-    warnings.extend(more);
-    for warning in warnings {
-        eprintln!("warning: {warning}");
-    }
-    // Both meshes in the reference's local frame (moved in `f64`, one rounding to `f32`):
-    // a ratio of lengths there is the ratio in the files' units.
-    let frame = reference.local_frame();
-    let sampling = Sampling {
-        samples: args.samples,
-        ..Sampling::default()
-    };
-    let (reference, other) = (reference.in_frame(&frame), other.in_frame(&frame));
-    surface_distance::check_area(&reference, &args.reference.display().to_string())?;
-    surface_distance::check_area(&other, &args.other.display().to_string())?;
-    let d = surface_distance::measure(&reference, &other, &sampling);
-    let report = Report {
-        reference: args.reference.display().to_string(),
-        other: args.other.display().to_string(),
-        diagonal: d.a_diagonal / frame.scale,
-        reference_to_other: d.a_to_b.relative_to(d.a_diagonal),
-        other_to_reference: d.b_to_a.relative_to(d.a_diagonal),
-        symmetric: d.symmetric.relative_to(d.a_diagonal),
-    };
+pub fn run(args: &CompareArgs, stages: &mut Stages) -> Result<()> {
+    let report = compare_files(&args.reference, &args.other, args.samples, stages)?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
@@ -57,7 +19,7 @@ pub fn run(args: &CompareArgs) -> Result<()> {
     Ok(())
 }
 
-fn table(report: &Report, reference: &Path, other: &Path) -> String {
+fn table(report: &Comparison, reference: &Path, other: &Path) -> String {
     let name = |p: &Path| {
         p.file_name()
             .map_or(p.display().to_string(), |f| f.to_string_lossy().into())

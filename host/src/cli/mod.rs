@@ -1,28 +1,24 @@
 //! The `gridrt` command line: argument definitions and the commands behind them.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
-use anyhow::{bail, Result};
+use anyhow::Result;
 use clap::{Parser, Subcommand, ValueEnum};
 
-use gridrt::backend::{Backend, BackendChoice, Uploaded};
-use gridrt::camera::{FileViewpoint, Viewpoint};
-use gridrt::heat_map::CostSummary;
-use gridrt::input::{self, Input};
-use gridrt::lod::LodReport;
-use gridrt::mesh::frame::LocalFrame;
-use gridrt::mesh::{self, Mesh};
-use gridrt::pipeline::{BuildOptions, RenderOptions, Representation, Shading};
+use gridrt::backend::BackendChoice;
+use gridrt::camera::{self, FileViewpoint};
+use gridrt::grid;
+use gridrt::pipeline::{Representation, Shading};
 use gridrt::rays::RayOrder;
-use gridrt::scene::Scene;
-use gridrt::subdiv::{self, Scheme, Subdivided};
-use gridrt::{camera, files, grid, limits, triangles};
+use gridrt::request::build::BuildRequest;
+use gridrt::request::export::{export_file, ExportRequest};
+use gridrt::request::render::{render_files, Lod, RenderRequest, DEFAULT_LOD_PIXELS};
+use gridrt::subdiv::Scheme;
 use gridrt_shared::glam::DVec3;
-use progress::{note, Stages};
+use progress::Stages;
 
 mod bake;
 mod bench;
-mod chart;
 mod compare;
 mod progress;
 mod stats;
@@ -74,16 +70,6 @@ pub enum BackendArg {
     Auto,
     Gpu,
     Cpu,
-}
-
-/// The backend `arg` names; for `auto` on a machine without a GPU, a note saying the CPU does
-/// the `work`.
-pub fn open_backend(arg: BackendArg, work: &str) -> Result<Backend> {
-    let backend = Backend::open(arg.choice())?;
-    if let Some(reason) = backend.fallback() {
-        note!("note: {reason}; {work} on the CPU");
-    }
-    Ok(backend)
 }
 
 impl BackendArg {
@@ -248,31 +234,6 @@ fn parse_value_error(s: &str) -> std::result::Result<f32, String> {
     }
 }
 
-/// Compresses the values of `input`'s displaced micro-mesh when `build` asks for it, so
-/// everything after (grids, the baseline's triangles) traces the compressed surface, or
-/// drops their code when it asks for them plain.
-pub fn compress_values(input: &mut Input, build: &BuildArgs) -> Result<()> {
-    if let (true, Some(micromesh)) = (build.plain_values, &mut input.micromesh) {
-        micromesh.micromap.value_code = None;
-    }
-    let (Some(bound), Some(micromesh)) = (build.compress_values, &input.micromesh) else {
-        return Ok(());
-    };
-    let options = grid::compressed::ValueCompression::bounded(bound);
-    let compressed = grid::compressed::compress(micromesh, &options).map_err(|e| e.prefixed(&input.name))?;
-    note!(
-        "note: {}: values compressed to {:.2} bits each (base edges at widths {:?} bits per level, each grid \
-         at its own), adding {:.3e} of the diagonal (RMS)",
-        input.name,
-        compressed.bits_per_value(),
-        grid::compressed::level_widths(&compressed.code),
-        compressed.added_error
-    );
-    input.mesh = compressed.mesh.decoded_welded();
-    input.micromesh = Some(compressed.mesh);
-    Ok(())
-}
-
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum RadiiArg {
     F32,
@@ -297,59 +258,25 @@ pub enum InnerVertices {
 }
 
 impl BuildArgs {
-    /// Refuses, before subdividing, a mesh whose grids could not be addressed at these levels;
-    /// returns the sizes their buffers will have (see `grid::check_limits`).
-    pub fn check_grid_limits(&self, name: &str, mesh: &Mesh) -> Result<Vec<limits::BufferSize>> {
-        grid::check_limits(mesh, &self.grid_build()).map_err(|e| e.prefixed(name).into())
-    }
-
-    /// These arguments for a displaced micro-mesh's decoded micro-triangles: no further
-    /// subdivision.
-    pub fn as_decoded(&self) -> BuildArgs {
-        BuildArgs {
-            levels: 0,
-            subdivision: SubdivisionArg::Flat,
-            ..self.clone()
-        }
-    }
-
-    /// The grid build these arguments ask for.
-    pub fn grid_build(&self) -> grid::GridBuild {
-        grid::GridBuild {
+    /// The library's build request for these arguments.
+    pub fn request(&self) -> BuildRequest {
+        BuildRequest {
             levels: self.levels,
             scheme: self.subdivision.scheme(),
             crease_angle: self.crease_angle,
-            options: self.grid_options(),
-            quantized: self.inner_vertices == InnerVertices::Quantized,
-        }
-    }
-
-    pub fn grid_options(&self) -> grid::GridOptions {
-        grid::GridOptions {
             excluded_levels: self.excluded_levels,
-            radii: self.radii.unwrap_or(RadiiArg::F32).format(),
-            leaf_footprint: !self.no_leaf_footprint,
-            top: match (self.wide_top, self.compact_top) {
-                (true, _) => grid::TopFormat::Wide,
-                (_, true) => grid::TopFormat::Compact,
-                _ => grid::TopFormat::Full,
+            radii: self.radii.map(RadiiArg::format),
+            top: match (self.wide_top, self.compact_top, self.full_top) {
+                (true, ..) => Some(grid::TopFormat::Wide),
+                (_, true, _) => Some(grid::TopFormat::Compact),
+                (.., true) => Some(grid::TopFormat::Full),
+                _ => None,
             },
             tight_headers: self.tight_headers,
-            own_rooms: true,
-        }
-    }
-
-    /// These arguments for a displaced micro-mesh of `level` built as displaced grids: its own
-    /// level, no subdivision, radii relative to each grid's root unless `--radii` says
-    /// otherwise, a wide top level unless `--compact-top` or `--full-top`, tight headers.
-    pub fn as_displaced(&self, level: u32) -> BuildArgs {
-        BuildArgs {
-            levels: level,
-            subdivision: SubdivisionArg::Flat,
-            radii: Some(self.radii.unwrap_or(RadiiArg::Relative)),
-            wide_top: !self.full_top && !self.compact_top,
-            tight_headers: true,
-            ..self.clone()
+            leaf_footprint: !self.no_leaf_footprint,
+            quantized: self.inner_vertices == InnerVertices::Quantized,
+            compress_values: self.compress_values,
+            plain_values: self.plain_values,
         }
     }
 }
@@ -367,7 +294,7 @@ pub struct RenderArgs {
     /// Depth to render, at most L (level of detail from the same data), or `auto`: each grid
     /// as deep as its size on screen asks (see --lod-pixels). L when absent.
     #[arg(long, value_name = "DEPTH|auto", value_parser = parse_lod)]
-    pub lod: Option<LodArg>,
+    pub lod: Option<Lod>,
     /// With --lod auto: the size on screen, in pixels, that micro-triangles are kept within.
     #[arg(long, default_value_t = DEFAULT_LOD_PIXELS, value_parser = parse_positive_f32, allow_hyphen_values = true)]
     pub lod_pixels: f32,
@@ -431,8 +358,8 @@ pub struct CameraArgs {
 }
 
 impl CameraArgs {
-    /// The viewpoint in the mesh's local frame.
-    pub fn viewpoint(&self, frame: &LocalFrame) -> Viewpoint {
+    /// The viewpoint, in the file's units.
+    pub fn viewpoint(&self) -> FileViewpoint {
         FileViewpoint {
             eye: self.eye,
             target: self.target,
@@ -442,7 +369,6 @@ impl CameraArgs {
             elevation_degrees: self.elevation,
             distance: self.distance,
         }
-        .local(frame)
     }
 }
 
@@ -460,22 +386,12 @@ fn parse_point(text: &str) -> std::result::Result<DVec3, String> {
     }
 }
 
-/// `--lod`: a depth, or each grid's own.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum LodArg {
-    Depth(u32),
-    Auto,
-}
-
-/// Micro-triangle size on screen that `--lod auto` aims at, in pixels.
-pub const DEFAULT_LOD_PIXELS: f32 = 1.0;
-
-fn parse_lod(text: &str) -> std::result::Result<LodArg, String> {
+fn parse_lod(text: &str) -> std::result::Result<Lod, String> {
     match text.trim() {
-        "auto" => Ok(LodArg::Auto),
+        "auto" => Ok(Lod::Auto),
         t => t
             .parse()
-            .map(LodArg::Depth)
+            .map(Lod::Depth)
             .map_err(|_| format!("expected a depth (0, 1, 2, ...) or auto, found {text:?}")),
     }
 }
@@ -493,89 +409,26 @@ fn parse_positive(text: &str) -> std::result::Result<f64, String> {
 }
 
 impl RenderArgs {
-    /// Host bytes of the image being rendered and written.
-    fn image_bytes(&self) -> u64 {
-        (self.width as u64 * self.height as u64).saturating_mul(limits::IMAGE_BYTES_PER_PIXEL)
-    }
-
-    /// These arguments for a displaced micro-mesh's decoded micro-triangles: built as they
-    /// are, at one depth.
-    fn as_decoded(&self) -> RenderArgs {
-        RenderArgs {
-            build: self.build.as_decoded(),
-            lod: None,
-            ..self.clone()
-        }
-    }
-
-    /// These arguments for a displaced micro-mesh of `level` as displaced grids: its own
-    /// level is built, and a depth to render must not be deeper.
-    fn as_displaced(&self, level: u32) -> Result<RenderArgs> {
-        if let Some(LodArg::Depth(depth)) = self.lod {
-            if depth > level {
-                bail!("--lod {depth} is deeper than the micro-mesh's level ({level})");
-            }
-        }
-        Ok(RenderArgs {
-            build: self.build.as_displaced(level),
-            ..self.clone()
-        })
-    }
-
-    /// The library's build options for these arguments.
-    pub fn build_options(&self) -> BuildOptions {
-        BuildOptions {
+    /// The library's request for these arguments.
+    pub fn request(&self) -> RenderRequest {
+        RenderRequest {
+            meshes: self.meshes.clone(),
+            backend: self.backend.choice(),
             representation: self.mode.representation(),
-            grid: self.build.grid_build(),
-            lod: match self.lod {
-                Some(LodArg::Depth(depth)) => Some(depth),
-                Some(LodArg::Auto) | None => None,
-            },
-        }
-    }
-
-    /// The shading asked for, or the default: lit for the built-in scene (a picture worth
-    /// showing, cheap at its size), the headlight for meshes (one ray per pixel, whatever
-    /// their size).
-    fn shading_arg(&self) -> ShadingArg {
-        match (self.shading, self.meshes.is_empty()) {
-            (Some(shading), _) => shading,
-            (None, true) => ShadingArg::Lit,
-            (None, false) => ShadingArg::Eye,
-        }
-    }
-
-    /// The library's render options for these arguments; lengths are in the file's units,
-    /// `frame` takes them to the mesh's local frame.
-    pub fn render_options(&self, frame: &LocalFrame) -> RenderOptions {
-        RenderOptions {
-            shading: self.shading_arg().shading(),
+            build: self.build.request(),
+            lod: self.lod,
+            lod_pixels: self.lod_pixels,
+            width: self.width,
+            height: self.height,
+            shading: self.shading.map(ShadingArg::shading),
+            smooth: self.smooth,
             ao_samples: self.ao_samples,
-            ao_distance: self.ao_distance.map(|d| (d * frame.scale) as f32),
+            ao_distance: self.ao_distance,
             heat_white: self.heat_white,
-            lod_pixels: (self.lod == Some(LodArg::Auto)).then_some(self.lod_pixels),
-            smooth_normals: self.smooth,
+            camera: self.camera.viewpoint(),
+            turntable: self.turntable,
+            output: self.output.clone(),
         }
-    }
-
-    /// Refuses, before any work, what needs grids asked of the baseline.
-    fn check_mode(&self) -> Result<()> {
-        if self.mode == Mode::Triangles {
-            let one_depth = "the baseline has one depth, fixed when it is built";
-            let needs_grids = [
-                (self.lod == Some(LodArg::Auto), "--lod auto", one_depth),
-                (self.shading == Some(ShadingArg::Level), "--shading level", one_depth),
-                (
-                    self.smooth,
-                    "--smooth",
-                    "the baseline's triangle list has no neighbours to take normals from",
-                ),
-            ];
-            if let Some((_, flag, why)) = needs_grids.iter().find(|(asked, ..)| *asked) {
-                bail!("{flag} needs grids (--mode grid): {why}");
-            }
-        }
-        Ok(())
     }
 }
 
@@ -751,7 +604,7 @@ pub struct BenchArgs {
     #[arg(long)]
     pub chart: Option<PathBuf>,
     /// TrueType font for the chart's labels.
-    #[arg(long, default_value = chart::DEFAULT_FONT)]
+    #[arg(long, default_value = gridrt::request::bench::chart::DEFAULT_FONT)]
     pub font: PathBuf,
     /// The mesh a micro-mesh was baked from: traced on the same rays under the baseline's
     /// BVH, with its bytes and build time, and its distance from the micro-mesh.
@@ -767,87 +620,12 @@ pub fn run(cli: Cli) -> Result<()> {
     let mut stages = Stages::new(cli.quiet);
     match cli.command {
         Command::Render(args) => render(&args, &mut stages),
-        Command::Stats(args) => stats::run(&args, cli.quiet),
-        Command::Bench(args) => bench::run(&args, cli.quiet),
+        Command::Stats(args) => stats::run(&args, &mut stages),
+        Command::Bench(args) => bench::run(&args, &mut stages),
         Command::Export(args) => export(&args, &mut stages),
-        Command::Compare(args) => compare::run(&args),
+        Command::Compare(args) => compare::run(&args, &mut stages),
         Command::Bake(args) => bake::run(&args, &mut stages),
     }
-}
-
-/// The mesh named on the command line, or the built-in scene, in its local frame (see
-/// `gridrt::input::open`), warning about dropped degenerate triangles.
-pub fn load(path: Option<&Path>) -> Result<Input> {
-    load_all(path.as_slice())
-}
-
-/// [`load`] for several meshes rendered together.
-pub fn load_all(paths: &[&Path]) -> Result<Input> {
-    let input = input::open_all(paths)?;
-    for warning in &input.warnings {
-        eprintln!("warning: {warning}");
-    }
-    let cleaning = &input.cleaning;
-    if let Some(d) = input.displaced {
-        let levels = match d.min_level == d.max_level {
-            true => format!("level {}", d.max_level),
-            false => format!("levels {} to {}", d.min_level, d.max_level),
-        };
-        let map = input.micromesh.as_ref().map(|m| &m.micromap);
-        let values = match (map.and_then(|m| m.value_code), map.is_some_and(|m| m.nv_blocks)) {
-            (Some(c), _) => format!(
-                "; its values are compressed (base edges at widths {:?} bits per level, each grid at its own)",
-                grid::compressed::level_widths(&c)
-            ),
-            (None, true) => {
-                "; its values, read from NVIDIA's compressed blocks, are traced plain (--compress-values compresses them)"
-                    .into()
-            }
-            (None, false) => String::new(),
-        };
-        note!(
-            "note: {}: a displaced micro-mesh of {} base triangles at {levels}, {} micro-triangles{values}",
-            input.name,
-            d.base_triangles,
-            input.mesh.triangles.len()
-        );
-    } else if cleaning.welded > 0 {
-        note!(
-            "note: {}: welded {} vertices to others at the same position (split at seams, or unindexed)",
-            input.name,
-            cleaning.welded
-        );
-    }
-    if let Some(seams) = (input.micromesh.as_ref().map(|m| m.open_seams())).filter(|&n| n > 0) {
-        eprintln!(
-            "warning: {}: {seams} base edges are rendered at different levels by the triangles on either side \
-             (levels more than one apart, or primitiveFlags that do not decimate the finer side): \
-             the surface has cracks along them",
-            input.name
-        );
-    }
-    if cleaning.dropped > 0 {
-        eprintln!(
-            "warning: {}: dropped {} degenerate triangles ({})",
-            input.name,
-            cleaning.dropped,
-            mesh::DEGENERATE
-        );
-    }
-    if cleaning.zero_area == input.mesh.triangles.len() {
-        eprintln!(
-            "warning: {}: every triangle has zero area (its corners lie on one line): nothing of it can be seen",
-            input.name
-        );
-    } else if cleaning.zero_area > 0 {
-        note!(
-            "note: {}: {} of {} triangles have zero area (corners on one line)",
-            input.name,
-            cleaning.zero_area,
-            input.mesh.triangles.len()
-        );
-    }
-    Ok(input)
 }
 
 impl SubdivisionArg {
@@ -868,395 +646,32 @@ fn parse_crease_angle(text: &str) -> std::result::Result<f32, String> {
     }
 }
 
-pub fn subdivide(mesh: &Mesh, build: &BuildArgs) -> Subdivided {
-    let creases = build.grid_build().creases(mesh);
-    let mut sub = subdiv::subdivide_creased(mesh, build.levels, build.subdivision.scheme(), &creases);
-    if build.inner_vertices == InnerVertices::Quantized {
-        sub.quantize_inner();
-    }
-    sub
-}
-
 fn render(args: &RenderArgs, stages: &mut Stages) -> Result<()> {
-    let options = args.build_options();
-    let lod = options.lod.unwrap_or(args.build.levels);
-    // A displaced micro-mesh has a level of its own, checked once it is loaded.
-    let displaced_file = args.meshes.iter().any(|m| mesh::is_gltf(m));
-    if lod > args.build.levels && !displaced_file {
-        bail!("--lod {lod} is deeper than --levels {}", args.build.levels);
-    }
-    args.check_mode()?;
-    let frames = args.turntable.unwrap_or(1);
-    let paths: Vec<&Path> = args.meshes.iter().map(PathBuf::as_path).collect();
-    let outputs = render_outputs(args, &paths)?;
-    let Input {
-        name,
-        mesh,
-        frame,
-        displaced,
-        micromesh,
-        ..
-    } = stages.run("load", || {
-        let mut input = load_all(&paths)?;
-        compress_values(&mut input, &args.build)?;
-        anyhow::Ok(input)
-    })?;
-    // A displaced micro-mesh becomes displaced grids; for the baseline, its decoded
-    // micro-triangles are traced as they are.
-    let displaced_grids = micromesh.filter(|m| args.mode == Mode::Grid && m.deepest_level().is_some());
-    let (as_decoded, as_displaced);
-    let (args, options, lod) = match (&displaced_grids, displaced) {
-        (Some(m), _) => {
-            as_displaced = args.as_displaced(m.deepest_level().unwrap_or(0))?;
-            let options = as_displaced.build_options();
-            let lod = options.lod.unwrap_or(as_displaced.build.levels);
-            (&as_displaced, options, lod)
-        }
-        (None, Some(_)) => {
-            as_decoded = args.as_decoded();
-            (&as_decoded, as_decoded.build_options(), 0)
-        }
-        (None, None) if lod > args.build.levels => {
-            bail!("--lod {lod} is deeper than --levels {}", args.build.levels)
-        }
-        (None, None) => (args, options, lod),
-    };
-    let base_triangles = displaced_grids
-        .as_ref()
-        .map_or(mesh.triangles.len(), |m| m.triangles.len());
-    if displaced.is_none() && paths.len() == 1 {
-        suggest_bake(&name, &mesh, &args.build, stages);
-    }
-    let viewpoint = args.camera.viewpoint(&frame);
-    // A view with no direction is refused before the build (bounds only matter for defaults).
-    match &displaced_grids {
-        Some(m) => check_render_memory(&name, &m.base_mesh(), args)?,
-        None => check_render_memory(&name, &mesh, args)?,
-    }
-    let placed = camera::placement(&mesh.positions, &viewpoint, args.width, args.height)
-        .map_err(naming_input(&name, gridrt::error::ErrorKind::Input))?;
-    let sizes = least_buffer_sizes(args, &name, &mesh, displaced_grids.as_ref(), lod)?;
-    let backend = stages.run("device", || open_backend(args.backend, "rendering"))?;
-    let displaced = args.mode == Mode::Grid && displaced_grids.is_some();
-    backend.check_fits(&sizes, displaced).map_err(|e| e.prefixed(&name))?;
-    check_upload_memory(&name, &sizes, &backend, args)?;
-    let scene = build_scene(stages, args, &mesh, displaced_grids.as_ref(), &options)?;
-    stages.say(scene_line(
-        &name,
-        &scene,
-        displaced_grids.as_ref(),
-        base_triangles,
-        lod,
-        args,
-    ));
-    let render = args.render_options(&frame);
-    // Uploaded once, by the first frame that needs it, for every frame of a turntable.
-    let uploaded = std::cell::OnceCell::new();
-    for (k, output) in (0..frames).zip(&outputs) {
-        // A turntable turns the orbit's azimuth by equal steps, the first frame the plain view.
-        // The later frames turn about the first one's target, so the mesh does not wander.
-        let turned = Viewpoint {
-            azimuth_degrees: viewpoint.azimuth_degrees + 360.0 * k as f32 / frames as f32,
-            target: viewpoint.target.or((k > 0).then_some(placed.target)),
-            ..viewpoint
-        };
-        let view = camera::view_of(&mesh.positions, &turned, args.width, args.height)?;
-        if let (Scene::Grids(grids), Some(_)) = (&scene, render.lod_pixels) {
-            let report = LodReport::measure(grids, &render.frame(&scene, &view));
-            stages.say(describe_lod(&report, args.lod_pixels));
-        }
-        let target = (&backend, &scene, &uploaded);
-        let image = render_image(stages, target, &view, &render, &name)?;
-        stages.run("write", || image.write_png(output))?;
-        let (width, height, device) = (args.width, args.height, backend.describe());
-        stages.say(format!("rendered {width}x{height} on {device} -> {}", output.display()));
-    }
+    render_files(&args.request(), stages)?;
     stages.report();
     Ok(())
 }
-
-/// The PNG files a render writes (one per turntable frame), checked before any work: each
-/// a writable `.png` path, none of them an input.
-fn render_outputs(args: &RenderArgs, paths: &[&Path]) -> Result<Vec<PathBuf>> {
-    let frames = args.turntable.unwrap_or(1);
-    let outputs: Vec<PathBuf> = (0..frames)
-        .map(|k| frame_path(&args.output, k, args.turntable))
-        .collect();
-    let inputs = input::files_read(paths);
-    for output in &outputs {
-        files::check_png_path(output)?;
-        files::check_not_input(output, &inputs)?;
-    }
-    Ok(outputs)
-}
-
-/// The least sizes of the scene's buffers, from the mesh's counts, before it is built.
-fn least_buffer_sizes(
-    args: &RenderArgs,
-    name: &str,
-    mesh: &Mesh,
-    displaced_grids: Option<&gridrt::micromesh::DisplacedMesh>,
-    lod: u32,
-) -> Result<Vec<limits::BufferSize>> {
-    Ok(match (args.mode, displaced_grids) {
-        (Mode::Grid, Some(m)) => {
-            grid::displaced::least_buffer_sizes(m, &args.build.grid_options()).map_err(|e| e.prefixed(name))?
-        }
-        (Mode::Grid, None) => args.build.check_grid_limits(name, mesh)?,
-        (Mode::Triangles, _) => triangles::least_buffer_sizes(
-            mesh.positions.len() as u64,
-            limits::micro_triangles(mesh.triangles.len(), lod),
-        ),
-    })
-}
-
-/// The scene `render` traces: displaced grids, grids (a bar over the base triangles) or the
-/// baseline's triangles.
-fn build_scene(
-    stages: &mut Stages,
-    args: &RenderArgs,
-    mesh: &Mesh,
-    displaced_grids: Option<&gridrt::micromesh::DisplacedMesh>,
-    options: &BuildOptions,
-) -> Result<Scene> {
-    Ok(match (args.mode, displaced_grids) {
-        (Mode::Grid, Some(m)) => stages.run("build", || Scene::build_displaced(m, options))?,
-        (Mode::Grid, None) => stages.run_counted("build", mesh.triangles.len() as u64, |bar| {
-            Scene::build_reporting(mesh, options, &|n| bar.inc(n as u64))
-        })?,
-        (Mode::Triangles, _) => stages.run("build", || Scene::build(mesh, options))?,
-    })
-}
-
-/// The line that says what the scene holds: its triangles at the depth rendered and bytes.
-fn scene_line(
-    name: &str,
-    scene: &Scene,
-    displaced_grids: Option<&gridrt::micromesh::DisplacedMesh>,
-    base_triangles: usize,
-    lod: u32,
-    args: &RenderArgs,
-) -> String {
-    // A displaced micro-mesh's triangles each have their own level.
-    let micro_at = |depth: u32| match displaced_grids {
-        Some(m) => m.micro_triangles_at(depth),
-        None => limits::micro_triangles(base_triangles, depth),
-    };
-    let micro = micro_at(lod);
-    // Grids hold every level built, whatever depth renders.
-    let stored = match scene {
-        Scene::Grids(_) => micro_at(args.build.levels),
-        Scene::Triangles(_) => micro,
-    };
-    let up_to = if args.lod == Some(LodArg::Auto) { "up to " } else { "" };
-    format!(
-        "{name}: {} base triangles, {micro} micro-triangles at depth {up_to}{lod}, {} ({:.2} B per micro-triangle)",
-        base_triangles,
-        limits::human(scene.memory() as u64),
-        scene.memory() as f64 / stored as f64
-    )
-}
-
-/// One frame of `render`: the cost heat map (counted on the CPU), or the image on the
-/// backend, the scene uploaded to it the first time.
-fn render_image(
-    stages: &mut Stages,
-    (backend, scene, uploaded): (&Backend, &Scene, &std::cell::OnceCell<Uploaded>),
-    view: &gridrt_shared::layout::Camera,
-    render: &RenderOptions,
-    name: &str,
-) -> Result<gridrt::pipeline::Image> {
-    let limits = naming_input(name, gridrt::error::ErrorKind::Limits);
-    if render.shading == Shading::Cost {
-        let costs = stages.run("render", || backend.render_costs(scene, view, render).map_err(&limits))?;
-        let summary = costs.summary();
-        let white = summary.white(render.heat_white);
-        stages.say(describe_costs(&summary, white, render.heat_white.is_none()));
-        return Ok(costs.heat_map(white));
-    }
-    // Ambient occlusion renders in passes: a bar over its samples.
-    let samples = match render.shading {
-        Shading::AmbientOcclusion | Shading::Lit => render.ao_samples as u64,
-        _ => 0,
-    };
-    stages
-        .run_counted("render", samples, |bar| {
-            let uploaded = match uploaded.get() {
-                Some(u) => u,
-                None => {
-                    let u = backend.upload(scene).map_err(&limits)?;
-                    uploaded.get_or_init(|| u)
-                }
-            };
-            (backend.render_uploaded(scene, uploaded, view, render, &|done| bar.set_position(done as u64)))
-                .map_err(&limits)
-        })
-        .map_err(Into::into)
-}
-
-/// Triangles from which a mesh is taken for a detailed one (a scan, a sculpt, a CAD
-/// tessellation) rather than a control mesh to subdivide.
-const DENSE_TRIANGLES: usize = 10_000;
-
-/// Points a user who subdivides a dense mesh to `bake`: Loop subdivision rounds such a mesh
-/// into another shape, and a displaced micro-mesh keeps its own in far less memory.
-fn suggest_bake(name: &str, mesh: &Mesh, build: &BuildArgs, stages: &Stages) {
-    if mesh.triangles.len() >= DENSE_TRIANGLES && build.levels > 0 && build.subdivision == SubdivisionArg::Loop {
-        stages.say(format!(
-            "note: {name}: {} triangles is a detailed mesh, not a control mesh: Loop subdivision rounds its edges and \
-             thin parts into another shape. To trace its own shape compactly, bake it: gridrt bake {name} -o \
-             baked.gltf (then render baked.gltf)",
-            mesh.triangles.len()
-        ));
-    }
-}
-
-/// How many grids render at each depth, and the cracks between them, in one line.
-fn describe_lod(report: &LodReport, pixels: f32) -> String {
-    let depths: Vec<String> = report
-        .grids_per_level
-        .iter()
-        .enumerate()
-        .filter(|(_, &n)| n > 0)
-        .map(|(d, n)| format!("{n} at {d}"))
-        .collect();
-    format!(
-        "level of detail ({pixels} px): grids {}; {} base edges between grids of different depths, \
-         widest crack {:.2} px",
-        depths.join(", "),
-        report.mismatched_edges,
-        report.widest_crack_pixels
-    )
-}
-
-/// The heat map's scale and what it shows, in one line.
-fn describe_costs(s: &CostSummary, white: u32, percentile: bool) -> String {
-    let why = if percentile {
-        format!("the 99th percentile; the costliest pixel {}", s.max_total)
-    } else {
-        format!("--heat-white; the costliest pixel {}", s.max_total)
-    };
-    format!(
-        "cost per pixel: {:.1} BVH nodes, {:.1} spheres, {:.1} triangles tested on average; \
-         black 0 to white {white} tests ({why})",
-        s.mean_nodes, s.mean_spheres, s.mean_triangles
-    )
-}
-
-/// Where frame `k` goes: `output` itself, or for a turntable `output`'s name with the frame
-/// number, `render_007.png`.
-fn frame_path(output: &Path, k: u32, turntable: Option<u32>) -> PathBuf {
-    let Some(frames) = turntable else {
-        return output.to_path_buf();
-    };
-    let digits = (frames - 1).max(1).ilog10() as usize + 1;
-    let stem = output.file_stem().unwrap_or_default().to_string_lossy();
-    output.with_file_name(format!("{stem}_{k:0width$}.png", width = digits.max(3)))
-}
-
-/// `export`'s subdivision depth when none is given.
-const DEFAULT_EXPORT_LEVELS: u32 = 3;
 
 /// Subdivides a mesh and writes the micro-mesh, in the input's units, as binary PLY.
 fn export(args: &ExportArgs, stages: &mut Stages) -> Result<()> {
-    files::check_output(&args.output, "ply")?;
-    let paths: Vec<&Path> = args.mesh.iter().map(PathBuf::as_path).collect();
-    files::check_not_input(&args.output, &input::files_read(&paths))?;
-    let Input {
-        name,
-        mesh,
-        frame,
-        displaced,
-        ..
-    } = stages.run("load", || load(args.mesh.as_deref()))?;
-    // A displaced micro-mesh is written as its decoded micro-triangles.
-    let levels = match (displaced, args.levels) {
-        (Some(d), Some(asked)) => bail!(
-            "{name}: is a displaced micro-mesh of {} base triangles at levels {} to {}: export writes its decoded \
-             micro-triangles at those levels, so --levels {asked} does not apply; leave it out",
-            d.base_triangles,
-            d.min_level,
-            d.max_level
-        ),
-        (Some(_), None) => 0,
-        (None, asked) => asked.unwrap_or(DEFAULT_EXPORT_LEVELS),
+    let request = ExportRequest {
+        mesh: args.mesh.clone(),
+        levels: args.levels,
+        scheme: args.subdivision.scheme(),
+        crease_angle: args.crease_angle,
+        output: args.output.clone(),
     };
-    limits::check_build(
-        &format!("subdividing {name}"),
-        mesh.triangles.len(),
-        levels,
-        limits::Builds::Grids,
-        0,
-        "use fewer --levels",
-    )?;
-    let sub = stages.run("subdivide", || {
-        let creases = subdiv::Creases::chosen(&mesh, args.crease_angle);
-        subdiv::subdivide_creased(&mesh, levels, args.subdivision.scheme(), &creases)
-    });
-    let triangles = sub.micro_triangles(levels);
-    stages.run("write", || {
-        let positions: Vec<_> = sub.positions.iter().map(|&p| frame.to_world(p).as_vec3()).collect();
-        mesh::ply::write_ply(&args.output, &positions, &triangles)
-    })?;
+    let e = export_file(&request, stages)?;
     stages.say(format!(
-        "{name}: {} micro-triangles, {} vertices at --levels {} -> {}",
-        triangles.len(),
-        sub.positions.len(),
-        levels,
-        args.output.display()
+        "{}: {} micro-triangles, {} vertices at --levels {} -> {}",
+        e.name,
+        e.micro_triangles,
+        e.vertices,
+        e.levels,
+        e.output.display()
     ));
     stages.report();
     Ok(())
-}
-
-/// Refuses, before building, a render whose scene, with the copies the device keeps of it in
-/// host memory (lavapipe's), and image would not fit in memory.
-fn check_upload_memory(name: &str, sizes: &[limits::BufferSize], device: &Backend, args: &RenderArgs) -> Result<()> {
-    let scene: u64 = sizes.iter().map(|b| b.bytes).sum();
-    let copies = device.host_upload_bytes(scene);
-    if copies == 0 {
-        return Ok(());
-    }
-    Ok(limits::check_memory(
-        scene.saturating_add(copies).saturating_add(args.image_bytes()),
-        limits::available_memory()?,
-        &format!("{name} uploaded to {}", device.describe()),
-        "use fewer --levels, or --backend cpu",
-    )?)
-}
-
-/// An error of `kind` names the input it came from (a refusal of the scene's size found as
-/// it is uploaded, `Limits`; one about its contents, `Input`); others say what failed as they
-/// are.
-pub(crate) fn naming_input(
-    name: &str,
-    kind: gridrt::error::ErrorKind,
-) -> impl Fn(gridrt::error::Error) -> gridrt::error::Error + '_ {
-    move |e| if e.kind() == kind { e.prefixed(name) } else { e }
-}
-
-/// Refuses a render whose build and image would not fit in memory, before building.
-fn check_render_memory(name: &str, mesh: &Mesh, args: &RenderArgs) -> Result<()> {
-    let (builds, mode) = match args.mode {
-        Mode::Grid if grid::lean_build_applies(mesh) => (limits::Builds::LeanGrids, "grid"),
-        Mode::Grid => (limits::Builds::Grids, "grid"),
-        Mode::Triangles => (limits::Builds::Triangles, "triangles"),
-    };
-    let image = args.image_bytes();
-    limits::check_memory(
-        image,
-        limits::available_memory()?,
-        &format!("a {}x{} image", args.width, args.height),
-        "render a smaller image",
-    )?;
-    Ok(limits::check_build(
-        &format!("{name} in {mode} mode"),
-        mesh.triangles.len(),
-        args.build.levels,
-        builds,
-        image,
-        "use fewer --levels",
-    )?)
 }
 
 #[cfg(test)]

@@ -1,7 +1,6 @@
 //! What the command line shows while it works: a spinner or bar per stage on a terminal
 //! (nothing when stderr is not one, or with `--quiet`), and each stage's time at the end.
 
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -12,29 +11,9 @@ pub struct Stages {
     done: Vec<(&'static str, Duration)>,
 }
 
-/// Set by `--quiet`: notes are then not printed (warnings and errors still are).
-static QUIET: AtomicBool = AtomicBool::new(false);
-
-/// Whether notes are printed (see [`note!`]).
-pub fn quiet() -> bool {
-    QUIET.load(Ordering::Relaxed)
-}
-
-/// `eprintln!` for a note (what gridrt did or found that is worth knowing but asks nothing
-/// of the user): not printed with `--quiet`.
-macro_rules! note {
-    ($($line:tt)+) => {
-        if !$crate::cli::progress::quiet() {
-            eprintln!($($line)+)
-        }
-    };
-}
-pub(crate) use note;
-
 impl Stages {
     /// The stages of a command; `quiet` also silences every note of the run.
     pub fn new(quiet: bool) -> Self {
-        QUIET.store(quiet, Ordering::Relaxed);
         Stages {
             quiet,
             done: Vec::new(),
@@ -106,8 +85,16 @@ impl gridrt::progress::Progress for Stages {
         self.run(name, work)
     }
 
+    fn counted_stage(&mut self, name: &'static str, total: u64, work: &mut dyn FnMut(gridrt::progress::Advance)) {
+        self.run_counted(name, total, |bar| work(&|n| bar.inc(n)))
+    }
+
+    fn say(&mut self, line: &str) {
+        Stages::say(self, line)
+    }
+
     fn note(&mut self, line: &str) {
-        self.say(format!("note: {line}"));
+        Stages::say(self, format!("note: {line}"));
     }
 
     fn warning(&mut self, line: &str) {

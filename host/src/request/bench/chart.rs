@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use anyhow::{anyhow, Context, Result};
+use crate::error::{error, Result};
 use plotters::prelude::*;
 use plotters::style::{register_font, FontStyle};
 
@@ -28,9 +28,16 @@ pub struct ChartRow<'a> {
 
 /// Draws `results`, measured on `backend`, to the PNG `path` in the TrueType `font`.
 pub fn write_chart(results: &[ChartRow], backend: &str, path: &Path, font: &Path) -> Result<()> {
-    let bytes = std::fs::read(font).with_context(|| format!("{}: cannot read font for the chart", font.display()))?;
+    let bytes = std::fs::read(font).map_err(|e| {
+        error!(
+            Input,
+            "{}: cannot read font for the chart: {}",
+            font.display(),
+            crate::files::io_reason(&e)
+        )
+    })?;
     register_font("sans-serif", FontStyle::Normal, Box::leak(bytes.into_boxed_slice()))
-        .map_err(|_| anyhow!("{}: not a usable TrueType font", font.display()))?;
+        .map_err(|_| error!(Input, "{}: not a usable TrueType font", font.display()))?;
     let names: Vec<String> = results.iter().map(|r| short_name(r.mesh)).collect();
     let panels: [(&str, Vec<(f64, RGBColor)>); 3] = [
         (
@@ -51,10 +58,12 @@ pub fn write_chart(results: &[ChartRow], backend: &str, path: &Path, font: &Path
     ];
     let title = format!("gridrt vs triangle BVH, {backend} backend");
     let backend = BitMapBackend::new(path, (1500, 500)).into_drawing_area();
-    backend.fill(&WHITE).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    backend
+        .fill(&WHITE)
+        .map_err(|e| error!(Output, "{}: {e}", path.display()))?;
     let backend = backend
         .titled(&title, ("sans-serif", 24))
-        .map_err(|e| anyhow!("{}: {e}", path.display()))?;
+        .map_err(|e| error!(Output, "{}: {e}", path.display()))?;
     for (area, (label, bars)) in backend.split_evenly((1, 3)).iter().zip(&panels) {
         let per_mesh = bars.len() / names.len().max(1);
         let top = bars.iter().map(|b| b.0).fold(0.0, f64::max) * 1.15 + 1e-9;
@@ -66,13 +75,13 @@ pub fn write_chart(results: &[ChartRow], backend: &str, path: &Path, font: &Path
             .x_label_area_size(10)
             .y_label_area_size(50)
             .build_cartesian_2d(-0.5..n - 0.5, bottom..top)
-            .map_err(|e| anyhow!("{e}"))?;
+            .map_err(|e| error!(Output, "{}: {e}", path.display()))?;
         chart
             .configure_mesh()
             .disable_x_mesh()
             .x_labels(0)
             .draw()
-            .map_err(|e| anyhow!("{e}"))?;
+            .map_err(|e| error!(Output, "{}: {e}", path.display()))?;
         // Bars of one mesh side by side around its position.
         let width = 0.7 / per_mesh as f64;
         chart
@@ -80,7 +89,7 @@ pub fn write_chart(results: &[ChartRow], backend: &str, path: &Path, font: &Path
                 let x = (k / per_mesh) as f64 - 0.35 + (k % per_mesh) as f64 * width;
                 Rectangle::new([(x + 0.02, 0.0), (x + width - 0.02, value)], color.mix(0.8).filled())
             }))
-            .map_err(|e| anyhow!("{e}"))?;
+            .map_err(|e| error!(Output, "{}: {e}", path.display()))?;
         // Values above the bars, mesh names at the foot.
         chart
             .draw_series(bars.iter().enumerate().map(|(k, &(value, _))| {
@@ -91,7 +100,7 @@ pub fn write_chart(results: &[ChartRow], backend: &str, path: &Path, font: &Path
                     ("sans-serif", 13),
                 )
             }))
-            .map_err(|e| anyhow!("{e}"))?;
+            .map_err(|e| error!(Output, "{}: {e}", path.display()))?;
         chart
             .draw_series(names.iter().enumerate().map(|(i, name)| {
                 Text::new(
@@ -100,10 +109,10 @@ pub fn write_chart(results: &[ChartRow], backend: &str, path: &Path, font: &Path
                     ("sans-serif", 15),
                 )
             }))
-            .map_err(|e| anyhow!("{e}"))?;
+            .map_err(|e| error!(Output, "{}: {e}", path.display()))?;
     }
     backend
         .present()
-        .map_err(|e| anyhow!("{}: cannot write the chart: {e}", path.display()))?;
+        .map_err(|e| error!(Output, "{}: cannot write the chart: {e}", path.display()))?;
     Ok(())
 }
