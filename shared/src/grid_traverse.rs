@@ -894,56 +894,21 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         scratch: &mut GridScratch,
         tally: &mut T,
     ) {
-        let GridVisit {
-            open,
-            lod,
-            leaf_level,
-            slack,
-            ..
-        } = *visit;
-        let n = 1u32 << self.params.levels;
+        let (open, leaf_level) = (visit.open, visit.leaf_level);
         let inv_dir_len2 = scratch.inv_dir_len2;
-        let frame = scratch.frame;
-        let (level, index, a, inverted) = (sub.level, sub.index, sub.corner, sub.inverted);
-        // A sub-triangle is its first corner `a`, its edge length and its orientation:
-        // `b = a + d (s, 0)`, `c = a + d (0, s)`, `d = -1` for the inverted ones.
-        let d = if inverted { -1 } else { 1 };
-        let size = (n >> level) as i32;
+        let (level, index) = (sub.level, sub.index);
         // The one leaf test of this visit, through one call site below (rust-gpu inlines
         // every call: each copy of the leaf test costs the GPU kernel, and lavapipe runs the
         // code of a branch even when none of its rays takes it): the popped sub-triangle
         // itself when it is a leaf, or, when its children are leaves, the part of it that
         // holds the parts of them the ray can cross.
         // It is `sub`'s lattice, `k` steps deep, within `window` (all of it for a leaf).
-        let k = lod - level;
+        let k = visit.lod - level;
         let mut window = [0, 1 << k, 0, 1 << k];
         let mut tested = level == leaf_level;
         if level != leaf_level {
-            // The four children share six vertices: three corners and three midpoints.
-            let (s, h) = (d * size, d * size / 2);
-            let at = |x: i32, y: i32| [(a[0] + x) as u32, (a[1] + y) as u32];
-            let (pa, pb, pc, pab, pbc, pca) = if self.compressed() {
-                let [pa, pb, pc, pab, pbc, pca] =
-                    self.compressed_points(&open, level, index, [at(0, 0), at(s, 0), at(0, s)]);
-                (pa, pb, pc, pab, pbc, pca)
-            } else {
-                // The root's corners are the grid's, already loaded.
-                let corner = |c: usize, p: Lattice| {
-                    if level == 0 {
-                        open.corners[c]
-                    } else {
-                        self.stored_vertex(&open, p)
-                    }
-                };
-                (
-                    corner(0, at(0, 0)),
-                    corner(1, at(s, 0)),
-                    corner(2, at(0, s)),
-                    self.stored_vertex(&open, at(h, 0)),
-                    self.stored_vertex(&open, at(h, h)),
-                    self.stored_vertex(&open, at(0, h)),
-                )
-            };
+            let points = self.sub_triangle_points(&open, *sub);
+            let [pa, pb, pc, pab, pbc, pca] = points;
             // A waiting child (never a leaf: leaves are tested with their parent) is visited only
             // if its sphere is still entered before the closest hit: the test its parent made,
             // made again on the same corners and radius.
@@ -974,67 +939,103 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             let mut e2 = entry(sphere_center(pca, pbc, pc), 2);
             let mut e3 = entry(sphere_center(pbc, pca, pab), 3);
             if level + 1 == leaf_level {
-                // The children are leaves: each one the ray may cross gives the box of its
-                // lattice points that may belong to a crossed micro-triangle (all of them
-                // without footprints), and one leaf test covers the box around those boxes in
-                // this sub-triangle's lattice, a step finer. One test instead of a test per
-                // child: in lockstep each is as long as the group's longest.
-                let footprint = self.params.leaf_footprint != 0 && leaf_level == open.spheres.leaf_level;
-                let m = 1u32 << (k - 1);
-                let whole = [0, m, 0, m];
-                let [mut w0, mut w1, mut w2, mut w3] = [whole; 4];
-                if footprint {
-                    let [sa, sb, sc, sab, sbc, sca] = [
-                        shear(pa, ray),
-                        shear(pb, ray),
-                        shear(pc, ray),
-                        shear(pab, ray),
-                        shear(pbc, ray),
-                        shear(pca, ray),
-                    ];
-                    let child_window = |t: f32, leaf: u32, radius: f32, ca: Vec3, cb: Vec3, cc: Vec3| {
-                        let thickness = self.thickness(&open, leaf, radius);
-                        if t < T_FAR && frame.overlaps(ca, cb, cc, thickness, slack) {
-                            frame.leaf_window(ca, cb, cc, m, thickness, slack)
-                        } else {
-                            EMPTY_WINDOW
-                        }
-                    };
-                    let first_leaf = 4 * index;
-                    w0 = child_window(e0.t, first_leaf, r[0], sa, sab, sca);
-                    w1 = child_window(e1.t, first_leaf + 1, r[1], sab, sb, sbc);
-                    w2 = child_window(e2.t, first_leaf + 2, r[2], sca, sbc, sc);
-                    w3 = child_window(e3.t, first_leaf + 3, r[3], sbc, sca, sab);
-                }
-                // Grown from empty.
-                window = [1 << k, 0, 1 << k, 0];
-                window = add_child_window(window, e0.t, 0, w0, m);
-                window = add_child_window(window, e1.t, 1, w1, m);
-                window = add_child_window(window, e2.t, 2, w2, m);
-                window = add_child_window(window, e3.t, 3, w3, m);
+                let t = [e0.t, e1.t, e2.t, e3.t];
+                window = self.leaf_children_window(visit, index, k, (points, r, t), ray, scratch.frame);
                 tested = window[0] <= window[1];
             } else if stack {
-                // Push the hit children farthest first so the nearest is popped next, sorted
-                // with a fixed network (no dynamically indexed arrays: those are slow on GPUs).
-                sort_descending(&mut e0, &mut e1);
-                sort_descending(&mut e2, &mut e3);
-                sort_descending(&mut e0, &mut e2);
-                sort_descending(&mut e1, &mut e3);
-                sort_descending(&mut e1, &mut e2);
-                let mut push = |e: &Entry| {
-                    if e.t < T_FAR {
-                        pending.push(level + 1, e.child);
-                    }
-                };
-                push(&e0);
-                push(&e1);
-                push(&e2);
-                push(&e3);
+                push_nearest_last(pending, level + 1, &mut e0, &mut e1, &mut e2, &mut e3);
             }
         }
         if tested {
             self.test_window(visit, sub, window, ray, hit, scratch, tally);
         }
+    }
+
+    /// The six points sub-triangle `sub` shares with its four children: its three corners and
+    /// its edges' three midpoints, `[a, b, c, ab, bc, ca]`.
+    #[inline(always)]
+    fn sub_triangle_points(&self, open: &OpenGrid, sub: SubTriangle) -> [Vec3; 6] {
+        let (level, a) = (sub.level, sub.corner);
+        // A sub-triangle is its first corner `a`, its edge length and its orientation:
+        // `b = a + d (s, 0)`, `c = a + d (0, s)`, `d = -1` for the inverted ones.
+        let d = if sub.inverted { -1 } else { 1 };
+        let s = d * ((1u32 << self.params.levels) >> level) as i32;
+        let h = s / 2;
+        let at = |x: i32, y: i32| [(a[0] + x) as u32, (a[1] + y) as u32];
+        if self.compressed() {
+            self.compressed_points(open, level, sub.index, [at(0, 0), at(s, 0), at(0, s)])
+        } else {
+            // The root's corners are the grid's, already loaded.
+            let corner = |c: usize, p: Lattice| {
+                if level == 0 {
+                    open.corners[c]
+                } else {
+                    self.stored_vertex(open, p)
+                }
+            };
+            [
+                corner(0, at(0, 0)),
+                corner(1, at(s, 0)),
+                corner(2, at(0, s)),
+                self.stored_vertex(open, at(h, 0)),
+                self.stored_vertex(open, at(h, h)),
+                self.stored_vertex(open, at(0, h)),
+            ]
+        }
+    }
+
+    /// The window of sub-triangle `index`'s lattice, `k` steps deep, that one leaf test covers
+    /// when its children are leaves: each child the ray may cross (its sphere entered at
+    /// `t < T_FAR`) gives the box of its lattice points that may belong to a crossed
+    /// micro-triangle (all of them without footprints), and the window is the box around
+    /// those boxes, a step finer. One test instead of a test per child: in lockstep each is
+    /// as long as the group's longest. Empty (`window[0] > window[1]`) when the ray crosses
+    /// none.
+    #[inline(always)]
+    fn leaf_children_window(
+        &self,
+        visit: &GridVisit,
+        index: u32,
+        k: u32,
+        (points, r, t): ([Vec3; 6], [f32; 4], [f32; 4]),
+        ray: &Ray,
+        frame: FootprintFrame,
+    ) -> [u32; 4] {
+        let (open, slack) = (&visit.open, visit.slack);
+        let footprint = self.params.leaf_footprint != 0 && visit.leaf_level == open.spheres.leaf_level;
+        let m = 1u32 << (k - 1);
+        let whole = [0, m, 0, m];
+        let [mut w0, mut w1, mut w2, mut w3] = [whole; 4];
+        if footprint {
+            let [pa, pb, pc, pab, pbc, pca] = points;
+            let [sa, sb, sc, sab, sbc, sca] = [
+                shear(pa, ray),
+                shear(pb, ray),
+                shear(pc, ray),
+                shear(pab, ray),
+                shear(pbc, ray),
+                shear(pca, ray),
+            ];
+            let child_window = |t: f32, leaf: u32, radius: f32, ca: Vec3, cb: Vec3, cc: Vec3| {
+                let thickness = self.thickness(open, leaf, radius);
+                if t < T_FAR && frame.overlaps(ca, cb, cc, thickness, slack) {
+                    frame.leaf_window(ca, cb, cc, m, thickness, slack)
+                } else {
+                    EMPTY_WINDOW
+                }
+            };
+            let first_leaf = 4 * index;
+            w0 = child_window(t[0], first_leaf, r[0], sa, sab, sca);
+            w1 = child_window(t[1], first_leaf + 1, r[1], sab, sb, sbc);
+            w2 = child_window(t[2], first_leaf + 2, r[2], sca, sbc, sc);
+            w3 = child_window(t[3], first_leaf + 3, r[3], sbc, sca, sab);
+        }
+        // Grown from empty.
+        let mut window = [1 << k, 0, 1 << k, 0];
+        window = add_child_window(window, t[0], 0, w0, m);
+        window = add_child_window(window, t[1], 1, w1, m);
+        window = add_child_window(window, t[2], 2, w2, m);
+        add_child_window(window, t[3], 3, w3, m)
     }
 
     /// The leaf test of sub-triangle `sub`'s visit, over `window` of its lattice.
@@ -1355,6 +1356,34 @@ impl Entry {
     fn new(t: f32, child: u32) -> Entry {
         Entry { t, child }
     }
+}
+
+/// The children hit (entered before `T_FAR`) pushed on `pending` at `level`, farthest first
+/// so the nearest is popped next, sorted with a fixed network (no dynamically indexed arrays:
+/// those are slow on GPUs).
+#[inline(always)]
+fn push_nearest_last(
+    pending: &mut PendingChildren,
+    level: u32,
+    e0: &mut Entry,
+    e1: &mut Entry,
+    e2: &mut Entry,
+    e3: &mut Entry,
+) {
+    sort_descending(e0, e1);
+    sort_descending(e2, e3);
+    sort_descending(e0, e2);
+    sort_descending(e1, e3);
+    sort_descending(e1, e2);
+    let mut push = |e: &Entry| {
+        if e.t < T_FAR {
+            pending.push(level, e.child);
+        }
+    };
+    push(e0);
+    push(e1);
+    push(e2);
+    push(e3);
 }
 
 /// Orders two children so the farther comes first.
