@@ -128,10 +128,15 @@ fn report_cleaning(input: &Input, progress: &mut dyn Progress) {
 /// does the `work`.
 pub fn open_backend(choice: BackendChoice, work: &str, progress: &mut dyn Progress) -> Result<Backend> {
     let backend = Backend::open(choice)?;
+    note_fallback(&backend, work, progress);
+    Ok(backend)
+}
+
+/// Where `Auto` found no GPU, a note saying the CPU does the `work`.
+fn note_fallback(backend: &Backend, work: &str, progress: &mut dyn Progress) {
     if let Some(reason) = backend.fallback() {
         progress.note(&format!("{reason}; {work} on the CPU"));
     }
-    Ok(backend)
 }
 
 /// An error of `kind` names the input it came from (a refusal of the scene's size found as

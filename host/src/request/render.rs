@@ -300,9 +300,7 @@ impl<'a> Plan<'a> {
             .map_err(naming_input(name, ErrorKind::Input))?;
         let sizes = self.least_buffer_sizes(input)?;
         let backend = progress::run(progress, "device", || Backend::open(request.backend))?;
-        if let Some(reason) = backend.fallback() {
-            progress.note(&format!("{reason}; rendering on the CPU"));
-        }
+        super::note_fallback(&backend, "rendering", progress);
         let displaced = self.displaced_grids.is_some();
         backend.check_fits(&sizes, displaced).map_err(|e| e.prefixed(name))?;
         check_upload_memory(name, &sizes, &backend, request)?;
