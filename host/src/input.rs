@@ -120,6 +120,12 @@ pub fn from_arrays(name: &str, positions: Vec<[f64; 3]>, triangles: Vec<[u32; 3]
 }
 
 impl Input {
+    /// The displaced micro-mesh this input brings, when it has levels to build displaced
+    /// grids of (the grids' representation of it; the baseline traces [`Input::mesh`]).
+    pub fn displaced_grids(&self) -> Option<&DisplacedMesh> {
+        self.micromesh.as_ref().filter(|m| m.deepest_level().is_some())
+    }
+
     /// A plain mesh, checked and cleaned, moved into its local frame.
     fn plain(name: String, world: WorldMesh, cleaning: Cleaning) -> Input {
         let (mesh, frame) = world.into_local();

@@ -147,8 +147,8 @@ impl Scene {
     /// ([`crate::grid::GridOptions::for_displaced`], at its own levels) or, for the baseline,
     /// its decoded micro-triangles; any other mesh subdivided as `options.grid` says.
     pub fn from_input(input: &Input, options: &BuildOptions) -> Result<Scene> {
-        match &input.micromesh {
-            Some(micromesh) if micromesh.deepest_level().is_some() => {
+        match input.displaced_grids() {
+            Some(micromesh) => {
                 let mut displaced = *options;
                 displaced.grid.options = grid::GridOptions::for_displaced();
                 Scene::build_displaced(micromesh, &displaced)

@@ -27,6 +27,7 @@ use crate::progress::{self, Progress};
 use crate::scene::Scene;
 use crate::subdiv::Scheme;
 use crate::{files, grid, limits, triangles};
+use gridrt_shared::glam::Vec3;
 use gridrt_shared::layout::Camera;
 
 /// Micro-triangle size on screen that [`Lod::Auto`] aims at, in pixels.
@@ -117,6 +118,7 @@ pub fn render_files(request: &RenderRequest, progress: &mut dyn Progress) -> Res
     if input.displaced.is_none() && paths.len() == 1 {
         suggest_bake(&input.name, &input.mesh, &plan.request.build, progress);
     }
+    let target = plan.checked_view(&input)?;
     let backend = plan.checked_backend(&input, progress)?;
     let scene = plan.build(&input, progress)?;
     progress.say(&plan.scene_line(&input, &scene));
@@ -125,6 +127,8 @@ pub fn render_files(request: &RenderRequest, progress: &mut dyn Progress) -> Res
         input: &input,
         backend: &backend,
         scene: &scene,
+        target,
+        render: plan.request.render_options(&input.frame),
         uploaded: OnceCell::new(),
     };
     for (k, output) in outputs.iter().enumerate() {
@@ -248,21 +252,22 @@ impl RenderRequest {
 }
 
 /// What a loaded input is built as: the request as it applies to it, its build options,
-/// the depth rendered, and the displaced micro-mesh when it becomes displaced grids.
+/// the depth rendered, the displaced micro-mesh when it becomes displaced grids, and the
+/// viewpoint in the mesh's local frame.
 struct Plan<'a> {
     request: RenderRequest,
     options: BuildOptions,
     lod: u32,
     displaced_grids: Option<&'a DisplacedMesh>,
+    viewpoint: Viewpoint,
 }
 
 impl<'a> Plan<'a> {
     /// A displaced micro-mesh becomes displaced grids; for the baseline, its decoded
     /// micro-triangles are traced as they are.
     fn of(request: &RenderRequest, input: &'a Input) -> Result<Plan<'a>> {
-        let micromesh = input.micromesh.as_ref();
         let grids = request.representation == Representation::Grids;
-        let displaced_grids = micromesh.filter(|m| grids && m.deepest_level().is_some());
+        let displaced_grids = input.displaced_grids().filter(|_| grids);
         let (request, lod) = match (displaced_grids, input.displaced) {
             (Some(m), _) => {
                 let request = request.as_displaced(m.deepest_level().unwrap_or(0))?;
@@ -280,24 +285,31 @@ impl<'a> Plan<'a> {
         };
         Ok(Plan {
             options: request.build_options(),
+            viewpoint: request.camera.local(&input.frame),
             request,
             lod,
             displaced_grids,
         })
     }
 
-    /// The backend, opened once the view, the build and the image are known to fit in
-    /// memory, and checked to bind the scene's buffers and hold its uploads.
-    fn checked_backend(&self, input: &Input, progress: &mut dyn Progress) -> Result<Backend> {
+    /// Refuses, before the build, a render whose build and image would not fit in memory,
+    /// or whose view has no direction (bounds only matter for defaults); returns the first
+    /// frame's target, which a turntable's later frames turn about.
+    fn checked_view(&self, input: &Input) -> Result<Vec3> {
         let (name, request) = (&input.name, &self.request);
-        // A view with no direction is refused before the build (bounds only matter for defaults).
         match self.displaced_grids {
             Some(m) => check_render_memory(name, &m.base_mesh(), request)?,
             None => check_render_memory(name, &input.mesh, request)?,
         }
-        let viewpoint = request.camera.local(&input.frame);
-        camera::placement(&input.mesh.positions, &viewpoint, request.width, request.height)
+        let placed = camera::placement(&input.mesh.positions, &self.viewpoint, request.width, request.height)
             .map_err(naming_input(name, ErrorKind::Input))?;
+        Ok(placed.target)
+    }
+
+    /// The backend, opened once the scene's least sizes are known, and checked to bind the
+    /// scene's buffers and hold its uploads.
+    fn checked_backend(&self, input: &Input, progress: &mut dyn Progress) -> Result<Backend> {
+        let (name, request) = (&input.name, &self.request);
         let sizes = self.least_buffer_sizes(input)?;
         let backend = progress::run(progress, "device", || Backend::open(request.backend))?;
         super::note_fallback(&backend, "rendering", progress);
@@ -370,12 +382,14 @@ impl<'a> Plan<'a> {
 }
 
 /// The frames of one render: one scene on one backend, uploaded once, by the first frame
-/// that needs it.
+/// that needs it, rendered with one set of options about the first frame's `target`.
 struct Frames<'a> {
     plan: &'a Plan<'a>,
     input: &'a Input,
     backend: &'a Backend,
     scene: &'a Scene,
+    target: Vec3,
+    render: RenderOptions,
     uploaded: OnceCell<Uploaded>,
 }
 
@@ -384,23 +398,20 @@ impl Frames<'_> {
     /// equal steps, the first frame the plain view; the later frames turn about the first
     /// one's target, so the mesh does not wander.
     fn render(&self, k: u32, output: &Path, progress: &mut dyn Progress) -> Result<()> {
-        let (request, input) = (&self.plan.request, self.input);
+        let (request, viewpoint, render) = (&self.plan.request, self.plan.viewpoint, &self.render);
         let (width, height) = (request.width, request.height);
-        let viewpoint = request.camera.local(&input.frame);
-        let first = camera::placement(&input.mesh.positions, &viewpoint, width, height)?;
         let frames = request.turntable.unwrap_or(1);
         let turned = Viewpoint {
             azimuth_degrees: viewpoint.azimuth_degrees + 360.0 * k as f32 / frames as f32,
-            target: viewpoint.target.or((k > 0).then_some(first.target)),
+            target: viewpoint.target.or((k > 0).then_some(self.target)),
             ..viewpoint
         };
-        let view = camera::view_of(&input.mesh.positions, &turned, width, height)?;
-        let render = request.render_options(&input.frame);
+        let view = camera::view_of(&self.input.mesh.positions, &turned, width, height)?;
         if let (Scene::Grids(grids), Some(_)) = (self.scene, render.lod_pixels) {
             let report = LodReport::measure(grids, &render.frame(self.scene, &view));
             progress.say(&describe_lod(&report, request.lod_pixels));
         }
-        let image = self.image(&view, &render, progress)?;
+        let image = self.image(&view, render, progress)?;
         progress::run(progress, "write", || image.write_png(output))?;
         let device = self.backend.describe();
         progress.say(&format!(

@@ -203,16 +203,14 @@ pub fn check_work(name: &str, mesh: &Mesh, build: &BuildRequest, extra: u64) -> 
 pub fn stats_file(path: Option<&Path>, build: &BuildRequest, progress: &mut dyn Progress) -> Result<Stats> {
     let input = super::open_for_build(path.as_slice(), build, progress)?;
     let (name, mesh) = (&input.name, &input.mesh);
-    match input.micromesh.as_ref().filter(|m| m.deepest_level().is_some()) {
-        Some(m) => {
-            check_work(name, mesh, &build.as_decoded(), 0)?;
-            Ok(measure_displaced(name, (m, mesh), build, BUILD_REPEATS, progress)?.0)
-        }
+    // A displaced micro-mesh is checked as its decoded triangles, the larger of the two.
+    let checked = build.for_input(&input);
+    check_work(name, mesh, &checked, 0)?;
+    match input.displaced_grids() {
+        Some(m) => Ok(measure_displaced(name, (m, mesh), build, BUILD_REPEATS, progress)?.0),
         None => {
-            let build = build.for_input(&input);
-            check_work(name, mesh, &build, 0)?;
-            let sub = progress::run(progress, "subdivide", || build.subdivide(mesh));
-            Ok(measure(name, mesh, &sub, &build, BUILD_REPEATS, progress)?.0)
+            let sub = progress::run(progress, "subdivide", || checked.subdivide(mesh));
+            Ok(measure(name, mesh, &sub, &checked, BUILD_REPEATS, progress)?.0)
         }
     }
 }

@@ -226,11 +226,6 @@ fn agreement(a: &Scene, ha: &[HitRecord], b: &Scene, hb: &[HitRecord]) -> f64 {
     same as f64 / ha.len().max(1) as f64
 }
 
-/// The displaced micro-mesh an input brings, when it has triangles (displaced grids).
-fn grids_of(input: &Input) -> Option<&crate::micromesh::DisplacedMesh> {
-    input.micromesh.as_ref().filter(|m| m.deepest_level().is_some())
-}
-
 /// Refuses, before building, a mesh whose representations the device cannot bind, or whose
 /// uploads it would keep copies of in host memory (lavapipe) beyond what is free.
 fn check_device(name: &str, mesh: &Mesh, device: &Backend, build: &BuildRequest, ray_bytes: u64) -> Result<()> {
@@ -269,7 +264,7 @@ fn load_inputs(request: &BenchRequest, progress: &mut dyn Progress) -> Result<(V
     let meshes = (request.meshes.iter())
         .map(|path| super::open_for_build(&[path.as_path()], &request.build, progress))
         .collect::<Result<Vec<_>>>()?;
-    if let Some(input) = (meshes.iter()).find(|m| m.displaced.is_some() && grids_of(m).is_none()) {
+    if let Some(input) = (meshes.iter()).find(|m| m.displaced.is_some() && m.displaced_grids().is_none()) {
         fail!(Input, "{}: a displaced micro-mesh without base triangles", input.name);
     }
     if request.reference.is_some() && meshes.len() != 1 {
@@ -404,7 +399,7 @@ fn build_both(
     progress: &mut dyn Progress,
 ) -> Result<(Stats, Scene, Scene, Aabb)> {
     let Input { name, mesh, .. } = input;
-    let (measured, bounds) = match grids_of(input) {
+    let (measured, bounds) = match input.displaced_grids() {
         Some(micromesh) => {
             let measured =
                 stats::measure_displaced(name, (micromesh, mesh), &request.build, request.build_repeats, progress)?;
