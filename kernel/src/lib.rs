@@ -136,7 +136,7 @@ triangle_image_kernels!(render_pixel: render_triangles, render_triangles_split);
 /// constant 0 says: on whole buffers, everything (a pipeline per format and walk); over split
 /// scenes, the formats plain grids may ask for, both walks. Displaced grids' values, wide top
 /// levels and leaf radius pairs are read from whole buffers alone: every read of a split scene
-/// is a branch per chunk, and their decoders read at so many places that such a kernel was
+/// branches to its chunk, and their decoders read at so many places that such a kernel was
 /// the largest of the module.
 const WHOLE: u32 = carries::ALL | carries::ONLY_COMPRESSED;
 const SPLIT_PLAIN: u32 = carries::DISPLACED_FORMATS | carries::STACK | carries::ONE_VISIT;

@@ -147,65 +147,97 @@ impl<B: Buffer<u32>, const MOST: u32> Buffer<u32> for KernelWords<B, MOST> {
 }
 
 /// Most chunks a split scene may use. Their bindings come after a kernel's own (parameters,
-/// static list, rays and hits, or image), in a set of their own. Every read of a split buffer
-/// chooses its chunk by a `match` with an arm per chunk, so the split kernels grow with this
-/// number (and lavapipe's compile of them, and the registers they hold): eight bind eight
-/// times a binding's bytes, gigabytes where bindings reach hundreds of megabytes.
+/// static list, rays and hits, or image), in a set of their own. Eight bind eight times a
+/// binding's bytes, gigabytes where bindings reach hundreds of megabytes; every read of a
+/// split buffer picks its chunk through `log2` of this many two-way branches (see
+/// [`Chunks::read`]).
 pub const SPLIT_CHUNKS: u32 = 8;
 
-/// Declares [`Chunks`] with one field per chunk, and the match that reads word `offset` of
-/// chunk `chunk`: a shader cannot index an array of buffer references, so each chunk is its
-/// own field and its own arm.
-macro_rules! declare_chunks {
-    ($($field:ident = $k:literal),* ; $last:ident) => {
-        /// The chunks of a split scene, each a run of words (unused ones empty).
-        #[derive(Copy, Clone)]
-        pub struct Chunks<'a> {
-            $(pub $field: &'a [u32],)*
-            pub $last: &'a [u32],
-        }
-
-        impl<'a> Chunks<'a> {
-            /// Word `offset` of chunk `chunk`.
-            #[inline(always)]
-            pub fn word(&self, chunk: u32, offset: u32) -> u32 {
-                let o = offset as usize;
-                match chunk {
-                    $($k => element(self.$field, o),)*
-                    _ => element(self.$last, o),
-                }
-            }
-
-            /// Words `offset .. offset + 4` of chunk `chunk`, under one choice of chunk: a
-            /// shader then holds one branch per chunk for a whole header or half a node
-            /// instead of one per word, which shortens lavapipe's compile of a split kernel.
-            #[inline(always)]
-            pub fn word4(&self, chunk: u32, offset: u32) -> [u32; 4] {
-                let o = offset as usize;
-                let four = |words: &[u32]| {
-                    [element(words, o), element(words, o + 1), element(words, o + 2), element(words, o + 3)]
-                };
-                match chunk {
-                    $($k => four(self.$field),)*
-                    _ => four(self.$last),
-                }
-            }
-
-            /// Chunks from a list of at most [`SPLIT_CHUNKS`] slices; the rest are empty.
-            #[cfg(not(target_arch = "spirv"))]
-            pub fn from_slices(parts: &[&'a [u32]]) -> Self {
-                assert!(parts.len() <= SPLIT_CHUNKS as usize, "more chunks than a split scene has");
-                let part = |k: usize| parts.get(k).copied().unwrap_or(&[]);
-                Chunks {
-                    $($field: part($k),)*
-                    $last: part(SPLIT_CHUNKS as usize - 1),
-                }
-            }
-        }
-    };
+/// The chunks of a split scene, each a run of words (unused ones empty). A shader cannot
+/// index an array of buffer references, so each chunk is a field of its own.
+#[derive(Copy, Clone)]
+pub struct Chunks<'a> {
+    pub c0: &'a [u32],
+    pub c1: &'a [u32],
+    pub c2: &'a [u32],
+    pub c3: &'a [u32],
+    pub c4: &'a [u32],
+    pub c5: &'a [u32],
+    pub c6: &'a [u32],
+    pub c7: &'a [u32],
 }
 
-declare_chunks!(c0 = 0, c1 = 1, c2 = 2, c3 = 3, c4 = 4, c5 = 5, c6 = 6; c7);
+const _: () = assert!(SPLIT_CHUNKS == 8, "Chunks has a field and a branch per chunk");
+
+impl<'a> Chunks<'a> {
+    /// Word `offset` of chunk `chunk`.
+    #[inline(always)]
+    pub fn word(&self, chunk: u32, offset: u32) -> u32 {
+        let o = offset as usize;
+        self.read(chunk, |words| element(words, o))
+    }
+
+    /// Words `offset .. offset + 4` of chunk `chunk`, under one choice of chunk: a shader
+    /// then picks the chunk once for a whole header or half a node instead of once per word.
+    #[inline(always)]
+    pub fn word4(&self, chunk: u32, offset: u32) -> [u32; 4] {
+        let o = offset as usize;
+        self.read(chunk, |words| {
+            [
+                element(words, o),
+                element(words, o + 1),
+                element(words, o + 2),
+                element(words, o + 3),
+            ]
+        })
+    }
+
+    /// `read` applied to chunk `chunk` (the last one for any larger number), chosen by a
+    /// binary tree of two-way branches. Not a `match`: a shader compiler keeps the registers
+    /// of every arm of a multi-way switch over reads from different buffers (the split
+    /// kernels spilled), while two-way branches over reads it folds into one read.
+    #[inline(always)]
+    fn read<T>(&self, chunk: u32, read: impl Fn(&'a [u32]) -> T) -> T {
+        let pick = |first: &'a [u32], second: &'a [u32], take_second: bool| {
+            if take_second {
+                read(second)
+            } else {
+                read(first)
+            }
+        };
+        if chunk < 4 {
+            if chunk < 2 {
+                pick(self.c0, self.c1, chunk == 1)
+            } else {
+                pick(self.c2, self.c3, chunk == 3)
+            }
+        } else if chunk < 6 {
+            pick(self.c4, self.c5, chunk == 5)
+        } else {
+            pick(self.c6, self.c7, chunk >= 7)
+        }
+    }
+
+    /// Chunks from a list of at most [`SPLIT_CHUNKS`] slices; the rest are empty.
+    #[cfg(not(target_arch = "spirv"))]
+    pub fn from_slices(parts: &[&'a [u32]]) -> Self {
+        assert!(
+            parts.len() <= SPLIT_CHUNKS as usize,
+            "more chunks than a split scene has"
+        );
+        let part = |k: usize| parts.get(k).copied().unwrap_or(&[]);
+        Chunks {
+            c0: part(0),
+            c1: part(1),
+            c2: part(2),
+            c3: part(3),
+            c4: part(4),
+            c5: part(5),
+            c6: part(6),
+            c7: part(7),
+        }
+    }
+}
 
 /// Buffer `buffer` of a split scene (its index in [`SplitParams`]), read as elements of `T`.
 #[derive(Copy, Clone)]

@@ -775,7 +775,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     pub fn micro_triangle(&self, prim: u32, level: u32) -> [Vec3; 3] {
         let (open, points) = self.locate(prim, level);
         // One vertex read in a loop a shader keeps: each read inlines a decoder, or a split
-        // scene's branch per chunk.
+        // scene's branches to its chunk.
         let mut corners = [Vec3::ZERO; 3];
         let mut k = 0;
         while k < 3 + self.opaque_zero() as usize {
