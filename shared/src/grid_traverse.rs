@@ -1110,6 +1110,9 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     ) {
         let SubLattice { first, step, k } = lattice;
         let m = 1u32 << k;
+        // A step is a power of two, either way: a point's steps from `first` are an exact
+        // shift and a sign, not a division per point.
+        let (shift, sign) = (step.unsigned_abs().trailing_zeros(), if step < 0 { -1 } else { 1 });
         let mut lb = window[2];
         while lb <= window[3] && lb <= m {
             let row_end = window_row_end(window[1], lb, m);
@@ -1121,8 +1124,8 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                 ];
                 let on = self.snapped(open, p);
                 if on[0] != p[0] || on[1] != p[1] {
-                    let to_a = (on[0] as i32 - first[0]) / step;
-                    let to_b = (on[1] as i32 - first[1]) / step;
+                    let to_a = sign * ((on[0] as i32 - first[0]) >> shift);
+                    let to_b = sign * ((on[1] as i32 - first[1]) >> shift);
                     values.set(
                         lattice_index(la, lb, m),
                         values.get(lattice_index(to_a as u32, to_b as u32, m)),
