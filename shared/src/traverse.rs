@@ -13,13 +13,19 @@ use crate::triangle::{intersect_triangle, triangle_normal};
 /// Deepest triangle BVH the traversal can walk; the builder never makes a deeper one.
 pub const MAX_BVH_DEPTH: usize = 64;
 
-/// Entries the stack of the grids' top-level walk holds, binary or wide: the builder keeps
-/// the grids' hierarchy within it (`TOP_STACK - 2` levels, see the host's builder settings,
-/// and `crate::wide_nodes::STACK_ENTRIES`). Three quarters of the baseline's: a GPU keeps the
-/// stack in registers, which the grids' bottom level needs, while a wide top level's walk
-/// leaves up to six entries waiting a level, and a shorter stack makes a large scene's wide
-/// nodes narrower, many more of them (docs/RESULTS.md).
+/// Entries the stack of the grids' top-level walk holds for a wide top level: the builder
+/// narrows a wide level's nodes until its walk fits (`crate::wide_nodes::STACK_ENTRIES`).
+/// Three quarters of the baseline's: a GPU keeps the stack in registers, which the grids'
+/// bottom level needs, while a wide top level's walk leaves up to six entries waiting a level,
+/// and a shorter stack makes a large scene's wide nodes narrower, many more of them
+/// (docs/RESULTS.md).
 pub const TOP_STACK: usize = 48;
+
+/// The first entries of [`TopStack`], all a binary top level's walk uses: the builder keeps
+/// the grids' binary hierarchy within `BINARY_TOP_STACK - 2` levels (see the host's builder
+/// settings). A kernel that walks binary top levels alone keeps no register for the rest,
+/// which only a wide top level's walk reaches.
+pub const BINARY_TOP_STACK: usize = 40;
 
 /// What a BVH leaf refers to.
 pub trait LeafPrimitives {
@@ -258,8 +264,8 @@ fn descend<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
                 } else {
                     (n.first + 1, n.first, tl)
                 };
-                if t_far < T_FAR && *sp < S::CAPACITY {
-                    stack.push_node(*sp, far);
+                if t_far < T_FAR && *sp < S::BINARY_CAPACITY {
+                    stack.push_binary(*sp, far);
                     *sp += 1;
                 }
                 n = nodes.load(near);
@@ -287,7 +293,7 @@ fn pop_entered<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
 ) -> Option<BvhNode> {
     let mut entered = BvhNode::default();
     let found = pop_until(sp, |at| {
-        entered = nodes.load(stack.node(at));
+        entered = nodes.load(stack.binary_node(at));
         tally.nodes(1);
         intersect_aabb(Vec3::from(entered.min), Vec3::from(entered.max), ray, t) < t
     });
@@ -324,11 +330,23 @@ fn pop_until(sp: &mut usize, mut takes: impl FnMut(usize) -> bool) -> bool {
 pub trait WalkStack {
     /// Entries it holds.
     const CAPACITY: usize;
+    /// Entries a binary walk uses, the first ones (see [`BINARY_TOP_STACK`]).
+    const BINARY_CAPACITY: usize = Self::CAPACITY;
     fn push(&mut self, at: usize, node: u32, t: f32);
     /// A node alone: its distance is never read.
     fn push_node(&mut self, at: usize, node: u32);
     fn node(&self, at: usize) -> u32;
     fn t(&self, at: usize) -> f32;
+    /// [`Self::push_node`] for a binary walk, at `at < BINARY_CAPACITY`.
+    #[inline(always)]
+    fn push_binary(&mut self, at: usize, node: u32) {
+        self.push_node(at, node);
+    }
+    /// [`Self::node`] for a binary walk, at `at < BINARY_CAPACITY`.
+    #[inline(always)]
+    fn binary_node(&self, at: usize) -> u32 {
+        self.node(at)
+    }
     /// The nearest waiting node that can still hold a hit closer than `t`, or [`NO_NODE`].
     #[inline(always)]
     fn pop_closer(&self, sp: &mut usize, t: f32) -> u32 {
@@ -340,19 +358,33 @@ pub trait WalkStack {
     }
 }
 
-/// A ray's stack in private memory: `N` entries, their distances in `HALF = N / 2` words
-/// (see [`TopStack`] and [`BaselineStack`]). Entry distances are kept as their
-/// top 16 bits, two to a word: truncating a distance (never negative, see
-/// [`crate::aabb::intersect_aabb`]) rounds it down, so a popped entry is still taken wherever
-/// it could hold a closer hit, and the distances take a third of the stack's registers
-/// rather than half of them.
-pub struct LocalStack<const N: usize, const HALF: usize> {
-    nodes: [u32; N],
-    t: [u32; HALF],
+/// Entry distances kept as their top 16 bits, two to a word: truncating a distance (never
+/// negative, see [`crate::aabb::intersect_aabb`]) rounds it down, so a popped entry is still
+/// taken wherever it could hold a closer hit, and the distances take a third of a stack's
+/// registers rather than half of them.
+#[derive(Copy, Clone)]
+struct PackedDistances<const HALF: usize>([u32; HALF]);
+
+impl<const HALF: usize> PackedDistances<HALF> {
+    #[inline(always)]
+    fn set(&mut self, at: usize, t: f32) {
+        let (word, shift) = (at >> 1, 16 * (at as u32 & 1));
+        self.0[word] = (self.0[word] & !(0xffff << shift)) | (t.to_bits() >> 16) << shift;
+    }
+
+    #[inline(always)]
+    fn get(&self, at: usize) -> f32 {
+        let (word, shift) = (at >> 1, 16 * (at as u32 & 1));
+        f32::from_bits(((self.0[word] >> shift) & 0xffff) << 16)
+    }
 }
 
-/// The stack of the grids' top-level walk.
-pub type TopStack = LocalStack<TOP_STACK, { TOP_STACK / 2 }>;
+/// A ray's stack in private memory: `N` entries, their distances in `HALF = N / 2` words
+/// (see [`PackedDistances`]).
+pub struct LocalStack<const N: usize, const HALF: usize> {
+    nodes: [u32; N],
+    t: PackedDistances<HALF>,
+}
 
 /// The stack of the baseline's walk.
 pub type BaselineStack = LocalStack<MAX_BVH_DEPTH, { MAX_BVH_DEPTH / 2 }>;
@@ -362,15 +394,9 @@ impl<const N: usize, const HALF: usize> Default for LocalStack<N, HALF> {
     fn default() -> Self {
         LocalStack {
             nodes: [0u32; N],
-            t: [0u32; HALF],
+            t: PackedDistances([0u32; HALF]),
         }
     }
-}
-
-/// The word and shift of slot `at`'s distance.
-#[inline(always)]
-fn distance_slot(at: usize) -> (usize, u32) {
-    (at >> 1, 16 * (at as u32 & 1))
 }
 
 impl<const N: usize, const HALF: usize> WalkStack for LocalStack<N, HALF> {
@@ -381,8 +407,7 @@ impl<const N: usize, const HALF: usize> WalkStack for LocalStack<N, HALF> {
     #[inline(always)]
     fn push(&mut self, at: usize, node: u32, t: f32) {
         self.nodes[at] = node;
-        let (word, shift) = distance_slot(at);
-        self.t[word] = (self.t[word] & !(0xffff << shift)) | (t.to_bits() >> 16) << shift;
+        self.t.set(at, t);
     }
     #[inline(always)]
     fn push_node(&mut self, at: usize, node: u32) {
@@ -394,8 +419,68 @@ impl<const N: usize, const HALF: usize> WalkStack for LocalStack<N, HALF> {
     }
     #[inline(always)]
     fn t(&self, at: usize) -> f32 {
-        let (word, shift) = distance_slot(at);
-        f32::from_bits(((self.t[word] >> shift) & 0xffff) << 16)
+        self.t.get(at)
+    }
+}
+
+/// Entries of [`TopStack`] past [`BINARY_TOP_STACK`].
+const WIDE_ONLY_ENTRIES: usize = TOP_STACK - BINARY_TOP_STACK;
+
+/// The stack of the grids' top-level walk: [`TOP_STACK`] entries, the first
+/// [`BINARY_TOP_STACK`] in one array and the rest, which only the wide walk reaches, in
+/// another, so that a kernel walking binary top levels alone keeps registers for the first.
+pub struct TopStack {
+    nodes: [u32; BINARY_TOP_STACK],
+    wide_only: [u32; WIDE_ONLY_ENTRIES],
+    t: PackedDistances<{ TOP_STACK / 2 }>,
+}
+
+impl Default for TopStack {
+    #[inline(always)]
+    fn default() -> Self {
+        TopStack {
+            nodes: [0u32; BINARY_TOP_STACK],
+            wide_only: [0u32; WIDE_ONLY_ENTRIES],
+            t: PackedDistances([0u32; TOP_STACK / 2]),
+        }
+    }
+}
+
+impl WalkStack for TopStack {
+    const CAPACITY: usize = TOP_STACK;
+    const BINARY_CAPACITY: usize = BINARY_TOP_STACK;
+    #[inline(always)]
+    fn push(&mut self, at: usize, node: u32, t: f32) {
+        self.push_node(at, node);
+        self.t.set(at, t);
+    }
+    #[inline(always)]
+    fn push_node(&mut self, at: usize, node: u32) {
+        if at < BINARY_TOP_STACK {
+            self.nodes[at] = node;
+        } else {
+            self.wide_only[at - BINARY_TOP_STACK] = node;
+        }
+    }
+    #[inline(always)]
+    fn node(&self, at: usize) -> u32 {
+        if at < BINARY_TOP_STACK {
+            self.nodes[at]
+        } else {
+            self.wide_only[at - BINARY_TOP_STACK]
+        }
+    }
+    #[inline(always)]
+    fn t(&self, at: usize) -> f32 {
+        self.t.get(at)
+    }
+    #[inline(always)]
+    fn push_binary(&mut self, at: usize, node: u32) {
+        self.nodes[at] = node;
+    }
+    #[inline(always)]
+    fn binary_node(&self, at: usize) -> u32 {
+        self.nodes[at]
     }
 }
 

@@ -20,7 +20,7 @@ use gridrt_shared::layout::{
 };
 use gridrt_shared::quantize;
 use gridrt_shared::top_nodes::{TopNodes, COMPACT};
-use gridrt_shared::traverse::TOP_STACK;
+use gridrt_shared::traverse::BINARY_TOP_STACK;
 use gridrt_shared::wide_nodes::{WIDE, WIDTH};
 use rayon::prelude::*;
 
@@ -299,11 +299,12 @@ impl GridScene {
 /// Top-level builder settings: opening a grid and testing its root sphere costs about four
 /// node visits, so the SAH weighs grids as such; a leaf may still hold a few grids where that
 /// pays. (Against weighing them as one node visit: 3 to 4% fewer traversal instructions for
-/// 0.3 to 0.4 B per micro-triangle; see docs/RESULTS.md.) Kept within the top-level walk's stack.
+/// 0.3 to 0.4 B per micro-triangle; see docs/RESULTS.md.) Kept within the binary top-level
+/// walk's stack, which a wide top level's collapse starts from.
 pub fn top_level_params() -> BuildParams {
     BuildParams {
         max_leaf_size: 4,
-        max_depth: TOP_STACK - 2,
+        max_depth: BINARY_TOP_STACK - 2,
         traversal_cost: 1.0,
         intersection_cost: 4.0,
     }
