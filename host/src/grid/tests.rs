@@ -445,3 +445,30 @@ pub(crate) fn farthest_from_flat(lattice: [[i32; 2]; 3], m: i32, at: impl Fn([u3
     }
     moved
 }
+
+/// A top level the SAH alone would build deeper than a binary walk's stack holds (nested
+/// boxes, each 1.2 times the last, peeled off one or a few at a time) stays within it: a
+/// binary walk pushes at most one node per level below the root, so every waiting node has a
+/// slot.
+#[test]
+fn top_levels_fit_the_binary_walks_stack() {
+    use crate::bvh::{build, depth};
+    use gridrt_shared::traverse::BINARY_TOP_STACK;
+    let boxes: Vec<Aabb> = (0..480)
+        .map(|k| {
+            let x = 1.2f32.powi(k - 240);
+            Aabb {
+                min: Vec3::ZERO,
+                max: Vec3::splat(x),
+            }
+        })
+        .collect();
+    let params = top_level_params();
+    let unlimited = BuildParams {
+        max_depth: usize::MAX / 2,
+        ..params
+    };
+    let d = depth(&build(&boxes, &unlimited).nodes);
+    assert!(d > BINARY_TOP_STACK, "the SAH alone goes {d} deep");
+    assert!(depth(&build(&boxes, &params).nodes) < BINARY_TOP_STACK);
+}
