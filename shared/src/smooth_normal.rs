@@ -145,9 +145,10 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         let pair = directions(ijk);
         let stencils = [stencil(room(ijk, pair[0])), stencil(room(ijk, pair[1]))];
         // Positions relative to `p`'s, so a grid far from the origin loses no more than one
-        // near it.
+        // near it. Each direction's tangent is made as soon as its second point is read, so
+        // that no more than one point waits for its pair.
         let mut centre = Vec3::ZERO;
-        let mut d = [Vec3::ZERO; 4];
+        let (mut first, mut along_first, mut along_second) = (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO);
         // One loop and one vertex read for `p` (pass 0) and the four points, which the shader
         // compiler must not unroll: each read inlines the buffer access, which split scenes
         // and compressed values make long.
@@ -158,21 +159,35 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             } else {
                 (stencils[(k - 1) / 2][(k - 1) % 2], direction(pair[(k - 1) / 2]))
             };
+            // A first-order stencil's second point is not read: it stays zero.
+            let mut v = Vec3::ZERO;
             if k == 0 || offset != 0 {
                 let q = [
                     (p[0] as i32 + offset * dir[0] * step as i32) as u32,
                     (p[1] as i32 + offset * dir[1] * step as i32) as u32,
                 ];
-                let v = self.vertex(open, q);
+                v = self.vertex(open, q);
                 if k == 0 {
                     centre = v;
                 } else {
-                    d[k - 1] = v - centre;
+                    v -= centre;
+                }
+            }
+            if k > 0 {
+                if k % 2 == 1 {
+                    first = v;
+                } else {
+                    let t = tangent(stencils[k / 2 - 1], first, v);
+                    if k == 2 {
+                        along_first = t;
+                    } else {
+                        along_second = t;
+                    }
                 }
             }
             k += 1;
         }
-        let n = tangent(stencils[0], d[0], d[1]).cross(tangent(stencils[1], d[2], d[3]));
+        let n = along_first.cross(along_second);
         let len2 = n.dot(n);
         if len2 > 0.0 {
             n / len2.sqrt()
