@@ -34,8 +34,12 @@ pub mod carries {
     /// The root's visit alone, without a stack, for grids whose stored leaves are the root's
     /// children or the root (`GridParams::one_visit`), which it walks where both are carried.
     pub const ONE_VISIT: u32 = 32;
+    /// The smooth normals a render may light its hits with (`FrameParams::smooth_normals`):
+    /// the render's largest code outside the traversal, which a frame without them leaves
+    /// out (grids then light with their geometric normals).
+    pub const SMOOTH_NORMALS: u32 = 64;
     /// Everything but [`ONLY_COMPRESSED`]: what the CPU carries.
-    pub const ALL: u32 = DISPLACED_FORMATS | DISPLACED_GRIDS | DECODER | STACK | ONE_VISIT;
+    pub const ALL: u32 = DISPLACED_FORMATS | DISPLACED_GRIDS | DECODER | STACK | ONE_VISIT | SMOOTH_NORMALS;
 }
 
 /// Random read access to the elements of a buffer.

@@ -1464,7 +1464,11 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> LeafPrimitives for GridScene<'_, H, 
     }
 
     fn smooth_normal(&self, hit: &Hit) -> Vec3 {
-        GridScene::smooth_normal(self, hit)
+        if self.carries::<{ carries::SMOOTH_NORMALS }>() {
+            GridScene::smooth_normal(self, hit)
+        } else {
+            Vec3::from(hit.normal)
+        }
     }
 }
 

@@ -14,7 +14,7 @@ use gridrt::micromesh::DisplacedMesh;
 use gridrt::pipeline::{BuildOptions, RenderOptions, Representation, Shading};
 use gridrt::scene::Scene;
 use gridrt_shared::glam::Vec3;
-use gridrt_shared::layout::{RayRecord, NO_HIT, SHADE_EYE_LIGHT};
+use gridrt_shared::layout::{FrameParams, RayRecord, NO_HIT, SHADE_EYE_LIGHT};
 use gridrt_shared::ray::{Ray, T_FAR};
 use gridrt_tests::{baked_ball, gpu_or_skip, loosely_compressed, mixed_ball, Rng};
 
@@ -183,6 +183,32 @@ fn displaced_grids_gpu_equals_cpu() {
             100.0 * within
         );
         assert!(within >= 0.995, "{variant} lod {lod}: {within}");
+    }
+}
+
+/// Lit with smooth normals, displaced grids render alike on both backends, plain and
+/// compressed, walked by the root's visit alone (L = 3) and with the stack (L = 4): the GPU
+/// runs a pipeline of its own for such frames, which must not fall back to flat normals.
+#[test]
+fn smooth_displaced_grids_gpu_equals_cpu() {
+    let Some(gpu) = gpu_or_skip("smooth_displaced_grids_gpu_equals_cpu") else {
+        return;
+    };
+    for (variant, mesh) in variants(3).into_iter().chain(variants(4)) {
+        let grids = build(&mesh, Representation::Grids, None);
+        let flat = grids.frame(camera::frame(&grids.bounds(), 160, 120), SHADE_EYE_LIGHT);
+        let smooth = FrameParams {
+            smooth_normals: 1,
+            ..flat
+        };
+        let cpu = render_cpu(&grids, &smooth);
+        let changed = 1.0 - fraction_within(&cpu, &render_cpu(&grids, &flat), 2);
+        assert!(
+            changed > 0.05,
+            "{variant}: smooth normals change {changed} of the pixels"
+        );
+        let within = fraction_within(&cpu, &gpu.render(&grids, &smooth).expect("GPU render"), 2);
+        assert!(within >= 0.995, "{variant}: {within}");
     }
 }
 

@@ -31,9 +31,13 @@ pub(super) struct Kernel {
     pub slot: usize,
 }
 
-/// How many pipelines can be made: triangles 4, split plain grids 2 jobs x 2 formats x 2
+/// Pipelines without smooth normals: triangles 4, split plain grids 2 jobs x 2 formats x 2
 /// walks, grids on whole buffers 2 jobs x 3 formats x 2 walks.
-pub(super) const PIPELINES: usize = 4 + 8 + 12;
+const PLAIN_PIPELINES: usize = 4 + 8 + 12;
+
+/// How many pipelines can be made: each grid render again with smooth normals (see
+/// [`Kernel::lit_smooth`]), in the slots after the others.
+pub(super) const PIPELINES: usize = 2 * PLAIN_PIPELINES;
 
 /// What the formats of displaced grids add, by format of the grids on whole buffers: plain
 /// grids', displaced grids' with plain values, and with compressed ones.
@@ -64,6 +68,20 @@ impl Kernel {
         // may be split, and cost a pipeline that reads them registers.
         debug_assert!(!scene.needs_whole_bindings());
         Kernel::split_grids(job, scene.uses_displaced_formats() as usize, one_visit)
+    }
+
+    /// This render's pipeline for frames lit with smooth normals: grid kernels carry their
+    /// code then alone (`carries::SMOOTH_NORMALS`), since it is the largest part of a render
+    /// outside the traversal. Triangle kernels light with geometric normals either way.
+    pub fn lit_smooth(self) -> Kernel {
+        match self.carries {
+            Some(carried) => Kernel {
+                carries: Some(carried | carries::SMOOTH_NORMALS),
+                slot: PLAIN_PIPELINES + self.slot,
+                ..self
+            },
+            None => self,
+        }
     }
 
     /// The grid kernel of `job` (0 render, 1 trace) on a split scene, for grids of plain
@@ -146,7 +164,13 @@ mod tests {
                 kernels.extend((0..FORMATS.len()).map(|format| Kernel::grids(job, format, one_visit)));
             }
         }
-        assert_eq!(kernels.len(), PIPELINES);
+        assert_eq!(kernels.len(), PLAIN_PIPELINES);
+        let renders: Vec<Kernel> = kernels
+            .iter()
+            .filter(|k| k.entry.starts_with("render"))
+            .copied()
+            .collect();
+        kernels.extend(renders.iter().map(|k| k.lit_smooth()).filter(|k| k.carries.is_some()));
         for (i, a) in kernels.iter().enumerate() {
             assert!(a.slot < PIPELINES);
             for b in &kernels[i + 1..] {

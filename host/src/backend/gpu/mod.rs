@@ -141,7 +141,8 @@ impl Gpu {
             label: Some("kernel"),
             source: wgpu::util::make_spirv(KERNEL_SPV),
         });
-        let pipelines: [std::sync::OnceLock<wgpu::ComputePipeline>; PIPELINES] = Default::default();
+        let pipelines: [std::sync::OnceLock<wgpu::ComputePipeline>; PIPELINES] =
+            std::array::from_fn(|_| Default::default());
         for kernel in kernels::made_at_start() {
             let _ = pipelines[kernel.slot].set(compute_pipeline(&device, &module, &kernel));
         }
@@ -223,9 +224,13 @@ impl Gpu {
         Ok(())
     }
 
-    /// The pipeline that runs `job` on `scene` (see [`Kernel::of`]), made on first use.
-    fn pipeline(&self, scene: &GpuScene, job: Job) -> Result<&wgpu::ComputePipeline> {
-        let kernel = scene.kernel(job);
+    /// The pipeline that runs `job` on `scene` (see [`Kernel::of`]), with smooth normals
+    /// where a render asks for them, made on first use.
+    fn pipeline(&self, scene: &GpuScene, job: Job, smooth: bool) -> Result<&wgpu::ComputePipeline> {
+        let kernel = match smooth {
+            true => scene.kernel(job).lit_smooth(),
+            false => scene.kernel(job),
+        };
         if let Some(p) = self.pipelines[kernel.slot].get() {
             return Ok(p);
         }
@@ -451,7 +456,7 @@ impl Gpu {
                 "the cost heat map is counted on the CPU (Backend::render_costs), not by a GPU kernel"
             );
         }
-        let pipeline = self.pipeline(scene, Job::Render)?;
+        let pipeline = self.pipeline(scene, Job::Render, frame.smooth_normals != 0)?;
         let bind_groups = self.bind(pipeline, &[&params, &tile], scene);
         let mut image = vec![0u32; width as usize * height as usize];
         for y in (0..height).step_by(tile_h as usize) {

@@ -62,7 +62,7 @@ impl Gpu {
     }
 
     fn ready_batch<'p>(&'p self, scene: &GpuScene, rays: &[RayRecord]) -> Result<ReadyBatch<'p>> {
-        let pipeline = self.pipeline(scene, Job::Trace)?;
+        let pipeline = self.pipeline(scene, Job::Trace, false)?;
         let (groups, params) = self.trace_params(scene, rays.len() as u32);
         let params = self.buffer("trace parameters", bytemuck::bytes_of(&params));
         let ray_buffer = self.buffer("ray", bytemuck::cast_slice(rays));
