@@ -135,10 +135,10 @@ triangle_image_kernels!(render_pixel: render_triangles, render_triangles_split);
 /// `gridrt_shared::buffer::carries`), of which a pipeline keeps what its specialisation
 /// constant 0 says: on whole buffers, everything (a pipeline per format and walk, and renders
 /// with or without smooth normals); over split scenes, the formats plain grids may ask for,
-/// both walks, smooth normals. Displaced grids' values, wide top
-/// levels and leaf radius pairs are read from whole buffers alone: every read of a split scene
-/// branches to its chunk, and their decoders read at so many places that such a kernel was
-/// the largest of the module.
+/// both walks, smooth normals. Displaced grids' values, wide top levels and leaf radius
+/// pairs are read from whole buffers alone: every read of a split scene branches to its
+/// chunk, and their decoders read at so many places that such a kernel was the largest of
+/// the module.
 const WHOLE: u32 = carries::ALL | carries::ONLY_COMPRESSED;
 const SPLIT_PLAIN: u32 = carries::DISPLACED_FORMATS | carries::STACK | carries::ONE_VISIT | carries::SMOOTH_NORMALS;
 

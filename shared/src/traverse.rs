@@ -366,15 +366,21 @@ pub trait WalkStack {
 struct PackedDistances<const HALF: usize>([u32; HALF]);
 
 impl<const HALF: usize> PackedDistances<HALF> {
+    /// The word and shift of slot `at`'s distance.
+    #[inline(always)]
+    fn slot(at: usize) -> (usize, u32) {
+        (at >> 1, 16 * (at as u32 & 1))
+    }
+
     #[inline(always)]
     fn set(&mut self, at: usize, t: f32) {
-        let (word, shift) = (at >> 1, 16 * (at as u32 & 1));
+        let (word, shift) = Self::slot(at);
         self.0[word] = (self.0[word] & !(0xffff << shift)) | (t.to_bits() >> 16) << shift;
     }
 
     #[inline(always)]
     fn get(&self, at: usize) -> f32 {
-        let (word, shift) = (at >> 1, 16 * (at as u32 & 1));
+        let (word, shift) = Self::slot(at);
         f32::from_bits(((self.0[word] >> shift) & 0xffff) << 16)
     }
 }

@@ -227,9 +227,10 @@ impl Gpu {
     /// The pipeline that runs `job` on `scene` (see [`Kernel::of`]), with smooth normals
     /// where a render asks for them, made on first use.
     fn pipeline(&self, scene: &GpuScene, job: Job, smooth: bool) -> Result<&wgpu::ComputePipeline> {
-        let kernel = match smooth {
-            true => scene.kernel(job).lit_smooth(),
-            false => scene.kernel(job),
+        let kernel = if smooth {
+            scene.kernel(job).lit_smooth()
+        } else {
+            scene.kernel(job)
         };
         if let Some(p) = self.pipelines[kernel.slot].get() {
             return Ok(p);
