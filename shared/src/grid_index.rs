@@ -113,10 +113,12 @@ pub const fn parents(p: Lattice, h: u32) -> [Lattice; 2] {
 /// The lattice point of a grid's corner `c` (0..3) in a lattice of side `n`.
 #[inline]
 pub const fn corner_point(c: u32, n: u32) -> Lattice {
-    match c {
-        0 => [0, 0],
-        1 => [n, 0],
-        _ => [0, n],
+    if c == 0 {
+        [0, 0]
+    } else if c == 1 {
+        [n, 0]
+    } else {
+        [0, n]
     }
 }
 
@@ -124,10 +126,12 @@ pub const fn corner_point(c: u32, n: u32) -> Lattice {
 /// corner `e + 1`, in a lattice of side `n`: step 0 is corner `e`, step `n` corner `e + 1`.
 #[inline]
 pub const fn edge_point(e: u32, step: u32, n: u32) -> Lattice {
-    match e {
-        0 => [step, 0],
-        1 => [n - step, step],
-        _ => [0, n - step],
+    if e == 0 {
+        [step, 0]
+    } else if e == 1 {
+        [n - step, step]
+    } else {
+        [0, n - step]
     }
 }
 
@@ -138,11 +142,14 @@ pub const fn child_corners(corners: [Lattice; 3], digit: u32) -> [Lattice; 3] {
     let ab = midpoint(a, b);
     let bc = midpoint(b, c);
     let ca = midpoint(c, a);
-    match digit {
-        0 => [a, ab, ca],
-        1 => [ab, b, bc],
-        2 => [ca, bc, c],
-        _ => [bc, ca, ab],
+    if digit == 0 {
+        [a, ab, ca]
+    } else if digit == 1 {
+        [ab, b, bc]
+    } else if digit == 2 {
+        [ca, bc, c]
+    } else {
+        [bc, ca, ab]
     }
 }
 

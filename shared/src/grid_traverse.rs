@@ -363,11 +363,15 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             return self.params.levels << 3;
         }
         let element = self.headers.load(self.params.level_element + (grid >> 4));
-        let word = match (grid >> 2) & 3 {
-            0 => element.edges[0],
-            1 => element.edges[1],
-            2 => element.corners[0],
-            _ => element.corners[1],
+        let pick = (grid >> 2) & 3;
+        let word = if pick == 0 {
+            element.edges[0]
+        } else if pick == 1 {
+            element.edges[1]
+        } else if pick == 2 {
+            element.corners[0]
+        } else {
+            element.corners[1]
         };
         (word >> (8 * (grid & 3))) & 0xff
     }
@@ -1232,11 +1236,14 @@ fn add_child_window(window: [u32; 4], t: f32, child: u32, w: [u32; 4], m: u32) -
 /// edge `h`: a, ab, ca, and bc for the inverted middle child.
 #[inline]
 fn child_first_corner(a: [i32; 2], h: i32, child: u32) -> [i32; 2] {
-    match child {
-        0 => a,
-        1 => [a[0] + h, a[1]],
-        2 => [a[0], a[1] + h],
-        _ => [a[0] + h, a[1] + h],
+    if child == 0 {
+        a
+    } else if child == 1 {
+        [a[0] + h, a[1]]
+    } else if child == 2 {
+        [a[0], a[1] + h]
+    } else {
+        [a[0] + h, a[1] + h]
     }
 }
 

@@ -3,6 +3,10 @@
 //!
 //! Nothing here allocates or knows where its slices live: the same functions read wgpu storage
 //! buffers inside a shader and plain `Vec`s on the host.
+//!
+//! A choice among values on a run-time number is an `if` chain here, never a `match`: a shader
+//! compiler makes a `match` into selects that start from the variable's value before it, and
+//! a loop around the choice then keeps that value in a register for nothing.
 #![no_std]
 
 pub use spirv_std::glam;

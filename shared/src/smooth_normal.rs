@@ -30,10 +30,12 @@ use spirv_std::num_traits::Float;
 /// order: `u x v = u x (v - u) = v x (v - u)`.
 #[inline]
 fn direction(d: u32) -> [i32; 2] {
-    match d {
-        0 => [1, 0],
-        1 => [0, 1],
-        _ => [-1, 1],
+    if d == 0 {
+        [1, 0]
+    } else if d == 1 {
+        [0, 1]
+    } else {
+        [-1, 1]
     }
 }
 
@@ -43,10 +45,12 @@ fn direction(d: u32) -> [i32; 2] {
 #[inline]
 fn room(ijk: [u32; 3], d: u32) -> [u32; 2] {
     let [i, j, k] = ijk;
-    match d {
-        0 => [i, k],
-        1 => [j, k],
-        _ => [j, i],
+    if d == 0 {
+        [i, k]
+    } else if d == 1 {
+        [j, k]
+    } else {
+        [j, i]
     }
 }
 
@@ -118,10 +122,12 @@ fn directions(ijk: [u32; 3]) -> [u32; 2] {
     } else {
         2
     };
-    let (x, y) = match first {
-        0 => (1, 2),
-        1 => (0, 2),
-        _ => (0, 1),
+    let (x, y) = if first == 0 {
+        (1, 2)
+    } else if first == 1 {
+        (0, 2)
+    } else {
+        (0, 1)
     };
     let second = if quality(room(ijk, y)) > quality(room(ijk, x)) {
         y
