@@ -5,10 +5,16 @@ use crate::ray::Ray;
 /// The primary ray through the centre of pixel `(x, y)`, `y` growing downwards.
 #[inline]
 pub fn primary_ray(camera: &Camera, x: u32, y: u32) -> Ray {
+    Ray::new(Vec3::from(camera.origin), primary_direction(camera, x, y))
+}
+
+/// The unit direction of [`primary_ray`]`(camera, x, y)`.
+#[inline]
+pub fn primary_direction(camera: &Camera, x: u32, y: u32) -> Vec3 {
     let fx = (x as f32 + 0.5) / camera.width as f32;
     let fy = (y as f32 + 0.5) / camera.height as f32;
     let dir = Vec3::from(camera.to_top_left) + Vec3::from(camera.horizontal) * fx + Vec3::from(camera.vertical) * fy;
-    Ray::new(Vec3::from(camera.origin), dir.normalize())
+    dir.normalize()
 }
 
 #[cfg(test)]

@@ -692,8 +692,9 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                 // The cell anchored at `(la - 1, lb)` this point completes: upright after a
                 // lower point, `(la - 1, lb), (la, lb), (la - 1, lb + 1)`; inverted after an
                 // upper one, `(la, lb), (la - 1, lb + 1), (la, lb + 1)`.
+                // The row above starts `m + 1 - lb` points further on: its point over this one.
                 let first_lower = lattice_index(la - 1, lb, m);
-                let first_upper = lattice_index(la - 1, lb + 1, m);
+                let first_upper = first_lower + m + 1 - lb;
                 let (cell, slots) = if up {
                     ([lower[1], upper[0], upper[1]], [first_lower + 1, first_upper])
                 } else {

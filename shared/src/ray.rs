@@ -18,12 +18,9 @@ pub struct Ray {
     /// and `kx`, `ky` the other two (in winding order), `(dir[kx] / dir[kz], dir[ky] / dir[kz],
     /// 1 / dir[kz])`.
     pub shear: Vec3,
-    /// The permutation and shear as the rows of a matrix, `e_kx - sx e_kz`, `e_ky - sy e_kz`
-    /// and `sz e_kz`, so a vertex is sheared by three dot products instead of picking
-    /// components by index (a branch per component on the CPU). Each row's other entries are
-    /// 1 and 0, whose products are exact, so the dot products round exactly like
-    /// `a[kx] - sx a[kz]` and friends.
-    pub shear_rows: [Vec3; 3],
+    /// The axes `kx`, `ky` and `kz`, two bits each from bit 0 (see [`Ray::axis`]): one register
+    /// where a matrix of the permutation and shear took nine, held by every traversal.
+    pub axes: u32,
 }
 
 impl Ray {
@@ -44,19 +41,19 @@ impl Ray {
         }
         let dz = component(dir, kz);
         let shear = Vec3::new(component(dir, kx) / dz, component(dir, ky) / dz, 1.0 / dz);
-        let unit = |k: u32| Vec3::new((k == 0) as u32 as f32, (k == 1) as u32 as f32, (k == 2) as u32 as f32);
-        let shear_rows = [
-            unit(kx) - unit(kz) * shear.x,
-            unit(ky) - unit(kz) * shear.y,
-            unit(kz) * shear.z,
-        ];
         Ray {
             origin,
             dir,
             inv_dir: Vec3::ONE / Vec3::new(nonzero(dir.x), nonzero(dir.y), nonzero(dir.z)),
             shear,
-            shear_rows,
+            axes: kx | ky << 2 | kz << 4,
         }
+    }
+
+    /// Axis `i` of the sheared frame: `kx`, `ky`, `kz` for `i` = 0, 1, 2.
+    #[inline]
+    pub fn axis(&self, i: u32) -> u32 {
+        (self.axes >> (2 * i)) & 3
     }
 
     pub fn at(&self, t: f32) -> Vec3 {
@@ -76,7 +73,9 @@ fn nonzero(c: f32) -> f32 {
     }
 }
 
-/// `v[k]` written as selects, which every target handles without dynamic vector indexing.
+/// `v[k]` for `k` in 0..3: in a shader as selects, which every target handles without dynamic
+/// vector indexing.
+#[cfg(target_arch = "spirv")]
 #[inline]
 pub fn component(v: Vec3, k: u32) -> f32 {
     if k == 0 {
@@ -86,4 +85,12 @@ pub fn component(v: Vec3, k: u32) -> f32 {
     } else {
         v.z
     }
+}
+
+/// `v[k]` for `k` in 0..3: natively a read from the stack, where selects would branch on the
+/// axis, which varies from ray to ray.
+#[cfg(not(target_arch = "spirv"))]
+#[inline]
+pub fn component(v: Vec3, k: u32) -> f32 {
+    [v.x, v.y, v.z, v.z][(k & 3) as usize]
 }

@@ -1,4 +1,4 @@
-use crate::camera::primary_ray;
+use crate::camera::{primary_direction, primary_ray};
 use crate::cost::{Costs, Uncounted};
 use crate::glam::Vec3;
 use crate::layout::{
@@ -134,13 +134,12 @@ pub fn pack_rgba8(color: Vec3) -> u32 {
 /// the scene is split over bindings.
 #[inline]
 pub fn render_pixel<N: Hierarchy, P: LeafPrimitives>(frame: &FrameParams, nodes: N, prims: &P, x: u32, y: u32) -> u32 {
-    // What one ray leaves the next: the primary hit's shifted point and the normal on the
-    // side the primary came from, the lights and the open rays so far. Each ray is made at
-    // the top of the loop from these, so that no ray and no basis is held across the
-    // traversal, where every register counts.
-    let (mut origin, mut n) = (Vec3::ZERO, Vec3::ZERO);
-    let mut open = 0u32;
-    let mut lights = 0u32;
+    // What one ray leaves the next: the primary hit's distance and the normal on the side the
+    // primary came from, and the pixel's value so far (the lights, and the open rays counted
+    // below them). Each ray is made at the top of the loop from these, so that no ray, point
+    // or basis is held across the traversal, where every register counts.
+    let (mut t_primary, mut n) = (0.0, Vec3::ZERO);
+    let mut value = 0u32;
     // Ray 0 is the primary; under ambient occlusion ray `k > 0` is sample
     // `ao_first_sample + k - 1` (see [`ao_ray`]).
     let mut k = 0u32;
@@ -148,6 +147,8 @@ pub fn render_pixel<N: Hierarchy, P: LeafPrimitives>(frame: &FrameParams, nodes:
         let (ray, t_max) = if k == 0 {
             (primary_ray(&frame.camera, x, y), T_FAR)
         } else {
+            let eye = Vec3::from(frame.camera.origin);
+            let origin = eye + primary_direction(&frame.camera, x, y) * t_primary + n * frame.ao_offset;
             (
                 ao_ray(frame, origin, n, y * frame.camera.width + x, k - 1),
                 frame.ao_distance,
@@ -170,24 +171,25 @@ pub fn render_pixel<N: Hierarchy, P: LeafPrimitives>(frame: &FrameParams, nodes:
                 return AO_MISS;
             }
             if frame.shading == SHADE_LIT {
-                lights = light_bits(Vec3::from(lit.normal), primary.dir, &frame.camera);
+                value = light_bits(Vec3::from(lit.normal), primary.dir, &frame.camera);
             }
             let normal = Vec3::from(hit.normal);
             let len2 = normal.dot(normal);
             if len2 == 0.0 {
                 // No side to cast from: counted open.
-                return lights | frame.ao_samples;
+                return value | frame.ao_samples;
             }
             n = normal / len2.sqrt();
             if n.dot(primary.dir) > 0.0 {
                 n = -n;
             }
-            origin = primary.origin + primary.dir * hit.t + n * frame.ao_offset;
+            t_primary = hit.t;
         } else if !hit.is_hit() {
-            open += 1;
+            // Below the lights: at most `ao_samples` (within `AO_OPEN_MASK`) are counted.
+            value += 1;
         }
         if k == frame.ao_samples {
-            return lights | open;
+            return value;
         }
         k += 1;
     }

@@ -1,5 +1,5 @@
 use crate::glam::Vec3;
-use crate::ray::Ray;
+use crate::ray::{component, Ray};
 // On the GPU, float methods come from a trait (GLSL.std.450 underneath); natively from core.
 #[cfg(target_arch = "spirv")]
 use spirv_std::num_traits::Float;
@@ -10,10 +10,11 @@ use spirv_std::num_traits::Float;
 #[inline]
 pub fn shear(v: Vec3, ray: &Ray) -> Vec3 {
     let a = v - ray.origin;
+    let z = component(a, ray.axis(2));
     Vec3::new(
-        ray.shear_rows[0].dot(a),
-        ray.shear_rows[1].dot(a),
-        ray.shear_rows[2].dot(a),
+        component(a, ray.axis(0)) - ray.shear.x * z,
+        component(a, ray.axis(1)) - ray.shear.y * z,
+        ray.shear.z * z,
     )
 }
 
