@@ -16,7 +16,7 @@ use gridrt_shared::glam::{UVec3, Vec3};
 use gridrt_shared::grid_traverse::GridScene;
 use gridrt_shared::layout::{
     BvhNode, FrameParams, GridHeader, GridParams, Hit, HitRecord, RayRecord, SplitParams, TraceParams, GRID_HEADERS,
-    GRID_NODES, GRID_RADII, GRID_VERTICES, TRACE_WORKGROUP_SIZE, TRIANGLE_NODES, WORKGROUP_SIZE,
+    GRID_NODES, GRID_RADII, GRID_VERTICES, RENDER_WORKGROUP, TRACE_WORKGROUP_SIZE, TRIANGLE_NODES,
 };
 use gridrt_shared::ray::Ray;
 use gridrt_shared::shade::render_pixel;
@@ -96,7 +96,7 @@ macro_rules! split_kernel {
 macro_rules! triangle_image_kernels {
     ($pixel:path: $name:ident, $split:ident) => {
         /// The baseline: a triangle BVH over an indexed triangle list.
-        #[spirv(compute(threads(8, 8, 1)))]
+        #[spirv(compute(threads(8, 4, 1)))]
         pub fn $name(
             #[spirv(global_invocation_id)] id: UVec3,
             #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
@@ -113,7 +113,7 @@ macro_rules! triangle_image_kernels {
 
         split_kernel! {
             /// The baseline over a split scene.
-            #[spirv(compute(threads(8, 8, 1)))]
+            #[spirv(compute(threads(8, 4, 1)))]
             fn $split(
                 #[spirv(global_invocation_id)] id: UVec3,
                 #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] frame: &FrameParams,
@@ -188,7 +188,7 @@ fn split_grids<'a>(
 /// Grid primitives on whole buffers: top-level BVH over grids, sphere hierarchy inside each;
 /// any format and walk, as the pipeline's specialisation constant says.
 #[allow(clippy::too_many_arguments)] // one per binding
-#[spirv(compute(threads(8, 8, 1)))]
+#[spirv(compute(threads(8, 4, 1)))]
 pub fn render_grids(
     #[spirv(global_invocation_id)] id: UVec3,
     #[spirv(spec_constant(id = 0, default = 0))] carried: u32,
@@ -214,7 +214,7 @@ pub fn render_grids(
 
 split_kernel! {
     /// Grid primitives over a split scene.
-    #[spirv(compute(threads(8, 8, 1)))]
+    #[spirv(compute(threads(8, 4, 1)))]
     fn render_grids_split(
         #[spirv(global_invocation_id)] id: UVec3,
         #[spirv(spec_constant(id = 0, default = 0))] carried: u32,
@@ -231,7 +231,7 @@ split_kernel! {
 }
 
 /// A list of rays against the baseline (benchmarks, and anything that brings its own rays).
-#[spirv(compute(threads(64, 1, 1)))]
+#[spirv(compute(threads(32, 1, 1)))]
 pub fn trace_triangles_rays(
     #[spirv(global_invocation_id)] id: UVec3,
     #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
@@ -249,7 +249,7 @@ pub fn trace_triangles_rays(
 
 split_kernel! {
     /// [`trace_triangles_rays`] over a split scene.
-    #[spirv(compute(threads(64, 1, 1)))]
+    #[spirv(compute(threads(32, 1, 1)))]
     fn trace_triangles_rays_split(
         #[spirv(global_invocation_id)] id: UVec3,
         #[spirv(storage_buffer, descriptor_set = 0, binding = 0)] params: &TraceParams,
@@ -267,7 +267,7 @@ split_kernel! {
 /// A list of rays against grid primitives on whole buffers, any format and walk (see
 /// [`render_grids`]).
 #[allow(clippy::too_many_arguments)] // one per binding
-#[spirv(compute(threads(64, 1, 1)))]
+#[spirv(compute(threads(32, 1, 1)))]
 pub fn trace_grids_rays(
     #[spirv(global_invocation_id)] id: UVec3,
     #[spirv(spec_constant(id = 0, default = 0))] carried: u32,
@@ -288,7 +288,7 @@ pub fn trace_grids_rays(
 
 split_kernel! {
     /// A list of rays against grid primitives over a split scene.
-    #[spirv(compute(threads(64, 1, 1)))]
+    #[spirv(compute(threads(32, 1, 1)))]
     fn trace_grids_rays_split(
         #[spirv(global_invocation_id)] id: UVec3,
         #[spirv(spec_constant(id = 0, default = 0))] carried: u32,
@@ -306,4 +306,4 @@ split_kernel! {
 }
 
 // The workgroup sizes are literals because attribute arguments cannot name constants.
-const _: () = assert!(WORKGROUP_SIZE == 8 && TRACE_WORKGROUP_SIZE == 64);
+const _: () = assert!(RENDER_WORKGROUP[0] == 8 && RENDER_WORKGROUP[1] == 4 && TRACE_WORKGROUP_SIZE == 32);

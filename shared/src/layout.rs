@@ -500,8 +500,10 @@ impl Hit {
     }
 }
 
-/// Threads per workgroup of the render kernels, in x and y.
-pub const WORKGROUP_SIZE: u32 = 8;
+/// Threads per workgroup of the render kernels, in x and y: 32, one wave or warp. A driver may
+/// run a larger workgroup of these kernels in 64-wide waves, whose masks and registers take
+/// twice the room (RADV does).
+pub const RENDER_WORKGROUP: [u32; 2] = [8, 4];
 
 /// One ray to trace (32 bytes): the benchmark traces the same list through both
 /// representations.
@@ -537,5 +539,5 @@ pub struct TraceParams {
     pub _pad: [u32; 2],
 }
 
-/// Threads per workgroup of the ray-list kernels.
-pub const TRACE_WORKGROUP_SIZE: u32 = 64;
+/// Threads per workgroup of the ray-list kernels: one wave or warp, as [`RENDER_WORKGROUP`].
+pub const TRACE_WORKGROUP_SIZE: u32 = 32;

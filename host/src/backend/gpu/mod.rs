@@ -10,8 +10,8 @@ use crate::error::{error, fail, Error, Result};
 use gridrt_shared::buffer::SPLIT_CHUNKS;
 use gridrt_shared::grid_index::MICRO_TRIANGLES;
 use gridrt_shared::layout::{
-    FrameParams, GridParams, HitRecord, RayRecord, SplitParams, TraceParams, SHADE_COST, TRACE_WORKGROUP_SIZE,
-    WORKGROUP_SIZE,
+    FrameParams, GridParams, HitRecord, RayRecord, SplitParams, TraceParams, RENDER_WORKGROUP, SHADE_COST,
+    TRACE_WORKGROUP_SIZE,
 };
 use wgpu::util::DeviceExt;
 
@@ -432,10 +432,11 @@ impl Gpu {
     /// Largest tile (width, height) one dispatch renders: its pixels in one binding, its
     /// workgroups within the dispatch limits.
     fn tile_size(&self, width: u32, height: u32) -> (u32, u32) {
-        let side = self.limits.max_compute_workgroups_per_dimension as u64 * WORKGROUP_SIZE as u64;
+        let groups = self.limits.max_compute_workgroups_per_dimension as u64;
+        let [gx, gy] = RENDER_WORKGROUP.map(u64::from);
         let pixels = self.binding_limit / 4;
-        let w = (width as u64).min(side).min(pixels);
-        let h = (height as u64).min(side).min(pixels / w);
+        let w = (width as u64).min(groups * gx).min(pixels);
+        let h = (height as u64).min(groups * gy).min(pixels / w);
         (w as u32, h as u32)
     }
 
@@ -476,7 +477,7 @@ impl Gpu {
                 self.dispatch(&Dispatch {
                     pipeline,
                     bind_groups: &bind_groups,
-                    groups: (w.div_ceil(WORKGROUP_SIZE), h.div_ceil(WORKGROUP_SIZE)),
+                    groups: (w.div_ceil(RENDER_WORKGROUP[0]), h.div_ceil(RENDER_WORKGROUP[1])),
                     copy: Some((&tile, &readback, bytes)),
                     queries: None,
                 })?;
