@@ -88,7 +88,8 @@ pub fn component(v: Vec3, k: u32) -> f32 {
 }
 
 /// `v[k]` for `k` in 0..3: natively a read from the stack, where selects would branch on the
-/// axis, which varies from ray to ray.
+/// axis, which varies from ray to ray. The fourth entry only lets `k & 3` index without a
+/// bounds check.
 #[cfg(not(target_arch = "spirv"))]
 #[inline]
 pub fn component(v: Vec3, k: u32) -> f32 {
