@@ -106,8 +106,9 @@ pub fn displaced_point(triangle: &DisplacedTriangle, p: Lattice, n: u32, d: f32)
 /// Corners and weights are chosen by comparisons, not array indices computed at run time (a
 /// GPU keeps an array indexed so in slow private memory), and the barycentrics are steps
 /// times `1 / n`, which for the power-of-two lattices of grids is exactly the quotient, at no
-/// division per point.
-#[inline]
+/// division per point. Always inlined: a CPU call returns the pair through memory, and the
+/// caller's wide reads of it wait on the callee's narrow writes.
+#[inline(always)]
 pub fn interpolated(triangle: &DisplacedTriangle, p: Lattice, n: u32) -> (Vec3, Vec3) {
     let [i, j] = p;
     let k = n - i - j;
