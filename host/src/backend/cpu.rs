@@ -56,7 +56,7 @@ pub fn trace_cpu(scene: &Scene, rays: &[RayRecord]) -> Vec<HitRecord> {
         .with_min_len(256)
         .map(|r| {
             let ray = gridrt_shared::ray::Ray::new(Vec3::from(r.origin), Vec3::from(r.dir));
-            let hit = scene.trace(&ray, r.t_max);
+            let hit = scene.closest_hit(&ray, r.t_max);
             HitRecord {
                 t: hit.t,
                 prim: hit.prim,
