@@ -358,6 +358,13 @@ pub trait WalkStack {
     }
 }
 
+/// The distance a walk's stack keeps for an entry at `t`: its top 16 bits (see
+/// [`PackedDistances`]).
+#[inline(always)]
+pub(crate) fn kept_distance(t: f32) -> f32 {
+    f32::from_bits(t.to_bits() & 0xffff_0000)
+}
+
 /// Entry distances kept as their top 16 bits, two to a word: truncating a distance (never
 /// negative, see [`crate::aabb::intersect_aabb`]) rounds it down, so a popped entry is still
 /// taken wherever it could hold a closer hit, and the distances take a third of a stack's

@@ -43,7 +43,7 @@ use crate::cost::Tally;
 use crate::glam::Vec3;
 use crate::layout::BvhNode;
 use crate::ray::{Ray, T_FAR};
-use crate::traverse::{WalkStack, NO_NODE, TOP_STACK};
+use crate::traverse::{kept_distance, WalkStack, NO_NODE, TOP_STACK};
 
 /// `count` of the header element of a wide hierarchy (never a node's count).
 pub const WIDE: u32 = u32::MAX - 1;
@@ -232,46 +232,40 @@ pub(crate) fn next_leaf<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
             frame: node_frame(&w, scene),
             node: w[3],
             grid: w[7],
-            bottom: *sp,
             w,
+            entered: Entered::NONE,
         };
         // One copy of the child's visit per slot, empty ones skipped: in each the slot is a
         // constant, so every code's word and shift are too (a loop over the slots, which
         // not every compiler unrolls, computes them as it goes).
-        open.visit::<0, _, _>(ray, t, stack, sp, tally);
-        open.visit::<1, _, _>(ray, t, stack, sp, tally);
-        open.visit::<2, _, _>(ray, t, stack, sp, tally);
-        open.visit::<3, _, _>(ray, t, stack, sp, tally);
-        open.visit::<4, _, _>(ray, t, stack, sp, tally);
-        open.visit::<5, _, _>(ray, t, stack, sp, tally);
-        open.visit::<6, _, _>(ray, t, stack, sp, tally);
+        open.visit::<0, _>(ray, t, tally);
+        open.visit::<1, _>(ray, t, tally);
+        open.visit::<2, _>(ray, t, tally);
+        open.visit::<3, _>(ray, t, tally);
+        open.visit::<4, _>(ray, t, tally);
+        open.visit::<5, _>(ray, t, tally);
+        open.visit::<6, _>(ray, t, tally);
+        open.entered.push_onto(stack, sp);
     }
 }
 
 const _: () = assert!(WIDTH == 7, "next_leaf visits seven slots");
 
 /// A node the walk opened: its words and frame, the node and the grid its next inner and leaf
-/// children begin at, and the stack height its children are pushed above.
+/// children begin at, and the children the ray enters so far.
 struct OpenNode {
     w: NodeWords,
     frame: Frame,
     node: u32,
     grid: u32,
-    bottom: usize,
+    entered: Entered,
 }
 
 impl OpenNode {
-    /// Child slot `K`: where the ray enters its box closer than `t`, it is pushed among its
-    /// siblings, nearest on top.
+    /// Child slot `K`: where the ray enters its box closer than `t`, it is sorted in among
+    /// the children entered before it.
     #[inline(always)]
-    fn visit<const K: u32, S: WalkStack, T: Tally>(
-        &mut self,
-        ray: &Ray,
-        t: f32,
-        stack: &mut S,
-        sp: &mut usize,
-        tally: &mut T,
-    ) {
+    fn visit<const K: u32, T: Tally>(&mut self, ray: &Ray, t: f32, tally: &mut T) {
         let kind = child_kind(&self.w, K);
         if kind != 0 {
             let (lo, hi) = child_box(&self.w, K, &self.frame);
@@ -282,8 +276,8 @@ impl OpenNode {
             } else {
                 LEAF | self.grid << LEAF_SHIFT | kind
             };
-            if t_enter < T_FAR && *sp < S::CAPACITY {
-                push_sorted(stack, self.bottom, sp, child, t_enter);
+            if t_enter < T_FAR {
+                self.entered.insert(child, t_enter);
             }
             if kind == INNER {
                 self.node += 1;
@@ -294,15 +288,92 @@ impl OpenNode {
     }
 }
 
-/// Pushes `entry` at distance `t` among the entries above `bottom`, which stay sorted with the
-/// nearest on top.
-#[inline(always)]
-fn push_sorted<S: WalkStack>(stack: &mut S, bottom: usize, sp: &mut usize, entry: u32, t: f32) {
-    let mut at = *sp;
-    while at > bottom && stack.t(at - 1) < t {
-        stack.push(at, stack.node(at - 1), stack.t(at - 1));
-        at -= 1;
+/// The children of a node that the ray enters, in the order they go onto the walk's stack:
+/// farthest first, so the nearest is on top; of two at the same distance the later slot
+/// goes on top. Held in registers: every slot is read and written at an index fixed in the
+/// code (an array indexed at run time is slow private memory on a GPU, or a chain of
+/// selects per access), so a child is sorted in by exchanges of neighbouring slots, and the
+/// stack is written by one loop. Slots past `count` hold a distance of -1, nearer than any.
+struct Entered {
+    entry: [u32; WIDTH as usize],
+    t: [f32; WIDTH as usize],
+    count: u32,
+}
+
+impl Entered {
+    const NONE: Entered = Entered {
+        entry: [0; WIDTH as usize],
+        t: [-1.0; WIDTH as usize],
+        count: 0,
+    };
+
+    /// Sorts in `entry`, entered at `t`, above every child entered at least as far (as kept
+    /// on the stack, see [`kept_distance`]), as an insertion into the stack would.
+    #[inline(always)]
+    fn insert(&mut self, entry: u32, t: f32) {
+        // The last slot is free: a node has at most seven children, and this is not the
+        // eighth. From there the new child moves down past the free slots and the nearer
+        // children; the children already in order never trade places.
+        self.entry[6] = entry;
+        self.t[6] = t;
+        self.order::<5>();
+        self.order::<4>();
+        self.order::<3>();
+        self.order::<2>();
+        self.order::<1>();
+        self.order::<0>();
+        // Compared from now on as the stack keeps it.
+        let k = kept_distance;
+        let t = self.t;
+        self.t = [k(t[0]), k(t[1]), k(t[2]), k(t[3]), k(t[4]), k(t[5]), k(t[6])];
+        self.count += 1;
     }
-    stack.push(at, entry, t);
-    *sp += 1;
+
+    /// Puts slots `J` and `J + 1` in order: the nearer one above.
+    #[inline(always)]
+    fn order<const J: usize>(&mut self) {
+        let (t, entry) = (self.t[J], self.entry[J]);
+        if t < self.t[J + 1] {
+            self.t[J] = self.t[J + 1];
+            self.entry[J] = self.entry[J + 1];
+            self.t[J + 1] = t;
+            self.entry[J + 1] = entry;
+        }
+    }
+
+    /// Slot `k`'s entry and distance, picked by comparisons (see the type's docs).
+    #[inline(always)]
+    fn slot(&self, k: u32) -> (u32, f32) {
+        if k == 0 {
+            (self.entry[0], self.t[0])
+        } else if k == 1 {
+            (self.entry[1], self.t[1])
+        } else if k == 2 {
+            (self.entry[2], self.t[2])
+        } else if k == 3 {
+            (self.entry[3], self.t[3])
+        } else if k == 4 {
+            (self.entry[4], self.t[4])
+        } else if k == 5 {
+            (self.entry[5], self.t[5])
+        } else {
+            (self.entry[6], self.t[6])
+        }
+    }
+
+    /// Pushes the entered children onto `stack`, `sp` high, the nearest last; one loop, so
+    /// one copy of the stack's write.
+    #[inline(always)]
+    fn push_onto<S: WalkStack>(&self, stack: &mut S, sp: &mut usize) {
+        let mut k = 0;
+        while k < self.count {
+            // The builder keeps every walk within the stack (see `stack_need` on the host).
+            if *sp < S::CAPACITY {
+                let (entry, t) = self.slot(k);
+                stack.push(*sp, entry, t);
+                *sp += 1;
+            }
+            k += 1;
+        }
+    }
 }
