@@ -216,6 +216,21 @@ pub struct CodedGrid {
     pub corner_values: [u32; 3],
 }
 
+/// What decoding a point new at one level takes from its grid that no point changes: found
+/// once for the points of a level (a sub-triangle's three midpoints, a leaf's points of one
+/// spacing) rather than once a point.
+#[derive(Copy, Clone)]
+pub struct LevelCode {
+    level: u32,
+    /// Bit where the level's corrections begin in a base edge's block holding every level,
+    /// and their width (the scene's).
+    edge_bit: u32,
+    edge_width: u32,
+    /// The same in the grid's own block (its own widths).
+    inner_bit: u32,
+    inner_width: u32,
+}
+
 /// Where a scene's compressed values lie in its buffer.
 #[derive(Copy, Clone)]
 pub struct CodedScene {
@@ -313,14 +328,30 @@ impl CodedGrid {
         (self.block_levels >> (OWN_LEVEL_SHIFT + 4 + 4 * e)) & 15
     }
 
-    /// The value of point `p`, a point of the grid's lattice that is not a corner, whose
-    /// parents hold `a` and `b`.
+    /// What decoding any point new at `level` takes from this grid, whatever the point.
     #[inline]
-    pub fn midpoint<B: Buffer<u32>>(&self, buffer: B, p: Lattice, a: u32, b: u32) -> u32 {
-        let code = self.code();
-        let n = 1u32 << code.levels;
+    pub fn level_code(&self, level: u32) -> LevelCode {
+        let (code, inner) = (self.code(), self.inner_code());
+        LevelCode {
+            level,
+            edge_bit: code.edge_level_bit(level),
+            edge_width: code.width(level),
+            inner_bit: inner.inner_level_bit(level),
+            inner_width: inner.width(level),
+        }
+    }
+
+    /// The value of point `p`, a point of the grid's lattice new at `at.level` (so not a
+    /// corner), whose parents hold `a` and `b`.
+    #[inline]
+    pub fn midpoint<B: Buffer<u32>>(&self, buffer: B, p: Lattice, a: u32, b: u32, at: &LevelCode) -> u32 {
+        let levels = self.levels();
+        let n = 1u32 << levels;
         let [i, j] = p;
         let k = n - i - j;
+        // A point new at `level` lies an odd multiple of `2^tz` grid steps from every corner.
+        let level = at.level;
+        let tz = levels - level;
         // The base edge the point lies on (3: none) and its step along it from the edge's
         // first corner.
         let (edge, s) = if j == 0 {
@@ -332,21 +363,16 @@ impl CodedGrid {
         } else {
             (3, 0)
         };
-        let (bit, shifts, level, place, width) = if edge < 3 {
+        let (bit, shifts, place, width) = if edge < 3 {
             let t = if (self.block_levels >> edge) & 1 != 0 { n - s } else { s };
-            let tz = t.trailing_zeros();
-            let level = code.levels - tz;
             // A point finer than the edge's block holds is its parents' mean. The block's
             // shifts are of its own levels, fewer than the scene's shifts by `missing`.
             let held = self.edge_levels(edge);
-            let missing = SHIFT_BITS * (code.levels - held);
+            let missing = SHIFT_BITS * (levels - held);
             let (place, width) = if level > held {
                 (0, 0)
             } else {
-                (
-                    code.edge_level_bit(level) - missing + (t >> (tz + 1)) * code.width(level),
-                    code.width(level),
-                )
+                (at.edge_bit - missing + (t >> (tz + 1)) * at.edge_width, at.edge_width)
             };
             // Chosen by comparisons: an array indexed at run time stays in a GPU's slow
             // private memory.
@@ -359,18 +385,14 @@ impl CodedGrid {
                     v[2]
                 }
             };
-            (pick(self.edge_bit), pick(self.edge_shifts), level, place, width)
+            (pick(self.edge_bit), pick(self.edge_shifts), place, width)
         } else {
-            let inner = self.inner_code();
-            let tz = (i | j).trailing_zeros();
-            let level = code.levels - tz;
             let rank = inner_rank(i >> tz, j >> tz, 1 << level);
             (
                 self.inner_bit,
                 self.inner_shifts,
-                level,
-                inner.inner_level_bit(level) + rank * inner.width(level),
-                inner.width(level),
+                at.inner_bit + rank * at.inner_width,
+                at.inner_width,
             )
         };
         let shift = (shifts >> (SHIFT_BITS * (level - 1))) & ((1 << SHIFT_BITS) - 1);
@@ -450,6 +472,8 @@ impl CodedGrid {
         let mut s = m;
         while s > 1 {
             let h = s / 2;
+            // Every point new at spacing `h` is new at the same level of the grid.
+            let at = self.level_code(self.levels() - (h * step.unsigned_abs()).trailing_zeros());
             // The window rounded outwards to spacing `h`: a point's parents lie within `h` of
             // it on the coarser spacing, so the window rounded to each spacing holds the
             // parents of the points decoded in it at the next finer one.
@@ -469,7 +493,7 @@ impl CodedGrid {
                         ];
                         let qa = out.get(lattice_index(a[0], a[1], m));
                         let qb = out.get(lattice_index(b[0], b[1], m));
-                        out.set(lattice_index(la, lb, m), self.midpoint(buffer, p, qa, qb));
+                        out.set(lattice_index(la, lb, m), self.midpoint(buffer, p, qa, qb, &at));
                     }
                     lb += h;
                 }
@@ -541,9 +565,10 @@ impl Walk {
     fn descend<B: Buffer<u32>>(&mut self, grid: &CodedGrid, buffer: B, child: u32) {
         let g = self.h / 2;
         let [qa, qb, qc] = self.q;
-        let qab = grid.midpoint(buffer, self.at(g, 0), qa, qb);
-        let qbc = grid.midpoint(buffer, self.at(g, g), qb, qc);
-        let qca = grid.midpoint(buffer, self.at(0, g), qc, qa);
+        let at = grid.level_code(grid.levels() - (g as u32).trailing_zeros());
+        let qab = grid.midpoint(buffer, self.at(g, 0), qa, qb, &at);
+        let qbc = grid.midpoint(buffer, self.at(g, g), qb, qc, &at);
+        let qca = grid.midpoint(buffer, self.at(0, g), qc, qa, &at);
         let (a, d) = (self.a, self.d);
         let corner = |x: i32, y: i32| [a[0] + d * x, a[1] + d * y];
         if child == 0 {

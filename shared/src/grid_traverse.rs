@@ -470,13 +470,15 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         let [qa, qb, qc] = coded.sub_triangle_values(self.vertices, level, index);
         let [a, b, c] = corners;
         let mid = |p: Lattice, q: Lattice| [(p[0] + q[0]) / 2, (p[1] + q[1]) / 2];
+        // The three midpoints are new one level below the sub-triangle.
+        let at = coded.level_code(level + 1);
         // A midpoint that a decimated edge moves lands on one of that edge's ends (corners of
         // sub-triangles above the grid's own level never move).
         let midpoint = |p0: Lattice, p1: Lattice, q0: u32, q1: u32| {
             let p = mid(p0, p1);
             let on = self.snapped(open, p);
             let q = if on[0] == p[0] && on[1] == p[1] {
-                coded.midpoint(self.vertices, p, q0, q1)
+                coded.midpoint(self.vertices, p, q0, q1, &at)
             } else if on[0] == p0[0] && on[1] == p0[1] {
                 q0
             } else {
