@@ -1,4 +1,5 @@
 use crate::glam::Vec3;
+use crate::min_max::{max_of, min_of};
 use crate::ray::{Ray, T_FAR};
 
 /// Makes the exit distance conservative against the rounding of the six slab distances
@@ -14,17 +15,19 @@ pub fn intersect_aabb(min: Vec3, max: Vec3, ray: &Ray, t_max: f32) -> f32 {
     let t1 = (max - ray.origin) * ray.inv_dir;
     let near = t0.min(t1);
     let far = t0.max(t1);
-    let t_enter = near.x.max(near.y).max(near.z).max(0.0);
+    let t_enter = max_of(max_of(max_of(near.x, near.y), near.z), 0.0);
     // A zero direction component has the reciprocal `1 / tiny` (see `Ray::inv_dir`); with
     // the origin exactly on one of that axis's faces the face's distance is `0 * 1 / tiny`,
     // an exit at 0 from a slab the ray never leaves, and a ray through a vertex on such a
     // face would slip past every triangle around it. A slab exit of exactly 0 is therefore
     // read as no exit: conservative, since a box merely touching the origin is then entered.
-    let t_exit = (no_exit_at_zero(far.x)
-        .min(no_exit_at_zero(far.y))
-        .min(no_exit_at_zero(far.z))
-        * EXIT_SCALE)
-        .min(t_max);
+    let t_exit = min_of(
+        min_of(
+            min_of(no_exit_at_zero(far.x), no_exit_at_zero(far.y)),
+            no_exit_at_zero(far.z),
+        ) * EXIT_SCALE,
+        t_max,
+    );
     if t_enter <= t_exit {
         t_enter
     } else {

@@ -15,6 +15,9 @@
 
 use crate::glam::Vec3;
 use crate::grid_index::Lattice;
+use crate::min_max::{max_of, min_of};
+use crate::ray::Ray;
+use crate::triangle::shear;
 
 /// The largest 11-bit unorm value.
 pub const UNORM11_MAX: u32 = 2047;
@@ -26,6 +29,54 @@ pub struct DisplacedTriangle {
     pub positions: [Vec3; 3],
     pub directions: [Vec3; 3],
     pub ids: [u32; 3],
+}
+
+impl DisplacedTriangle {
+    /// Whether `ray`'s line may cross the triangle's shell, the points it can be displaced to
+    /// whatever its values: false only where it crosses none of them. Only the base triangle
+    /// is read, no value: a grid can be left before any of it is decoded.
+    ///
+    /// A point is `sum w_i (P_i + d D_i)` (barycentrics `w_i >= 0` summing to one, `d` in
+    /// `[0, 1]`: every value decodes into the unit range), a convex combination of the six
+    /// points `P_i` and `P_i + D_i`. Seen along the ray (in its sheared frame the ray is the
+    /// z axis) the shell lies within the 2D hull of those six, and the ray misses the hull
+    /// where a line separates the two. The lines tried are parallel to the sheared base
+    /// triangle's edges, which a thin shell follows. Each side is allowed for rounding, of
+    /// the decoded points and of the shears: a few units of `2^-24` of the largest coordinate
+    /// involved, of which `2^-16` is ample.
+    #[inline(always)]
+    pub fn shell_may_cross(&self, ray: &Ray) -> bool {
+        let [p0, p1, p2] = self.positions;
+        let [d0, d1, d2] = self.directions;
+        let six = [
+            shear(p0, ray),
+            shear(p1, ray),
+            shear(p2, ray),
+            shear(p0 + d0, ray),
+            shear(p1 + d1, ray),
+            shear(p2 + d2, ray),
+        ];
+        let extent = |p: Vec3, d: Vec3| p.abs().max_element() + d.abs().max_element();
+        let reach = max_of(max_of(extent(p0, d0), extent(p1, d1)), extent(p2, d2)) + ray.origin.abs().max_element();
+        let margin = reach * (1.0 / 65_536.0);
+        let [a, b, c, ..] = six;
+        // Non-short-circuiting: a shader tests all three without branching.
+        !(separates(six, a, b, margin) | separates(six, b, c, margin) | separates(six, c, a, margin))
+    }
+}
+
+/// Whether a line parallel to `p`-`q` (in the sheared frame's xy plane) has all of `points`
+/// on one side, more than `margin` (per unit of each coordinate) from the origin, which
+/// lies on the other.
+#[inline(always)]
+fn separates(points: [Vec3; 6], p: Vec3, q: Vec3, margin: f32) -> bool {
+    let (nx, ny) = (q.y - p.y, p.x - q.x);
+    let at = |v: Vec3| v.x * nx + v.y * ny;
+    let [a, b, c, d, e, f] = points;
+    let lo = min_of(min_of(min_of(at(a), at(b)), min_of(at(c), at(d))), min_of(at(e), at(f)));
+    let hi = max_of(max_of(max_of(at(a), at(b)), max_of(at(c), at(d))), max_of(at(e), at(f)));
+    let room = 2.0 * margin * (nx.abs() + ny.abs());
+    lo > room || hi < -room
 }
 
 /// The displacement a stored 11-bit value stands for: `q / 2047 * scale + bias`.
@@ -223,6 +274,54 @@ mod tests {
             let w = [(n - i - j) as f32, i as f32, j as f32].map(|w| w / n as f32);
             let expected = t.positions[0] * w[0] + t.positions[1] * w[1] + t.positions[2] * w[2];
             assert!((displaced_point(&t, p, n, 0.0) - expected).length() < 1e-6, "{p:?}");
+        }
+    }
+
+    /// Every point a triangle can be displaced to lies in its shell: rays through displaced
+    /// lattice points, from many origins, some far from the scene's origin, some along the
+    /// triangle's plane, all cross it; rays that pass the shell by well over its rounding
+    /// room do not.
+    #[test]
+    fn shells_hold_every_displaced_point() {
+        let n = 8;
+        let mut seed = 7u32;
+        let mut next = || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (seed >> 8) as f32 / (1u32 << 24) as f32 - 0.5
+        };
+        for offset in [Vec3::ZERO, Vec3::new(3.0e4, -2.0e4, 1.0e4)] {
+            for scale in [1.0e-3, 1.0, 250.0] {
+                let mut t = triangle([3, 9, 4]);
+                t.positions = t.positions.map(|p| p * scale + offset);
+                t.directions = t.directions.map(|d| d * scale);
+                let normal = (t.positions[1] - t.positions[0]).cross(t.positions[2] - t.positions[0]);
+                for p in lattice_points(n) {
+                    for q in [0, 1, 1023, 2046, UNORM11_MAX] {
+                        let point = displaced_point(&t, p, n, unorm11_displacement(q, 1.0, 0.0));
+                        let from = Vec3::new(next(), next(), next()) * 40.0 * scale;
+                        // Along the triangle's plane too: the shell seen edge on.
+                        let along = from - normal * (from.dot(normal) / normal.length_squared());
+                        for origin in [point + from, point + along, point + from * 1.0e3] {
+                            let ray = Ray::new(origin, point - origin);
+                            assert!(t.shell_may_cross(&ray), "{p:?} {q} scale {scale} offset {offset}");
+                        }
+                    }
+                }
+                // Beside the shell: aimed past each corner, as far beyond it as it lies from
+                // the triangle's centre, more than the directions lean.
+                let centre = (t.positions[0] + t.positions[1] + t.positions[2]) / 3.0;
+                let mut missed = 0;
+                for c in 0..3 {
+                    let outside = t.positions[c] * 2.0 - centre;
+                    let origin = outside + normal.normalize() * 5.0 * scale;
+                    missed += !t.shell_may_cross(&Ray::new(origin, outside - origin)) as u32;
+                }
+                // Far from the scene's origin, the rounding room of a small triangle may
+                // exceed its size: it then culls nothing, which is safe.
+                if offset == Vec3::ZERO {
+                    assert_eq!(missed, 3, "scale {scale}");
+                }
+            }
         }
     }
 

@@ -11,6 +11,7 @@
 //! a flat leaf's true shape: the sphere around a long thin or tilted triangle is mostly empty.
 
 use crate::glam::Vec3;
+use crate::min_max::{max_of, min_of};
 use crate::ray::Ray;
 // On the GPU, float methods come from a trait (GLSL.std.450 underneath); natively from core.
 #[cfg(target_arch = "spirv")]
@@ -114,7 +115,7 @@ impl FootprintFrame {
 fn first_point(x: f32, m: u32) -> i32 {
     let top = m as f32 + 2.0;
     // ceil(x) - 1 = top - 1 - floor(top - x), with top - x >= 0 once x <= top.
-    let x = x.max(0.0).min(top);
+    let x = min_of(max_of(x, 0.0), top);
     let first = (top - 1.0) as i32 - (top - x) as i32;
     if first < 0 {
         0
@@ -127,18 +128,18 @@ fn first_point(x: f32, m: u32) -> i32 {
 /// a cell reaching `x`.
 #[inline]
 fn last_point(x: f32, m: u32) -> i32 {
-    let x = x.max(-2.0).min(m as f32 - 1.0);
+    let x = min_of(max_of(x, -2.0), m as f32 - 1.0);
     (x + 2.0) as i32 - 1
 }
 
 #[inline]
 fn min3(a: f32, b: f32, c: f32) -> f32 {
-    a.min(b).min(c)
+    min_of(min_of(a, b), c)
 }
 
 #[inline]
 fn max3(a: f32, b: f32, c: f32) -> f32 {
-    a.max(b).max(c)
+    max_of(max_of(a, b), c)
 }
 
 #[cfg(test)]

@@ -223,8 +223,16 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
     #[inline]
     pub fn open(&self, grid: u32) -> OpenGrid {
         if self.displaced() {
-            return self.open_displaced(grid);
+            let ids = self.ids(grid);
+            let base = self.base_triangle(&ids);
+            return self.open_displaced(grid, &ids, base);
         }
+        self.open_stored(grid)
+    }
+
+    /// [`Self::open`] for a grid that stores its vertices (not displaced).
+    #[inline(always)]
+    fn open_stored(&self, grid: u32) -> OpenGrid {
         let g = &self.params;
         let n = 1u32 << g.levels;
         let quantized = g.quantized_inner != 0;
@@ -266,22 +274,34 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         }
     }
 
-    /// [`Self::open`] for a displaced grid: one 11-bit value per lattice point, addressed in
-    /// bits, and the base triangle's corners and directions to decode them with.
-    fn open_displaced(&self, grid: u32) -> OpenGrid {
+    /// The base triangle of a displaced grid with ids `ids`: its corners' positions and
+    /// directions, which decode its values.
+    #[inline(always)]
+    fn base_triangle(&self, ids: &GridIds) -> DisplacedTriangle {
+        let g = &self.params;
+        let corner_ids = [ids.corner(0), ids.corner(1), ids.corner(2)];
+        let at = |c: usize, k: u32| load_vec3_bits(self.vertices, g.base_word + 6 * corner_ids[c] + k);
+        DisplacedTriangle {
+            positions: [at(0, 0), at(1, 0), at(2, 0)],
+            directions: [at(0, 3), at(1, 3), at(2, 3)],
+            ids: corner_ids,
+        }
+    }
+
+    /// [`Self::open`] for a displaced grid with ids `ids` and base triangle `base`: one
+    /// 11-bit value per lattice point, addressed in bits, or compressed values.
+    fn open_displaced(&self, grid: u32, ids: &GridIds, base: DisplacedTriangle) -> OpenGrid {
         let g = &self.params;
         let n = 1u32 << g.levels;
-        let ids = self.ids(grid);
         let edge_bit = 32 * g.edge_word;
         let corner_bit = edge_bit + DISPLACEMENT_BITS * (g.corner_offset - g.edge_offset);
         let inner_bit = 32 * grid * g.inner_words;
         let own = self.level_byte(grid);
         let slots = if g.level_element != 0 && !self.compressed() {
-            self.leveled_slots(grid, &ids, own >> 3)
+            self.leveled_slots(grid, ids, own >> 3)
         } else {
-            GridSlots::addressed(&ids, n, inner_bit, edge_bit, corner_bit, DISPLACEMENT_BITS)
+            GridSlots::addressed(ids, n, inner_bit, edge_bit, corner_bit, DISPLACEMENT_BITS)
         };
-        let corner_ids = [ids.corner(0), ids.corner(1), ids.corner(2)];
         let coded = if self.compressed() {
             let scene = CodedScene {
                 code: ValueCode {
@@ -294,15 +314,9 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
                 offset_bits: g.block_offset_bits,
                 mixed: g.level_element != 0,
             };
-            scene.open(self.vertices, &ids, grid, own >> 3)
+            scene.open(self.vertices, ids, grid, own >> 3)
         } else {
             CodedGrid::default()
-        };
-        let at = |c: usize, k: u32| load_vec3_bits(self.vertices, g.base_word + 6 * corner_ids[c] + k);
-        let base = DisplacedTriangle {
-            positions: [at(0, 0), at(1, 0), at(2, 0)],
-            directions: [at(0, 3), at(1, 3), at(2, 3)],
-            ids: corner_ids,
         };
         let mut open = OpenGrid {
             slots,
@@ -823,10 +837,9 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         intersect_sphere_scaled(visit.open.origin, visit.root_radius, ray, scratch.inv_dir_len2, t) < T_FAR
     }
 
-    /// Grid `grid` opened for a visit along `ray`.
+    /// Grid `grid`, opened as `open`, set up for a visit along `ray`.
     #[inline(always)]
-    fn open_visit(&self, grid: u32, ray: &Ray) -> GridVisit {
-        let open = self.open(grid);
+    fn visit_of(&self, grid: u32, open: OpenGrid, ray: &Ray) -> GridVisit {
         let root_radius = self.radius(&open, 0);
         let lod = grid_level(&self.params, open.origin, root_radius);
         // A grid of mixed levels has no points deeper than its own level.
@@ -861,7 +874,19 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         scratch: &mut GridScratch,
         tally: &mut T,
     ) {
-        let visit = self.open_visit(grid, ray);
+        // A displaced grid lies within its base triangle's shell, which the ray can miss
+        // where it enters the grid's box and root sphere: tested before any value is read.
+        let open = if self.displaced() {
+            let ids = self.ids(grid);
+            let base = self.base_triangle(&ids);
+            if !base.shell_may_cross(ray) {
+                return;
+            }
+            self.open_displaced(grid, &ids, base)
+        } else {
+            self.open_stored(grid)
+        };
+        let visit = self.visit_of(grid, open, ray);
         if !self.crosses_root(&visit, ray, hit.t, scratch, tally) {
             return;
         }

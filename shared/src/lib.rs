@@ -24,6 +24,7 @@ pub mod grid_slots;
 pub mod grid_traverse;
 pub mod layout;
 pub mod lod;
+pub mod min_max;
 pub mod quantize;
 pub mod ray;
 pub mod sample;

@@ -1,5 +1,6 @@
 use crate::buffer::Buffer;
 use crate::glam::Vec3;
+use crate::min_max::max_of;
 use crate::ray::{Ray, T_FAR};
 // On the GPU, float methods come from a trait (GLSL.std.450 underneath); natively from core.
 #[cfg(target_arch = "spirv")]
@@ -96,7 +97,7 @@ pub fn intersect_sphere_scaled(center: Vec3, radius: f32, ray: &Ray, inv_dir_len
     let t_enter = b - s;
     let t_exit = b + s;
     if t_exit >= 0.0 && t_enter <= t_max {
-        t_enter.max(0.0)
+        max_of(t_enter, 0.0)
     } else {
         T_FAR
     }
