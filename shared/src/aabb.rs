@@ -21,13 +21,16 @@ pub fn intersect_aabb(min: Vec3, max: Vec3, ray: &Ray, t_max: f32) -> f32 {
     // an exit at 0 from a slab the ray never leaves, and a ray through a vertex on such a
     // face would slip past every triangle around it. A slab exit of exactly 0 is therefore
     // read as no exit: conservative, since a box merely touching the origin is then entered.
-    let t_exit = min_of(
-        min_of(
+    // Looked at only where the nearest exit is 0 (were another exit negative, it would be
+    // nearer than any replaced one), which is rare: the common case costs one comparison.
+    let mut exit = min_of(min_of(far.x, far.y), far.z);
+    if exit == 0.0 {
+        exit = min_of(
             min_of(no_exit_at_zero(far.x), no_exit_at_zero(far.y)),
             no_exit_at_zero(far.z),
-        ) * EXIT_SCALE,
-        t_max,
-    );
+        );
+    }
+    let t_exit = min_of(exit * EXIT_SCALE, t_max);
     if t_enter <= t_exit {
         t_enter
     } else {
