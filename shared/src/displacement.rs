@@ -66,8 +66,8 @@ impl DisplacedTriangle {
 }
 
 /// Whether a line parallel to `p`-`q` (in the sheared frame's xy plane) has all of `points`
-/// on one side, more than `margin` (per unit of each coordinate) from the origin, which
-/// lies on the other.
+/// on one side and the origin on the other, with room for each coordinate being `margin`
+/// off, twice over.
 #[inline(always)]
 fn separates(points: [Vec3; 6], p: Vec3, q: Vec3, margin: f32) -> bool {
     let (nx, ny) = (q.y - p.y, p.x - q.x);
