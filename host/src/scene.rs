@@ -2,12 +2,13 @@
 
 use gridrt_shared::cost::Uncounted;
 use gridrt_shared::glam::Vec3;
-use gridrt_shared::layout::{Camera, FrameParams, GridParams, Hit, DISPLACED_COMPRESSED};
+use gridrt_shared::layout::{Camera, FrameParams, GridParams, Hit};
 use gridrt_shared::ray::{Ray, T_FAR};
 use gridrt_shared::traverse::{closest_hit, trace, trace_triangles};
 use gridrt_shared::triangle::{intersect_triangle, triangle_normal};
 
 use crate::bvh::Aabb;
+use crate::grid::format::{read_as_format, GridFormat};
 use crate::grid::GridScene;
 use crate::triangles::TriangleScene;
 
@@ -21,7 +22,7 @@ impl Scene {
     pub fn trace(&self, ray: &Ray, t_max: f32) -> Hit {
         match self {
             Scene::Triangles(s) => trace_triangles(s.nodes.as_slice(), &s.view(), ray, t_max),
-            Scene::Grids(s) => trace(s.top(), &s.view(), ray, t_max),
+            Scene::Grids(s) => read_as_format!(s, s.params, |view| trace(s.top(), &view, ray, t_max)),
         }
     }
 
@@ -30,7 +31,15 @@ impl Scene {
     pub fn closest_hit(&self, ray: &Ray, t_max: f32) -> Hit {
         match self {
             Scene::Triangles(s) => closest_hit(s.nodes.as_slice(), &s.view(), ray, t_max, &mut Uncounted),
-            Scene::Grids(s) => closest_hit(s.top(), &s.view(), ray, t_max, &mut Uncounted),
+            Scene::Grids(s) => {
+                read_as_format!(s, s.params, |view| closest_hit(
+                    s.top(),
+                    &view,
+                    ray,
+                    t_max,
+                    &mut Uncounted
+                ))
+            }
         }
     }
 
@@ -52,14 +61,14 @@ impl Scene {
     /// Whether the scene is of grids of compressed values, which only kernels of their own
     /// decode on the GPU.
     pub fn has_compressed_values(&self) -> bool {
-        matches!(self, Scene::Grids(g) if g.params.displaced == DISPLACED_COMPRESSED)
+        matches!(self, Scene::Grids(g) if g.format() == GridFormat::Compressed)
     }
 
     /// Whether the scene is of grids in a format made for displaced grids (their values, tight
     /// headers, relative radii, a wide top level), which only kernels of their own read on the
     /// GPU: plain grids' kernels leave those formats out.
     pub fn uses_displaced_formats(&self) -> bool {
-        matches!(self, Scene::Grids(g) if g.params.uses_displaced_formats() || g.has_wide_top())
+        matches!(self, Scene::Grids(g) if g.format() != GridFormat::Plain)
     }
 
     /// Whether the scene holds what displaced grids alone do (their values, a wide top level,

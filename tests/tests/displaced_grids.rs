@@ -14,8 +14,10 @@ use gridrt::micromesh::DisplacedMesh;
 use gridrt::pipeline::{BuildOptions, RenderOptions, Representation, Shading};
 use gridrt::scene::Scene;
 use gridrt_shared::glam::Vec3;
+use gridrt_shared::layout::Hit;
 use gridrt_shared::layout::{FrameParams, RayRecord, NO_HIT, SHADE_EYE_LIGHT};
 use gridrt_shared::ray::{Ray, T_FAR};
+use gridrt_shared::traverse::trace;
 use gridrt_tests::{baked_ball, gpu_or_skip, loosely_compressed, mixed_ball, Rng};
 
 /// The ball's values plain, and compressed loosely.
@@ -76,6 +78,7 @@ fn displaced_grids_hit_as_their_decoded_triangles() {
             };
             let ray = Ray::new(origin, dir);
             let (g, t) = (grids.trace(&ray, T_FAR), triangles.trace(&ray, T_FAR));
+            assert_eq!(g, every_part(&grids, &ray), "{variant} L{levels} ray {k}: format code");
             assert_eq!(
                 g.is_hit(),
                 t.is_hit(),
@@ -102,6 +105,13 @@ fn displaced_grids_hit_as_their_decoded_triangles() {
             "{variant} L{levels}: {hits} hits, {ties} ties"
         );
     }
+}
+
+/// The closest hit of `ray` found by code carrying every grid format (`Scene::trace` carries
+/// the scene's own alone).
+fn every_part(grids: &Scene, ray: &Ray) -> Hit {
+    let Scene::Grids(g) = grids else { panic!("not grids") };
+    trace(g.top(), &g.view(), ray, T_FAR)
 }
 
 /// Whether two triangles have the same corners, in any order.

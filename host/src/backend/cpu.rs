@@ -1,6 +1,7 @@
 //! The CPU backend: every pixel and every ray of a list through the same `gridrt_shared`
 //! functions the kernels call, in parallel over rayon's threads. Its images and hits are the
-//! reference the GPU's are tested against.
+//! reference the GPU's are tested against. Grids are read by the code of their format alone,
+//! as a GPU pipeline reads them (see [`crate::grid::format`]).
 
 use std::time::Instant;
 
@@ -11,6 +12,7 @@ use gridrt_shared::traverse::{Hierarchy, LeafPrimitives};
 use rayon::prelude::*;
 
 use super::TimedTrace;
+use crate::grid::format::read_as_format;
 use crate::rays::in_turn;
 use crate::scene::Scene;
 
@@ -19,7 +21,7 @@ pub fn render_cpu(scene: &Scene, frame: &FrameParams) -> Vec<u32> {
     match scene {
         Scene::Triangles(s) => render_pixels(frame, s.nodes.as_slice(), &s.view()),
         // Read as the frame says (its level of detail), as the kernels do.
-        Scene::Grids(s) => render_pixels(frame, s.top(), &s.view_as(frame.grid)),
+        Scene::Grids(s) => read_as_format!(s, frame.grid, |view| render_pixels(frame, s.top(), &view)),
     }
 }
 

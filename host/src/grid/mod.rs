@@ -31,6 +31,7 @@ pub mod compact_top;
 pub mod compressed;
 pub mod displaced;
 mod expanded;
+pub mod format;
 mod lean;
 mod spheres;
 #[cfg(test)]

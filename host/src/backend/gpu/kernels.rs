@@ -12,6 +12,7 @@
 
 use gridrt_shared::buffer::carries;
 
+use crate::grid::format::GridFormat;
 use crate::scene::Scene;
 
 /// What a dispatch does: render a tile, or trace a list of rays.
@@ -39,14 +40,6 @@ const PLAIN_PIPELINES: usize = 4 + 8 + 12;
 /// [`Kernel::lit_smooth`]), in the slots after the others.
 pub(super) const PIPELINES: usize = 2 * PLAIN_PIPELINES;
 
-/// What the formats of displaced grids add, by format of the grids on whole buffers: plain
-/// grids', displaced grids' with plain values, and with compressed ones.
-const FORMATS: [u32; 3] = [
-    0,
-    carries::DISPLACED_FORMATS | carries::DISPLACED_GRIDS,
-    carries::DISPLACED_FORMATS | carries::DISPLACED_GRIDS | carries::DECODER | carries::ONLY_COMPRESSED,
-];
-
 impl Kernel {
     /// The kernel and specialisation that run `job` on `scene`, bound whole or `split`.
     pub fn of(scene: &Scene, job: Job, split: bool) -> Kernel {
@@ -57,12 +50,7 @@ impl Kernel {
         };
         let one_visit = grids.params.one_visit();
         if !split {
-            let format = match (scene.has_compressed_values(), scene.uses_displaced_formats()) {
-                (true, _) => 2,
-                (false, true) => 1,
-                (false, false) => 0,
-            };
-            return Kernel::grids(job, format, one_visit);
+            return Kernel::grids(job, grids.format(), one_visit);
         }
         // `Gpu::upload` binds displaced grids' formats whole; tight headers and relative radii
         // may be split, and cost a pipeline that reads them registers.
@@ -90,7 +78,7 @@ impl Kernel {
     fn split_grids(job: usize, format: usize, one_visit: bool) -> Kernel {
         Kernel {
             entry: pick(job, "render_grids_split", "trace_grids_rays_split"),
-            carries: Some((FORMATS[format] & carries::DISPLACED_FORMATS) | walk(one_visit)),
+            carries: Some((GridFormat::ALL[format].parts() & carries::DISPLACED_FORMATS) | walk(one_visit)),
             slot: 4 + 4 * format + 2 * one_visit as usize + job,
         }
     }
@@ -108,12 +96,12 @@ impl Kernel {
     }
 
     /// The grid kernel of `job` (0 render, 1 trace) on whole buffers, for grids of
-    /// [`FORMATS`]`[format]`, walked by one visit or with the stack.
-    fn grids(job: usize, format: usize, one_visit: bool) -> Kernel {
+    /// `format`, walked by one visit or with the stack.
+    fn grids(job: usize, format: GridFormat, one_visit: bool) -> Kernel {
         Kernel {
             entry: pick(job, "render_grids", "trace_grids_rays"),
-            carries: Some(FORMATS[format] | walk(one_visit)),
-            slot: 12 + 4 * format + 2 * one_visit as usize + job,
+            carries: Some(format.parts() | walk(one_visit)),
+            slot: 12 + 4 * format.index() + 2 * one_visit as usize + job,
         }
     }
 }
@@ -124,10 +112,10 @@ pub(super) fn made_at_start() -> [Kernel; 6] {
     [
         Kernel::triangles(0, false),
         Kernel::triangles(1, false),
-        Kernel::grids(0, 0, true),
-        Kernel::grids(1, 0, true),
-        Kernel::grids(0, 0, false),
-        Kernel::grids(1, 0, false),
+        Kernel::grids(0, GridFormat::Plain, true),
+        Kernel::grids(1, GridFormat::Plain, true),
+        Kernel::grids(0, GridFormat::Plain, false),
+        Kernel::grids(1, GridFormat::Plain, false),
     ]
 }
 
@@ -161,7 +149,7 @@ mod tests {
             kernels.extend([false, true].map(|split| Kernel::triangles(job, split)));
             for one_visit in [false, true] {
                 kernels.extend((0..2).map(|format| Kernel::split_grids(job, format, one_visit)));
-                kernels.extend((0..FORMATS.len()).map(|format| Kernel::grids(job, format, one_visit)));
+                kernels.extend(GridFormat::ALL.map(|format| Kernel::grids(job, format, one_visit)));
             }
         }
         assert_eq!(kernels.len(), PLAIN_PIPELINES);
