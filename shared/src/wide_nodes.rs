@@ -315,17 +315,13 @@ impl Entered {
         // eighth. From there the new child moves down past the free slots and the nearer
         // children; the children already in order never trade places.
         self.entry[6] = entry;
-        self.t[6] = t;
+        self.t[6] = kept_distance(t);
         self.order::<5>();
         self.order::<4>();
         self.order::<3>();
         self.order::<2>();
         self.order::<1>();
         self.order::<0>();
-        // Compared from now on as the stack keeps it.
-        let k = kept_distance;
-        let t = self.t;
-        self.t = [k(t[0]), k(t[1]), k(t[2]), k(t[3]), k(t[4]), k(t[5]), k(t[6])];
         self.count += 1;
     }
 

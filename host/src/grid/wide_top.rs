@@ -1,8 +1,8 @@
 //! Packing the grids' top-level BVH into wide nodes (see `gridrt_shared::wide_nodes` for the
 //! layout and the walk).
 //!
-//! Collapse: sibling leaves of one grid each first become one leaf of two; then the fewest
-//! wide nodes that hold the binary hierarchy, each node's children a cut of its binary
+//! Collapse: sibling leaves of few grids first become one leaf; then the wide nodes of least
+//! expected walk cost that hold the binary hierarchy, each node's children a cut of its binary
 //! subtree (found by dynamic programming, see [`Plan`]), at the widest width whose walk keeps
 //! within its stack. Nodes are numbered breadth first, so each node's inner children are
 //! consecutive, and the grids are reordered so that each node's leaf children name
@@ -33,6 +33,11 @@ pub struct WideTop {
 
 /// `bvh` (binary, root first) packed wide, or `None` where it must stay binary.
 pub fn pack(bvh: &Bvh) -> Option<WideTop> {
+    pack_within(bvh, STACK_ENTRIES)
+}
+
+/// [`pack`] for a walk whose stack holds `capacity` entries (at most [`STACK_ENTRIES`]).
+fn pack_within(bvh: &Bvh, capacity: usize) -> Option<WideTop> {
     let binary = &bvh.nodes;
     let root = binary.first()?;
     if bvh.order.len() as u64 >= MAX_GRIDS as u64 {
@@ -44,9 +49,9 @@ pub fn pack(bvh: &Bvh) -> Option<WideTop> {
     // narrows the nodes of a deep hierarchy where the stack needs it (narrower nodes are still
     // far fewer bytes than binary ones); a hierarchy too deep for even binary nodes within the
     // stack stays binary.
-    let groups = collapse(binary, WIDTH as usize, STACK_ENTRIES);
+    let groups = collapse(binary, WIDTH as usize, capacity);
     let first_inner = first_inner_children(&groups, binary);
-    if stack_need(&groups, binary, &first_inner) > STACK_ENTRIES {
+    if stack_need(&groups, binary, &first_inner) > capacity {
         return None;
     }
     let scene = scene_frame_of(&aabb(root))?;
@@ -73,13 +78,13 @@ pub fn pack(bvh: &Bvh) -> Option<WideTop> {
 }
 
 /// Most grids of the leaves [`merge_sibling_leaves`] makes.
-pub const MERGED_LEAF_GRIDS: u32 = 2;
+pub const MERGED_LEAF_GRIDS: u32 = 4;
 
 /// `binary` with every inner node whose two children are leaves of [`MERGED_LEAF_GRIDS`]
 /// grids or fewer in all made a leaf of them (their grids are consecutive). Why: a slot of a
-/// wide node then holds two grids, so fewer nodes hold them all, for one more root sphere
-/// tested where a ray enters the pair's box; the SAH alone keeps such pairs apart, having
-/// no cost for bytes. The merged children stay in the buffer, unreachable.
+/// wide node then holds them all, so fewer nodes hold the grids, for more grids tested where
+/// a ray enters the pair's box; the SAH alone keeps such pairs apart, having no cost for
+/// bytes. The merged children stay in the buffer, unreachable.
 fn merge_sibling_leaves(binary: &[BvhNode]) -> Vec<BvhNode> {
     let mut merged = binary.to_vec();
     // Children come after their parent (depth-first order), so backwards is bottom-up.
@@ -153,52 +158,60 @@ impl Needs {
 /// Slots a subtree can fill in its wide parent: 1 (itself) to [`WIDTH`].
 const SLOTS: usize = WIDTH as usize + 1;
 
-/// Fewer nodes than any subtree can need.
-const UNREACHABLE: u32 = u32::MAX / 4;
+/// What the walk spends, in child box tests: on opening a wide node (loading and decoding it,
+/// putting its entered children on the stack), and on each grid of a leaf it enters (its ids,
+/// base triangle and shell or root sphere test, and for the share of grids that pass, their
+/// whole visit).
+const NODE_COST: f64 = 2.0;
+const GRID_COST: f64 = 16.0;
 
-/// The collapse with the fewest wide nodes, by dynamic programming over the binary nodes: for
-/// each node and each number of slots `k` it may fill in its wide parent, the fewest wide
-/// nodes its subtree needs (`k = 1`: it is a leaf, or a wide node of its own; `k > 1`: it is
-/// opened into `k` slots, shared out between its two children).
+/// The collapse of least expected walk cost, by dynamic programming over the binary nodes
+/// (after Ylitie, Karras and Laine's): a ray enters each box with odds in proportion to its
+/// surface area, so each node and each number of slots `k` it may fill in its wide parent gets
+/// the least cost of its subtree weighted by area (`k = 1`: it is a leaf, or a wide node of
+/// its own whose children's boxes the walk tests; `k > 1`: it is opened into `k` slots, shared
+/// out between its two children).
 struct Plan {
     /// For `k > 1`, the slots given to the left child; for `k = 1`, the slots of its own node.
     choice: Vec<[u8; SLOTS]>,
-    /// The fewest wide nodes, per node and slots ([`UNREACHABLE`] where a subtree has fewer
-    /// leaves than slots).
-    nodes: Vec<[u32; SLOTS]>,
+    /// The least cost, per node and slots (infinite where a subtree has fewer leaves than
+    /// slots).
+    cost: Vec<[f64; SLOTS]>,
 }
 
 impl Plan {
     /// The plan for nodes of at most `width` children (`2 ..= WIDTH`).
     fn new(binary: &[BvhNode], width: usize) -> Plan {
-        let mut nodes = vec![[UNREACHABLE; SLOTS]; binary.len()];
+        let mut cost = vec![[f64::INFINITY; SLOTS]; binary.len()];
         let mut choice = vec![[0u8; SLOTS]; binary.len()];
         // Children come after their parent (depth-first order), so backwards is bottom-up.
         for n in (0..binary.len()).rev() {
             let node = &binary[n];
+            let area = aabb(node).area() as f64;
             if node.is_leaf() {
-                nodes[n][1] = 0;
+                cost[n][1] = area * GRID_COST * node.count as f64;
                 continue;
             }
             let (l, r) = (node.first as usize, node.first as usize + 1);
             for k in 2..=width {
                 for left in 1..k {
-                    let cost = nodes[l][left] + nodes[r][k - left];
-                    if cost < nodes[n][k] {
-                        nodes[n][k] = cost;
+                    let c = cost[l][left] + cost[r][k - left];
+                    if c < cost[n][k] {
+                        cost[n][k] = c;
                         choice[n][k] = left as u8;
                     }
                 }
             }
-            // Of equally few nodes, the widest: fewer levels to walk.
+            // Of equal costs, the widest: fewer levels to walk.
             for k in (2..=width).rev() {
-                if nodes[n][k] + 1 < nodes[n][1] {
-                    nodes[n][1] = nodes[n][k] + 1;
+                let own = area * (NODE_COST + k as f64) + cost[n][k];
+                if own < cost[n][1] {
+                    cost[n][1] = own;
                     choice[n][1] = k as u8;
                 }
             }
         }
-        Plan { choice, nodes }
+        Plan { choice, cost }
     }
 
     /// The children of inner node `n`'s wide node, `waiting` entries already on the stack
@@ -212,7 +225,7 @@ impl Plan {
         let mut children = vec![];
         for need in [&needs.planned, &needs.binary] {
             for k in (2..=preferred).rev() {
-                if self.nodes[n as usize][k] >= UNREACHABLE {
+                if !self.cost[n as usize][k].is_finite() {
                     continue;
                 }
                 children.clear();
@@ -618,7 +631,8 @@ mod tests {
 
     /// One too deep for the widest nodes (small boxes all over a sphere, as the grids of a
     /// large scan lie) takes narrower ones, within the stack, and the walk still finds what
-    /// the binary walk finds.
+    /// the binary walk finds. A stack of fewer entries than the walk's stands in for a larger
+    /// scan: the least-cost collapse of this one keeps within the walk's own.
     #[test]
     fn a_deep_hierarchy_takes_narrower_nodes() {
         let n = 40_000;
@@ -637,8 +651,11 @@ mod tests {
         let merged = merge_sibling_leaves(&bvh.nodes);
         let widest = collapse(&merged, WIDTH as usize, usize::MAX);
         let need = stack_need(&widest, &merged, &first_inner_children(&widest, &merged));
-        assert!(need > STACK_ENTRIES, "{need}");
-        let wide = pack(&bvh).expect("packs narrower");
+        let capacity = 24;
+        assert!(need > capacity, "{need}");
+        let wide = pack_within(&bvh, capacity).expect("packs narrower");
+        let groups = collapse(&merged, WIDTH as usize, capacity);
+        assert!(stack_need(&groups, &merged, &first_inner_children(&groups, &merged)) <= capacity);
         assert!(wide.nodes.len() * 2 < bvh.nodes.len(), "{} elements", wide.nodes.len());
         let hits = same_hits(&boxes, &bvh, &wide, |i| {
             let a = i as f32 * 0.618;
