@@ -60,8 +60,15 @@ impl DisplacedTriangle {
         let reach = max_of(max_of(extent(p0, d0), extent(p1, d1)), extent(p2, d2)) + ray.origin.abs().max_element();
         let margin = reach * (1.0 / 65_536.0);
         let [a, b, c, ..] = six;
-        // Non-short-circuiting: a shader tests all three without branching.
-        !(separates(six, a, b, margin) | separates(six, b, c, margin) | separates(six, c, a, margin))
+        let ab = || separates(six, a, b, margin);
+        let bc = || separates(six, b, c, margin);
+        let ca = || separates(six, c, a, margin);
+        // A shader tests all three without branching; the CPU stops at the first that separates.
+        if cfg!(target_arch = "spirv") {
+            !(ab() | bc() | ca())
+        } else {
+            !(ab() || bc() || ca())
+        }
     }
 }
 
