@@ -1,10 +1,9 @@
 //! A scene ready to trace, in either representation.
 
-use gridrt_shared::cost::Uncounted;
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::layout::{Camera, FrameParams, GridParams, Hit};
 use gridrt_shared::ray::{Ray, T_FAR};
-use gridrt_shared::traverse::{closest_hit, trace, trace_triangles};
+use gridrt_shared::traverse::{trace, trace_triangles};
 use gridrt_shared::triangle::{intersect_triangle, triangle_normal};
 
 use crate::bvh::Aabb;
@@ -23,23 +22,6 @@ impl Scene {
         match self {
             Scene::Triangles(s) => trace_triangles(s.nodes.as_slice(), &s.view(), ray, t_max),
             Scene::Grids(s) => read_as_format!(s, s.params, |view| trace(s.top(), &view, ray, t_max)),
-        }
-    }
-
-    /// Closest hit without its normal, as the GPU's ray lists trace it: all a ray list asks
-    /// for (a grid's normal decodes its triangle's corners again).
-    pub fn closest_hit(&self, ray: &Ray, t_max: f32) -> Hit {
-        match self {
-            Scene::Triangles(s) => closest_hit(s.nodes.as_slice(), &s.view(), ray, t_max, &mut Uncounted),
-            Scene::Grids(s) => {
-                read_as_format!(s, s.params, |view| closest_hit(
-                    s.top(),
-                    &view,
-                    ray,
-                    t_max,
-                    &mut Uncounted
-                ))
-            }
         }
     }
 

@@ -15,8 +15,8 @@ use gridrt_shared::cost::Uncounted;
 use gridrt_shared::glam::{UVec3, Vec3};
 use gridrt_shared::grid_traverse::GridScene;
 use gridrt_shared::layout::{
-    BvhNode, FrameParams, GridHeader, GridParams, Hit, HitRecord, RayRecord, SplitParams, TraceParams, GRID_HEADERS,
-    GRID_NODES, GRID_RADII, GRID_VERTICES, RENDER_WORKGROUP, TRACE_WORKGROUP_SIZE, TRIANGLE_NODES,
+    BvhNode, FrameParams, GridHeader, GridParams, Hit, HitRecord, RayRecord, SplitParams, TraceParams, GRID_NODES,
+    RENDER_WORKGROUP, TRACE_WORKGROUP_SIZE, TRIANGLE_NODES,
 };
 use gridrt_shared::ray::Ray;
 use gridrt_shared::shade::render_pixel;
@@ -151,17 +151,14 @@ fn whole_grids<'a>(
     params: GridParams,
     carried: u32,
 ) -> GridScene<'a, &'a [GridHeader], KernelWords<&'a [u32], WHOLE>> {
-    let words = |words| KernelWords {
-        words,
-        carries: carried,
-    };
-    GridScene {
+    let scene = GridScene {
         headers,
-        vertices: words(vertices),
-        radii: words(radii),
+        vertices,
+        radii,
         micro_triangles,
         params,
-    }
+    };
+    scene.carrying(carried)
 }
 
 /// The grids of a split scene, their words carrying `SPLIT_PLAIN & carried`.
@@ -172,17 +169,7 @@ fn split_grids<'a>(
     params: GridParams,
     carried: u32,
 ) -> GridScene<'a, Split<'a, GridHeader>, KernelWords<Split<'a, u32>, SPLIT_PLAIN>> {
-    let words = |area| KernelWords {
-        words: Split::new(chunks, split, area),
-        carries: carried,
-    };
-    GridScene {
-        headers: Split::new(chunks, split, GRID_HEADERS),
-        vertices: words(GRID_VERTICES),
-        radii: words(GRID_RADII),
-        micro_triangles,
-        params,
-    }
+    GridScene::split(chunks, split, micro_triangles, params).carrying(carried)
 }
 
 /// Grid primitives on whole buffers: top-level BVH over grids, sphere hierarchy inside each;

@@ -3,7 +3,7 @@
 //! top-level BVH of [`crate::traverse`].
 
 use crate::bit_fields::read_bits;
-use crate::buffer::{carries, element, Buffer, Chunks, Split};
+use crate::buffer::{carries, element, Buffer, Chunks, KernelWords, Split};
 use crate::compressed_values::{CodedGrid, CodedScene, PackedValues, SubLattice, ValueCode};
 use crate::cost::Tally;
 use crate::displacement::{decimated_grid_point, displaced_point, unorm11_displacement, DisplacedTriangle};
@@ -138,6 +138,22 @@ impl<'a> GridScene<'a, Split<'a, GridHeader>, Split<'a, u32>> {
             radii: Split::new(chunks, split, GRID_RADII),
             micro_triangles,
             params,
+        }
+    }
+}
+
+impl<'a, H, W> GridScene<'a, H, W> {
+    /// The same scene read by code that carries `MOST & carries` (see [`KernelWords`]): a
+    /// kernel's pipeline, or the CPU's code for one grid format.
+    #[inline(always)]
+    pub fn carrying<const MOST: u32>(self, carries: u32) -> GridScene<'a, H, KernelWords<W, MOST>> {
+        let words = |words| KernelWords { words, carries };
+        GridScene {
+            headers: self.headers,
+            vertices: words(self.vertices),
+            radii: words(self.radii),
+            micro_triangles: self.micro_triangles,
+            params: self.params,
         }
     }
 }

@@ -9,9 +9,8 @@ use gridrt::mesh::Mesh;
 use gridrt::scene::{closest_hit_slack, hit_uncertainty, hits_only_by_rounding, Scene};
 use gridrt::subdiv::{subdivide, Scheme};
 use gridrt::triangles;
-use gridrt_shared::buffer::{carries, KernelWords};
+use gridrt_shared::buffer::carries;
 use gridrt_shared::glam::Vec3;
-use gridrt_shared::grid_traverse::GridScene;
 use gridrt_shared::ray::{Ray, T_FAR};
 use gridrt_shared::traverse::trace;
 use gridrt_shared::triangle::intersect_triangle;
@@ -122,17 +121,7 @@ proptest! {
         // the stack finds (`Scene::trace` takes the former there, so the rest checks both).
         if g.params.one_visit() {
             let view = g.view();
-            let stack_only = |words| KernelWords::<_, { carries::ALL }> {
-                words,
-                carries: carries::ALL & !carries::ONE_VISIT,
-            };
-            let stacked_view = GridScene {
-                headers: view.headers,
-                vertices: stack_only(view.vertices),
-                radii: stack_only(view.radii),
-                micro_triangles: view.micro_triangles,
-                params: view.params,
-            };
+            let stacked_view = view.carrying::<{ carries::ALL }>(carries::ALL & !carries::ONE_VISIT);
             for &(origin, target) in &rays {
                 let ray = Ray::new(Vec3::from(origin), Vec3::from(target) - Vec3::from(origin));
                 let stacked = trace(g.top(), &stacked_view, &ray, T_FAR);
@@ -142,11 +131,11 @@ proptest! {
         }
         // `Scene::trace` reads the grids by the code of their format alone; code carrying
         // every part must find the same, bit for bit.
-        let every_part = g.view();
-        let grids = Scene::Grids(g.clone());
+        let grids = Scene::Grids(g);
+        let Scene::Grids(g) = &grids else { unreachable!() };
         for &(origin, target) in &rays {
             let ray = Ray::new(Vec3::from(origin), Vec3::from(target) - Vec3::from(origin));
-            prop_assert_eq!(trace(g.top(), &every_part, &ray, T_FAR), grids.trace(&ray, T_FAR), "for {:?}", ray);
+            prop_assert_eq!(trace(g.top(), &g.view(), &ray, T_FAR), grids.trace(&ray, T_FAR), "for {:?}", ray);
         }
         let tris = Scene::Triangles(triangles::build(&sub.positions, &list));
         for (origin, target) in rays {

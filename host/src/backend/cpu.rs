@@ -5,10 +5,12 @@
 
 use std::time::Instant;
 
+use gridrt_shared::cost::Uncounted;
 use gridrt_shared::glam::Vec3;
 use gridrt_shared::layout::{FrameParams, HitRecord, RayRecord, SHADE_COST};
+use gridrt_shared::ray::Ray;
 use gridrt_shared::shade::{cost_pixel, render_pixel};
-use gridrt_shared::traverse::{Hierarchy, LeafPrimitives};
+use gridrt_shared::traverse::{closest_hit, Hierarchy, LeafPrimitives};
 use rayon::prelude::*;
 
 use super::TimedTrace;
@@ -53,12 +55,24 @@ fn render_rows(frame: &FrameParams, pixel: impl Fn(u32, u32) -> u32 + Sync) -> V
 
 /// Traces a ray list on the CPU, in parallel: the closest hit of each.
 pub fn trace_cpu(scene: &Scene, rays: &[RayRecord]) -> Vec<HitRecord> {
-    use rayon::prelude::*;
+    match scene {
+        Scene::Triangles(s) => trace_rays(rays, s.nodes.as_slice(), &s.view()),
+        Scene::Grids(s) => read_as_format!(s, s.params, |view| trace_rays(rays, s.top(), &view)),
+    }
+}
+
+/// The closest hit of each ray, without its normal, as the GPU's ray lists trace it: all a
+/// ray list asks for (a grid's normal decodes its triangle's corners again).
+fn trace_rays<N: Hierarchy + Sync, P: LeafPrimitives + Sync>(
+    rays: &[RayRecord],
+    nodes: N,
+    prims: &P,
+) -> Vec<HitRecord> {
     rays.par_iter()
         .with_min_len(256)
         .map(|r| {
-            let ray = gridrt_shared::ray::Ray::new(Vec3::from(r.origin), Vec3::from(r.dir));
-            let hit = scene.closest_hit(&ray, r.t_max);
+            let ray = Ray::new(Vec3::from(r.origin), Vec3::from(r.dir));
+            let hit = closest_hit(nodes, prims, &ray, r.t_max, &mut Uncounted);
             HitRecord {
                 t: hit.t,
                 prim: hit.prim,

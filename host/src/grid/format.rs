@@ -76,15 +76,7 @@ impl GridScene {
     /// carries `MOST` (one of [`CPU_PLAIN`], [`CPU_DISPLACED`], [`CPU_COMPRESSED`], the one of
     /// its format: see `read_as_format!`).
     pub fn format_view<const MOST: u32>(&self, params: GridParams) -> FormatView<'_, MOST> {
-        let view = self.view_as(params);
-        let words = |words| KernelWords::<_, MOST> { words, carries: MOST };
-        gridrt_shared::grid_traverse::GridScene {
-            headers: view.headers,
-            vertices: words(view.vertices),
-            radii: words(view.radii),
-            micro_triangles: view.micro_triangles,
-            params,
-        }
+        self.view_as(params).carrying(MOST)
     }
 }
 

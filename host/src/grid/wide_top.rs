@@ -654,8 +654,6 @@ mod tests {
         let capacity = 24;
         assert!(need > capacity, "{need}");
         let wide = pack_within(&bvh, capacity).expect("packs narrower");
-        let groups = collapse(&merged, WIDTH as usize, capacity);
-        assert!(stack_need(&groups, &merged, &first_inner_children(&groups, &merged)) <= capacity);
         assert!(wide.nodes.len() * 2 < bvh.nodes.len(), "{} elements", wide.nodes.len());
         let hits = same_hits(&boxes, &bvh, &wide, |i| {
             let a = i as f32 * 0.618;
