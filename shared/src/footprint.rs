@@ -57,7 +57,7 @@ impl FootprintFrame {
 
     /// Which lattice points of a leaf can belong to a micro-triangle the ray crosses: the box
     /// `[la_lo, la_hi, lb_lo, lb_hi]` of lattice coordinates (empty when a `lo` exceeds its
-    /// `hi`). The leaf has `m` steps a side, thickness `thickness` and sheared corners `a`,
+    /// `hi`). The leaf has `m` steps a side (a power of two), thickness `thickness` and sheared corners `a`,
     /// `b`, `c` at lattice points `(0, 0)`, `(m, 0)`, `(0, m)`.
     ///
     /// The leaf's flat lattice in the sheared plane is `F(la, lb) = a + la u + lb v`. A
@@ -70,8 +70,10 @@ impl FootprintFrame {
     pub fn leaf_window(&self, a: Vec3, b: Vec3, c: Vec3, m: u32, thickness: f32, slack: f32) -> [u32; 4] {
         let whole = [0, m, 0, m];
         let steps = m as f32;
-        let (ux, uy) = ((b.x - a.x) / steps, (b.y - a.y) / steps);
-        let (vx, vy) = ((c.x - a.x) / steps, (c.y - a.y) / steps);
+        // `m` is a power of two: its reciprocal is exact, and so is every product by it.
+        let per_step = 1.0 / steps;
+        let (ux, uy) = ((b.x - a.x) * per_step, (b.y - a.y) * per_step);
+        let (vx, vy) = ((c.x - a.x) * per_step, (c.y - a.y) * per_step);
         let det = ux * vy - uy * vx;
         // The sine of the angle between u and v at least 1/16 (and no underflow); a NaN from
         // overflow shows up in `margin` below.

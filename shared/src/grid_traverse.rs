@@ -8,7 +8,7 @@ use crate::compressed_values::{CodedGrid, CodedScene, PackedValues, SubLattice, 
 use crate::cost::Tally;
 use crate::displacement::{decimated_grid_point, displaced_point, unorm11_displacement, DisplacedTriangle};
 use crate::footprint::FootprintFrame;
-use crate::glam::Vec3;
+use crate::glam::{Vec3, Vec4};
 use crate::grid_index::{
     edge_vertex_count, lattice_index, level_start, micro_cell_offset, sub_triangle, triangle_count, vertex_count,
     Lattice, MAX_LEAF_DEPTH,
@@ -22,8 +22,8 @@ use crate::lod::grid_level;
 use crate::quantize::{dequantize, halves_from_words, read_half, unit_from_exponent};
 use crate::ray::{Ray, T_FAR};
 use crate::sphere::{
-    byte_thickness, decode_radius, intersect_sphere_scaled, leaf_radius, leaf_thickness, relative_radius,
-    relative_radius_at,
+    byte_thickness, decode_radius, intersect_sphere_scaled, intersect_spheres, leaf_radius, leaf_thickness,
+    relative_radius, relative_radius_at,
 };
 use crate::traverse::{load_vec3_bits, record_hit, LeafPrimitives, TopStack};
 use crate::triangle::{intersect_sheared, shear};
@@ -891,7 +891,7 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         tally: &mut T,
     ) {
         // A displaced grid lies within its base triangle's shell, which the ray can miss
-        // where it enters the grid's box and root sphere: tested before any value is read.
+        // where it enters the grid's box: tested before any value is read.
         let open = if self.displaced() {
             let ids = self.ids(grid);
             let base = self.base_triangle(&ids);
@@ -902,8 +902,12 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
         } else {
             self.open_stored(grid)
         };
+        // The ray entered the grid's box closer than the closest hit to get here, and a sphere
+        // around the box's grid rarely culls what the box let through: the root's sphere is
+        // tested only where the root is itself the leaf, whose micro-triangles come next;
+        // otherwise its children's spheres are.
         let visit = self.visit_of(grid, open, ray);
-        if !self.crosses_root(&visit, ray, hit.t, scratch, tally) {
+        if visit.leaf_level == 0 && !self.crosses_root(&visit, ray, hit.t, scratch, tally) {
             return;
         }
         let stack = self.walks_with_stack();
@@ -975,19 +979,19 @@ impl<H: Buffer<GridHeader>, W: Buffer<u32>> GridScene<'_, H, W> {
             // are adjacent in BFS order.
             let first_child = level_start(level + 1) + 4 * index;
             let r = self.child_radii(&open, first_child, level + 1, radius, visit.root_radius);
-            let entry = |center: Vec3, child: u32| {
-                Entry::new(
-                    intersect_sphere_scaled(center, r[child as usize], ray, inv_dir_len2, hit.t),
-                    child,
-                )
-            };
+            let centers = [
+                sphere_center(pa, pab, pca),
+                sphere_center(pab, pb, pbc),
+                sphere_center(pca, pbc, pc),
+                sphere_center(pbc, pca, pab),
+            ];
             tally.spheres(4);
-            let mut e0 = entry(sphere_center(pa, pab, pca), 0);
-            let mut e1 = entry(sphere_center(pab, pb, pbc), 1);
-            let mut e2 = entry(sphere_center(pca, pbc, pc), 2);
-            let mut e3 = entry(sphere_center(pbc, pca, pab), 3);
+            let t = intersect_spheres(centers, Vec4::from_array(r), ray, inv_dir_len2, hit.t).to_array();
+            let mut e0 = Entry::new(t[0], 0);
+            let mut e1 = Entry::new(t[1], 1);
+            let mut e2 = Entry::new(t[2], 2);
+            let mut e3 = Entry::new(t[3], 3);
             if level + 1 == leaf_level {
-                let t = [e0.t, e1.t, e2.t, e3.t];
                 window = self.leaf_children_window(visit, index, k, (points, r, t), ray, scratch.frame);
                 tested = window[0] <= window[1];
             } else if stack {

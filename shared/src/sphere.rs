@@ -1,5 +1,5 @@
 use crate::buffer::Buffer;
-use crate::glam::Vec3;
+use crate::glam::{Vec3, Vec4};
 use crate::min_max::max_of;
 use crate::ray::{Ray, T_FAR};
 // On the GPU, float methods come from a trait (GLSL.std.450 underneath); natively from core.
@@ -103,6 +103,30 @@ pub fn intersect_sphere_scaled(center: Vec3, radius: f32, ray: &Ray, inv_dir_len
     }
 }
 
+/// [`intersect_sphere_scaled`] of four spheres at once, sphere `k` in lane `k`: the same
+/// operations in the same order, lane by lane, so each lane is the distance
+/// `intersect_sphere_scaled` gives its sphere (a CPU makes the four in SIMD lanes; a GPU runs
+/// them as it would four scalar tests).
+#[inline(always)]
+pub fn intersect_spheres(centers: [Vec3; 4], radii: Vec4, ray: &Ray, inv_dir_len2: f32, t_max: f32) -> Vec4 {
+    let [c0, c1, c2, c3] = centers;
+    let (o, d) = (ray.origin, ray.dir);
+    let oc = [
+        Vec4::new(c0.x, c1.x, c2.x, c3.x) - o.x,
+        Vec4::new(c0.y, c1.y, c2.y, c3.y) - o.y,
+        Vec4::new(c0.z, c1.z, c2.z, c3.z) - o.z,
+    ];
+    let b = (oc[0] * d.x + oc[1] * d.y + oc[2] * d.z) * inv_dir_len2;
+    let closest = [oc[0] - d.x * b, oc[1] - d.y * b, oc[2] - d.z * b];
+    let h = radii * radii - (closest[0] * closest[0] + closest[1] * closest[1] + closest[2] * closest[2]);
+    // A negative `h` (a miss) makes a NaN here, which no comparison below lets through.
+    let s = (h * inv_dir_len2).sqrt();
+    let t_enter = b - s;
+    let t_exit = b + s;
+    let crossed = h.cmpge(Vec4::ZERO) & t_exit.cmpge(Vec4::ZERO) & t_enter.cmple(Vec4::splat(t_max));
+    Vec4::select(crossed, t_enter.max(Vec4::ZERO), Vec4::splat(T_FAR))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -135,5 +159,39 @@ mod tests {
         let r = Ray::new(Vec3::new(0.0, 0.0, -1.0e4), Vec3::Z);
         let t = intersect_sphere(Vec3::new(1.0e-3, 0.0, 0.0), 2.0e-3, &r, T_FAR);
         assert!(t < T_FAR && (t - 1.0e4).abs() < 1.0);
+    }
+
+    #[test]
+    fn four_lanes_match_the_scalar_test() {
+        let mut state = 0x9e37_79b9_u32;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            (state >> 8) as f32 / (1 << 24) as f32 * 4.0 - 2.0
+        };
+        let mut entered = 0;
+        for round in 0..4000 {
+            let mut v = || Vec3::new(next(), next(), next());
+            let centers = [v(), v(), v(), v()];
+            let radii = Vec4::new(v().x, v().x, v().x, v().x).abs();
+            let origin = v();
+            // Every other ray aimed at a sphere, so that many cross theirs.
+            let dir = if round % 2 == 0 {
+                v()
+            } else {
+                centers[round % 4] - origin
+            };
+            let ray = Ray::new(origin, dir);
+            let inv_dir_len2 = 1.0 / ray.dir.dot(ray.dir);
+            let t_max = if round % 3 == 0 { T_FAR } else { 1.0 };
+            let four = intersect_spheres(centers, radii, &ray, inv_dir_len2, t_max).to_array();
+            for k in 0..4 {
+                let one = intersect_sphere_scaled(centers[k], radii[k], &ray, inv_dir_len2, t_max);
+                assert_eq!(four[k], one, "round {round}, sphere {k}");
+                entered += (one < T_FAR) as u32;
+            }
+        }
+        assert!(entered > 4000, "{entered} entered");
     }
 }

@@ -37,10 +37,10 @@
 //! very functions); the walk visits children nearest first and pops a waiting entry only while
 //! it can hold a closer hit, so it finds the binary hierarchy's closest hit.
 
-use crate::aabb::intersect_aabb;
+use crate::aabb::{intersect_aabb, intersect_aabbs};
 use crate::buffer::Buffer;
 use crate::cost::Tally;
-use crate::glam::Vec3;
+use crate::glam::{Vec3, Vec4};
 use crate::layout::BvhNode;
 use crate::ray::{Ray, T_FAR};
 use crate::traverse::{kept_distance, WalkStack, NO_NODE, TOP_STACK};
@@ -180,6 +180,33 @@ pub fn child_box(w: &NodeWords, k: u32, frame: &Frame) -> (Vec3, Vec3) {
     (frame.point(lo), frame.point(hi))
 }
 
+/// Where `ray` enters the boxes of children `FIRST .. FIRST + 4` closer than `t` (as
+/// [`intersect_aabb`] on [`child_box`] gives it), in the four lanes; slots past the last
+/// ([`WIDTH`]) decode bytes of other fields, and their lanes mean nothing.
+#[inline(always)]
+fn child_entries<const FIRST: u32>(w: &NodeWords, frame: &Frame, ray: &Ray, t: f32) -> Vec4 {
+    let codes = |f: u32| {
+        Vec4::new(
+            child_code(w, FIRST, f) as f32,
+            child_code(w, FIRST + 1, f) as f32,
+            child_code(w, FIRST + 2, f) as f32,
+            child_code(w, FIRST + 3, f) as f32,
+        )
+    };
+    let top = Vec4::splat(CODE_MAX as f32);
+    // As `Frame::point`: the origin plus the exact product of a code and the step.
+    let origin = [frame.origin.x, frame.origin.y, frame.origin.z];
+    let step = [frame.step.x, frame.step.y, frame.step.z];
+    let point = |a: usize, codes: Vec4| Vec4::splat(origin[a]) + Vec4::splat(step[a]) * codes;
+    let lo = [point(0, codes(0)), point(1, codes(1)), point(2, codes(2))];
+    let hi = [
+        point(0, top - codes(3)),
+        point(1, top - codes(4)),
+        point(2, top - codes(5)),
+    ];
+    intersect_aabbs(lo, hi, ray, t)
+}
+
 /// The box of a whole node: its frame's 255 codes.
 #[inline]
 pub fn frame_box(frame: &Frame) -> (Vec3, Vec3) {
@@ -235,16 +262,19 @@ pub(crate) fn next_leaf<N: Buffer<BvhNode>, S: WalkStack, T: Tally>(
             w,
             entered: Entered::NONE,
         };
-        // One copy of the child's visit per slot, empty ones skipped: in each the slot is a
-        // constant, so every code's word and shift are too (a loop over the slots, which
-        // not every compiler unrolls, computes them as it goes).
-        open.visit::<0, _>(ray, t, tally);
-        open.visit::<1, _>(ray, t, tally);
-        open.visit::<2, _>(ray, t, tally);
-        open.visit::<3, _>(ray, t, tally);
-        open.visit::<4, _>(ray, t, tally);
-        open.visit::<5, _>(ray, t, tally);
-        open.visit::<6, _>(ray, t, tally);
+        // Every slot's box tested first, four side by side, then one copy of the child's visit
+        // per slot, empty ones skipped: in each the slot is a constant, so every code's word
+        // and shift are too (a loop over the slots, which not every compiler unrolls,
+        // computes them as it goes).
+        let first = child_entries::<0>(&open.w, &open.frame, ray, t);
+        let last = child_entries::<4>(&open.w, &open.frame, ray, t);
+        open.visit::<0, _>(first.x, tally);
+        open.visit::<1, _>(first.y, tally);
+        open.visit::<2, _>(first.z, tally);
+        open.visit::<3, _>(first.w, tally);
+        open.visit::<4, _>(last.x, tally);
+        open.visit::<5, _>(last.y, tally);
+        open.visit::<6, _>(last.z, tally);
         open.entered.push_onto(stack, sp);
     }
 }
@@ -262,15 +292,14 @@ struct OpenNode {
 }
 
 impl OpenNode {
-    /// Child slot `K`: where the ray enters its box closer than `t`, it is sorted in among
-    /// the children entered before it.
+    /// Child slot `K`, whose box the ray enters at `t_enter` ([`T_FAR`] where it misses it or
+    /// enters beyond the closest hit): where it is entered, it is sorted in among the
+    /// children entered before it.
     #[inline(always)]
-    fn visit<const K: u32, T: Tally>(&mut self, ray: &Ray, t: f32, tally: &mut T) {
+    fn visit<const K: u32, T: Tally>(&mut self, t_enter: f32, tally: &mut T) {
         let kind = child_kind(&self.w, K);
         if kind != 0 {
-            let (lo, hi) = child_box(&self.w, K, &self.frame);
             tally.nodes(1);
-            let t_enter = intersect_aabb(lo, hi, ray, t);
             let child = if kind == INNER {
                 self.node
             } else {

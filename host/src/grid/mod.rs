@@ -297,7 +297,7 @@ impl GridScene {
     }
 }
 
-/// Top-level builder settings: opening a grid and testing its root sphere costs about four
+/// Top-level builder settings: opening a grid and testing its first spheres costs about four
 /// node visits, so the SAH weighs grids as such; a leaf may still hold a few grids where that
 /// pays. (Against weighing them as one node visit: 3 to 4% fewer traversal instructions for
 /// 0.3 to 0.4 B per micro-triangle; see docs/RESULTS.md.) Kept within the binary top-level

@@ -160,7 +160,7 @@ const SLOTS: usize = WIDTH as usize + 1;
 
 /// What the walk spends, in child box tests: on opening a wide node (loading and decoding it,
 /// putting its entered children on the stack), and on each grid of a leaf it enters (its ids,
-/// base triangle and shell or root sphere test, and for the share of grids that pass, their
+/// base triangle and shell test, and for the share of grids that pass, their
 /// whole visit).
 const NODE_COST: f64 = 2.0;
 const GRID_COST: f64 = 16.0;
