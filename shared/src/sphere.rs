@@ -105,8 +105,9 @@ pub fn intersect_sphere_scaled(center: Vec3, radius: f32, ray: &Ray, inv_dir_len
 
 /// [`intersect_sphere_scaled`] of four spheres at once, sphere `k` in lane `k`: the same
 /// operations in the same order, lane by lane, so each lane is the distance
-/// `intersect_sphere_scaled` gives its sphere (a CPU makes the four in SIMD lanes; a GPU runs
-/// them as it would four scalar tests).
+/// `intersect_sphere_scaled` gives its sphere. Natively in SIMD lanes, four square roots at
+/// once.
+#[cfg(not(target_arch = "spirv"))]
 #[inline(always)]
 pub fn intersect_spheres(centers: [Vec3; 4], radii: Vec4, ray: &Ray, inv_dir_len2: f32, t_max: f32) -> Vec4 {
     let [c0, c1, c2, c3] = centers;
@@ -125,6 +126,20 @@ pub fn intersect_spheres(centers: [Vec3; 4], radii: Vec4, ray: &Ray, inv_dir_len
     let t_exit = b + s;
     let crossed = h.cmpge(Vec4::ZERO) & t_exit.cmpge(Vec4::ZERO) & t_enter.cmple(Vec4::splat(t_max));
     Vec4::select(crossed, t_enter.max(Vec4::ZERO), Vec4::splat(T_FAR))
+}
+
+/// [`intersect_spheres`] in a shader: the four tests one after the other. A GPU's lanes are
+/// its threads, not vector registers, and four tests side by side hold more values at once:
+/// a grid's render kernel needs more registers with them, for no gain.
+#[cfg(target_arch = "spirv")]
+#[inline(always)]
+pub fn intersect_spheres(centers: [Vec3; 4], radii: Vec4, ray: &Ray, inv_dir_len2: f32, t_max: f32) -> Vec4 {
+    Vec4::new(
+        intersect_sphere_scaled(centers[0], radii.x, ray, inv_dir_len2, t_max),
+        intersect_sphere_scaled(centers[1], radii.y, ray, inv_dir_len2, t_max),
+        intersect_sphere_scaled(centers[2], radii.z, ray, inv_dir_len2, t_max),
+        intersect_sphere_scaled(centers[3], radii.w, ray, inv_dir_len2, t_max),
+    )
 }
 
 #[cfg(test)]
