@@ -170,21 +170,12 @@ fn child_code(w: &NodeWords, k: u32, f: u32) -> u32 {
     (w[word] >> shift) & 0xff
 }
 
-/// Child `k`'s box in frame `frame`.
+/// The boxes of children `FIRST .. FIRST + 4` in frame `frame`, child `FIRST + j` in lane `j`:
+/// their lower and upper corners, one `Vec4` an axis, each coordinate the origin plus the exact
+/// product of a code and the step (as [`Frame::point`]). Slots past the last ([`WIDTH`])
+/// decode bytes of other fields, and their lanes mean nothing.
 #[inline(always)]
-pub fn child_box(w: &NodeWords, k: u32, frame: &Frame) -> (Vec3, Vec3) {
-    let c = |f| child_code(w, k, f) as f32;
-    let top = CODE_MAX as f32;
-    let lo = Vec3::new(c(0), c(1), c(2));
-    let hi = Vec3::new(top - c(3), top - c(4), top - c(5));
-    (frame.point(lo), frame.point(hi))
-}
-
-/// Where `ray` enters the boxes of children `FIRST .. FIRST + 4` closer than `t` (as
-/// [`intersect_aabb`] on [`child_box`] gives it), in the four lanes; slots past the last
-/// ([`WIDTH`]) decode bytes of other fields, and their lanes mean nothing.
-#[inline(always)]
-fn child_entries<const FIRST: u32>(w: &NodeWords, frame: &Frame, ray: &Ray, t: f32) -> Vec4 {
+pub fn child_boxes<const FIRST: u32>(w: &NodeWords, frame: &Frame) -> ([Vec4; 3], [Vec4; 3]) {
     let codes = |f: u32| {
         Vec4::new(
             child_code(w, FIRST, f) as f32,
@@ -194,7 +185,6 @@ fn child_entries<const FIRST: u32>(w: &NodeWords, frame: &Frame, ray: &Ray, t: f
         )
     };
     let top = Vec4::splat(CODE_MAX as f32);
-    // As `Frame::point`: the origin plus the exact product of a code and the step.
     let origin = [frame.origin.x, frame.origin.y, frame.origin.z];
     let step = [frame.step.x, frame.step.y, frame.step.z];
     let point = |a: usize, codes: Vec4| Vec4::splat(origin[a]) + Vec4::splat(step[a]) * codes;
@@ -204,6 +194,26 @@ fn child_entries<const FIRST: u32>(w: &NodeWords, frame: &Frame, ray: &Ray, t: f
         point(1, top - codes(4)),
         point(2, top - codes(5)),
     ];
+    (lo, hi)
+}
+
+/// Child `k`'s box in frame `frame`: its lane of [`child_boxes`], the walk's own decode.
+pub fn child_box(w: &NodeWords, k: u32, frame: &Frame) -> (Vec3, Vec3) {
+    let (lo, hi) = if k < 4 {
+        child_boxes::<0>(w, frame)
+    } else {
+        child_boxes::<4>(w, frame)
+    };
+    let lane = (k % 4) as usize;
+    let corner = |c: [Vec4; 3]| Vec3::new(c[0].to_array()[lane], c[1].to_array()[lane], c[2].to_array()[lane]);
+    (corner(lo), corner(hi))
+}
+
+/// Where `ray` enters the boxes of children `FIRST .. FIRST + 4` closer than `t`, in the four
+/// lanes (see [`child_boxes`]).
+#[inline(always)]
+fn child_entries<const FIRST: u32>(w: &NodeWords, frame: &Frame, ray: &Ray, t: f32) -> Vec4 {
+    let (lo, hi) = child_boxes::<FIRST>(w, frame);
     intersect_aabbs(lo, hi, ray, t)
 }
 
